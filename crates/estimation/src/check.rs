@@ -1,0 +1,85 @@
+//! Input and output checks shared by every step of the engine.
+
+use nalgebra::{DefaultAllocator, Dim, Matrix as NaMatrix, OMatrix, RawStorage, allocator::Allocator};
+
+use crate::error::{EstimationError, Matrix, Result, Step};
+
+/// Relative tolerance on |A − Aᵀ| for matrices that must be symmetric.
+/// Inputs written by hand with 15 significant digits pass; a transposed
+/// off-diagonal block does not.
+pub(crate) const SYMMETRY_RTOL: f64 = 1e-9;
+
+/// Error unless every element is finite.
+pub(crate) fn finite<R: Dim, C: Dim, S: RawStorage<f64, R, C>>(
+    m: &NaMatrix<f64, R, C, S>,
+    step: Step,
+    matrix: Matrix,
+) -> Result<()> {
+    if m.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(EstimationError::NonFinite { step, matrix })
+    }
+}
+
+/// Error unless the shape is `rows × cols` (only ever fails for run-time sizes).
+pub(crate) fn shape<R: Dim, C: Dim, S: RawStorage<f64, R, C>>(
+    m: &NaMatrix<f64, R, C, S>,
+    expected: (usize, usize),
+    step: Step,
+    matrix: Matrix,
+) -> Result<()> {
+    let (rows, cols) = m.shape();
+    if (rows, cols) == expected {
+        Ok(())
+    } else {
+        Err(EstimationError::DimensionMismatch {
+            step,
+            matrix,
+            rows,
+            cols,
+            expected_rows: expected.0,
+            expected_cols: expected.1,
+        })
+    }
+}
+
+/// Error unless the square matrix is symmetric to [`SYMMETRY_RTOL`] of its largest element.
+pub(crate) fn symmetric<D: Dim, S: RawStorage<f64, D, D>>(
+    m: &NaMatrix<f64, D, D, S>,
+    step: Step,
+    matrix: Matrix,
+) -> Result<()> {
+    let n = m.nrows();
+    let scale = m.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    let mut worst = 0.0_f64;
+    for i in 0..n {
+        for j in (i + 1)..n {
+            worst = worst.max((m[(i, j)] - m[(j, i)]).abs());
+        }
+    }
+    if worst <= SYMMETRY_RTOL * scale.max(f64::MIN_POSITIVE) {
+        Ok(())
+    } else {
+        Err(EstimationError::NotSymmetric {
+            step,
+            matrix,
+            asymmetry: worst,
+        })
+    }
+}
+
+/// Replace `m` by `(m + mᵀ)/2` in place, without allocating.
+pub(crate) fn symmetrize<D: Dim>(m: &mut OMatrix<f64, D, D>)
+where
+    DefaultAllocator: Allocator<D, D>,
+{
+    let n = m.nrows();
+    for i in 0..n {
+        for j in (i + 1)..n {
+            let v = 0.5 * (m[(i, j)] + m[(j, i)]);
+            m[(i, j)] = v;
+            m[(j, i)] = v;
+        }
+    }
+}

@@ -1,0 +1,474 @@
+//! The linear Kalman filter: predict with (Φ, Q), update with (z, H, R).
+//!
+//! One generic type serves compile-time sized filters (`Const<N>`, no heap
+//! allocation in predict or update) and run-time sized ones (`Dyn`, for
+//! filters that grow with the number of vehicles). The code path is the same;
+//! only nalgebra's storage differs.
+//!
+//! Numerics follow the careful textbook route (Grewal & Andrews, *Kalman
+//! Filtering*, §6; Bar-Shalom, Li & Kirubarajan, §5.2): S is factored by
+//! Cholesky and the gain obtained by solving `S Kᵀ = H P⁻` rather than by
+//! inverting S; the covariance is updated in Joseph form
+//! `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ`, which is valid for *any* gain and
+//! keeps P positive semi-definite under rounding; P is symmetrised after every
+//! step and checked for non-finite values.
+
+use nalgebra::{
+    Cholesky, DefaultAllocator, Dim, Dyn, OMatrix, OVector, allocator::Allocator,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::check;
+use crate::error::{EstimationError, Matrix, Result, Step};
+use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
+
+/// Allocation bounds for a filter of `N` states and `M` measurements, named
+/// once so the generic signatures stay readable.
+pub trait FilterAllocator<N: Dim, M: Dim>:
+    Allocator<N>
+    + Allocator<M>
+    + Allocator<N, N>
+    + Allocator<M, M>
+    + Allocator<N, M>
+    + Allocator<M, N>
+{
+}
+
+impl<N: Dim, M: Dim, A> FilterAllocator<N, M> for A where
+    A: Allocator<N>
+        + Allocator<M>
+        + Allocator<N, N>
+        + Allocator<M, M>
+        + Allocator<N, M>
+        + Allocator<M, N>
+{
+}
+
+/// How the covariance is updated after the gain is applied.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CovarianceUpdate {
+    /// `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ`: valid for any gain, PSD under rounding.
+    #[default]
+    Joseph,
+    /// `P = (I − K H) P⁻`: cheaper, valid only for the optimal gain; kept to
+    /// cross-check and for users reproducing papers that print it.
+    Standard,
+}
+
+/// What one measurement update did, returned to the caller (and to observers):
+/// the quantities adaptive and robust schemes need.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UpdateRecord<N: Dim, M: Dim>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    /// Innovation ν = z − H x⁻ as measured (before any policy change).
+    pub residual: OVector<f64, M>,
+    /// Innovation covariance S = H P⁻ Hᵀ + R (with the R as given).
+    pub s: OMatrix<f64, M, M>,
+    /// Gain actually applied (zero when rejected).
+    pub gain: OMatrix<f64, N, M>,
+    /// Normalised innovation squared νᵀ S⁻¹ ν (χ²(m) for a consistent filter).
+    pub nis: f64,
+    /// What the policy decided.
+    pub outcome: Outcome,
+}
+
+/// A linear Kalman filter over `N` states (`Const<n>` or `Dyn`).
+///
+/// ```
+/// use aidnav_estimation::{KalmanFilter, nalgebra::{Matrix1, Vector1}};
+/// // Static scalar x, prior N(0, 1), one measurement z = 2 with R = 1.
+/// let mut kf = KalmanFilter::new(Vector1::new(0.0), Matrix1::new(1.0)).unwrap();
+/// kf.predict(&Matrix1::new(1.0), &Matrix1::new(0.0)).unwrap();
+/// let rec = kf.update(&Vector1::new(2.0), &Matrix1::new(1.0), &Matrix1::new(1.0)).unwrap();
+/// assert!((kf.state()[0] - 1.0).abs() < 1e-15);      // (0/1 + 2/1) / (1/1 + 1/1)
+/// assert!((kf.covariance()[(0, 0)] - 0.5).abs() < 1e-15);
+/// assert!((rec.nis - 2.0).abs() < 1e-15);             // 2² / (1 + 1)
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct KalmanFilter<N: Dim>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    x: OVector<f64, N>,
+    p: OMatrix<f64, N, N>,
+    covariance_update: CovarianceUpdate,
+}
+
+/// A filter whose size is fixed at compile time.
+pub type FixedKalmanFilter<const N: usize> = KalmanFilter<nalgebra::Const<N>>;
+/// A filter whose size is chosen at run time.
+pub type DynKalmanFilter = KalmanFilter<Dyn>;
+
+impl<N: Dim> KalmanFilter<N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    /// Start from `x0` and its covariance `p0` (symmetric, finite; it may be
+    /// singular, e.g. for states known exactly).
+    pub fn new(x0: OVector<f64, N>, p0: OMatrix<f64, N, N>) -> Result<Self> {
+        let step = Step::Initialise;
+        check::shape(&p0, (x0.len(), x0.len()), step, Matrix::P)?;
+        check::finite(&x0, step, Matrix::X)?;
+        check::finite(&p0, step, Matrix::P)?;
+        check::symmetric(&p0, step, Matrix::P)?;
+        let mut p = p0;
+        check::symmetrize(&mut p);
+        if (0..p.nrows()).any(|i| p[(i, i)] < 0.0) {
+            return Err(EstimationError::NotPositiveDefinite {
+                step,
+                matrix: Matrix::P,
+            });
+        }
+        Ok(Self {
+            x: x0,
+            p,
+            covariance_update: CovarianceUpdate::Joseph,
+        })
+    }
+
+    /// Choose the covariance update form (Joseph by default).
+    pub fn with_covariance_update(mut self, form: CovarianceUpdate) -> Self {
+        self.covariance_update = form;
+        self
+    }
+
+    /// The covariance update form in use.
+    pub fn covariance_update(&self) -> CovarianceUpdate {
+        self.covariance_update
+    }
+
+    /// Current state estimate.
+    pub fn state(&self) -> &OVector<f64, N> {
+        &self.x
+    }
+
+    /// Current covariance.
+    pub fn covariance(&self) -> &OMatrix<f64, N, N> {
+        &self.p
+    }
+
+    /// Number of states.
+    pub fn dim(&self) -> usize {
+        self.x.len()
+    }
+
+    /// Replace the state estimate (closed-loop feedback resets it to zero, say).
+    pub fn set_state(&mut self, x: OVector<f64, N>) -> Result<()> {
+        check::shape(&x, (self.dim(), 1), Step::Initialise, Matrix::X)?;
+        check::finite(&x, Step::Initialise, Matrix::X)?;
+        self.x = x;
+        Ok(())
+    }
+
+    /// Replace the covariance (checked as in [`KalmanFilter::new`]).
+    pub fn set_covariance(&mut self, p: OMatrix<f64, N, N>) -> Result<()> {
+        let fresh = Self::new(self.x.clone(), p)?;
+        self.p = fresh.p;
+        Ok(())
+    }
+
+    /// Time update `x = Φ x`, `P = Φ P Φᵀ + Q`.
+    pub fn predict(&mut self, phi: &OMatrix<f64, N, N>, q: &OMatrix<f64, N, N>) -> Result<()> {
+        self.predict_state(phi)?;
+        self.predict_covariance(phi, q)
+    }
+
+    /// State half of the time update, `x = Φ x`. Adaptive schemes that need the
+    /// innovation of the predicted state before choosing Q call this, then
+    /// [`innovation`](Self::innovation), then [`predict_covariance`](Self::predict_covariance).
+    pub fn predict_state(&mut self, phi: &OMatrix<f64, N, N>) -> Result<()> {
+        let n = self.dim();
+        check::shape(phi, (n, n), Step::Predict, Matrix::Phi)?;
+        check::finite(phi, Step::Predict, Matrix::Phi)?;
+        self.x = phi * &self.x;
+        check::finite(&self.x, Step::Predict, Matrix::X)
+    }
+
+    /// Covariance half of the time update, `P = Φ P Φᵀ + Q`.
+    pub fn predict_covariance(
+        &mut self,
+        phi: &OMatrix<f64, N, N>,
+        q: &OMatrix<f64, N, N>,
+    ) -> Result<()> {
+        let n = self.dim();
+        let step = Step::Predict;
+        check::shape(phi, (n, n), step, Matrix::Phi)?;
+        check::shape(q, (n, n), step, Matrix::Q)?;
+        check::finite(phi, step, Matrix::Phi)?;
+        check::finite(q, step, Matrix::Q)?;
+        check::symmetric(q, step, Matrix::Q)?;
+        let mut p = phi * &self.p * phi.transpose() + q;
+        check::symmetrize(&mut p);
+        check::finite(&p, step, Matrix::P)?;
+        self.p = p;
+        Ok(())
+    }
+
+    /// Innovation ν = z − H x, S = H P Hᵀ + R and the NIS, without changing the filter.
+    pub fn innovation<M: Dim>(
+        &self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+    ) -> Result<Innovation<M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let step = Step::Update;
+        let m = z.len();
+        check::shape(h, (m, self.dim()), step, Matrix::H)?;
+        check::shape(r, (m, m), step, Matrix::R)?;
+        check::finite(z, step, Matrix::Z)?;
+        check::finite(h, step, Matrix::H)?;
+        check::finite(r, step, Matrix::R)?;
+        check::symmetric(r, step, Matrix::R)?;
+        let residual = z - h * &self.x;
+        let mut hph = h * &self.p * h.transpose();
+        check::symmetrize(&mut hph);
+        let s = &hph + r;
+        let chol = Cholesky::new(s.clone()).ok_or(EstimationError::NotPositiveDefinite {
+            step,
+            matrix: Matrix::S,
+        })?;
+        let nis = residual.dot(&chol.solve(&residual));
+        Ok(Innovation {
+            residual,
+            hph,
+            s,
+            chol,
+            nis,
+        })
+    }
+
+    /// Measurement update accepting every measurement (the plain Kalman filter).
+    pub fn update<M: Dim>(
+        &mut self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+    ) -> Result<UpdateRecord<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        self.update_with(z, h, r, &mut AcceptAll)
+    }
+
+    /// Measurement update under a policy: the policy sees the innovation and
+    /// decides to accept, reject, limit, re-weight or use another gain.
+    pub fn update_with<M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
+        &mut self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+        policy: &mut Pol,
+    ) -> Result<UpdateRecord<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let step = Step::Update;
+        let innov = self.innovation(z, h, r)?;
+        let decision = policy.decide(&InnovationView {
+            residual: &innov.residual,
+            hph: &innov.hph,
+            r,
+            s: &innov.s,
+            nis: innov.nis,
+        });
+        let (nrows, ncols) = (h.shape_generic().1, h.shape_generic().0);
+        let (outcome, gain) = match decision {
+            Decision::Reject => (Outcome::Rejected, OMatrix::zeros_generic(nrows, ncols)),
+            Decision::Accept => {
+                let gain = self.gain(&innov.chol, h);
+                self.apply(&gain, &innov.residual, h, r, step)?;
+                (Outcome::Accepted, gain)
+            }
+            Decision::ReplaceResidual(limited) => {
+                check::shape(&limited, (z.len(), 1), step, Matrix::Innovation)?;
+                check::finite(&limited, step, Matrix::Innovation)?;
+                let gain = self.gain(&innov.chol, h);
+                self.apply(&gain, &limited, h, r, step)?;
+                (Outcome::Limited, gain)
+            }
+            Decision::InflateR(factor) => {
+                if !(factor.is_finite() && factor > 0.0) {
+                    return Err(EstimationError::NonFinite {
+                        step,
+                        matrix: Matrix::R,
+                    });
+                }
+                let r_used = r * factor;
+                let chol = Cholesky::new(&innov.hph + &r_used).ok_or(
+                    EstimationError::NotPositiveDefinite {
+                        step,
+                        matrix: Matrix::S,
+                    },
+                )?;
+                let gain = self.gain(&chol, h);
+                self.apply(&gain, &innov.residual, h, &r_used, step)?;
+                (Outcome::Reweighted, gain)
+            }
+            Decision::GainCovariance(c) => {
+                check::shape(&c, (z.len(), z.len()), step, Matrix::S)?;
+                check::finite(&c, step, Matrix::S)?;
+                let chol = Cholesky::new(c).ok_or(EstimationError::NotPositiveDefinite {
+                    step,
+                    matrix: Matrix::S,
+                })?;
+                let gain = self.gain(&chol, h);
+                self.apply(&gain, &innov.residual, h, r, step)?;
+                (Outcome::AdaptiveGain, gain)
+            }
+        };
+        Ok(UpdateRecord {
+            residual: innov.residual,
+            s: innov.s,
+            gain,
+            nis: innov.nis,
+            outcome,
+        })
+    }
+
+    /// K = P Hᵀ C⁻¹ from a Cholesky factor of C, solving C Kᵀ = H P (C, P symmetric).
+    fn gain<M: Dim>(&self, chol: &Cholesky<f64, M>, h: &OMatrix<f64, M, N>) -> OMatrix<f64, N, M>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        chol.solve(&(h * &self.p)).transpose()
+    }
+
+    /// x += K ν; P by the configured form; symmetrise and check.
+    fn apply<M: Dim>(
+        &mut self,
+        gain: &OMatrix<f64, N, M>,
+        residual: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+        step: Step,
+    ) -> Result<()>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        check::finite(gain, step, Matrix::K)?;
+        self.x += gain * residual;
+        let (nr, _) = self.p.shape_generic();
+        let i_kh = OMatrix::<f64, N, N>::identity_generic(nr, nr) - gain * h;
+        let mut p = match self.covariance_update {
+            CovarianceUpdate::Joseph => {
+                &i_kh * &self.p * i_kh.transpose() + gain * r * gain.transpose()
+            }
+            CovarianceUpdate::Standard => &i_kh * &self.p,
+        };
+        check::symmetrize(&mut p);
+        check::finite(&self.x, step, Matrix::X)?;
+        check::finite(&p, step, Matrix::P)?;
+        self.p = p;
+        Ok(())
+    }
+
+    /// Sequential (scalar-by-scalar) update for a diagonal R: each component is
+    /// processed as its own scalar measurement, so no matrix is factored.
+    /// Mathematically identical to the batch update when R is diagonal; the
+    /// returned record holds the sequential innovations, their variances on the
+    /// diagonal of `s`, the columns of the scalar gains, and the NIS as the sum
+    /// of the scalar NIS (equal to the batch NIS by the chain rule of the
+    /// Gaussian likelihood). No policy is applied on this path.
+    pub fn update_sequential<M: Dim>(
+        &mut self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+    ) -> Result<UpdateRecord<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let step = Step::SequentialUpdate;
+        let m = z.len();
+        let n = self.dim();
+        check::shape(h, (m, n), step, Matrix::H)?;
+        check::shape(r, (m, m), step, Matrix::R)?;
+        check::finite(z, step, Matrix::Z)?;
+        check::finite(h, step, Matrix::H)?;
+        check::finite(r, step, Matrix::R)?;
+        for i in 0..m {
+            for j in 0..m {
+                if i != j && r[(i, j)] != 0.0 {
+                    return Err(EstimationError::NotDiagonal {
+                        step,
+                        matrix: Matrix::R,
+                        row: i,
+                        col: j,
+                        value: r[(i, j)],
+                    });
+                }
+            }
+        }
+        let (md, nd) = h.shape_generic();
+        let mut residual = OVector::<f64, M>::zeros_generic(md, nalgebra::U1);
+        let mut s = OMatrix::<f64, M, M>::zeros_generic(md, md);
+        let mut gains = OMatrix::<f64, N, M>::zeros_generic(nd, md);
+        let mut nis = 0.0;
+        let mut ph = OVector::<f64, N>::zeros_generic(nd, nalgebra::U1);
+        for i in 0..m {
+            let hi = h.row(i);
+            let ri = r[(i, i)];
+            // P hᵀ, then the scalar innovation variance s = h P hᵀ + r.
+            ph.gemv(1.0, &self.p, &hi.transpose(), 0.0);
+            let si = (hi * &ph)[0] + ri;
+            if !(si > 0.0 && si.is_finite()) {
+                return Err(EstimationError::NotPositiveDefinite {
+                    step,
+                    matrix: Matrix::S,
+                });
+            }
+            let nu = z[i] - (hi * &self.x)[0];
+            let k = &ph / si;
+            self.x.axpy(nu, &k, 1.0);
+            // Joseph form for a scalar measurement, expanded without forming
+            // (I − k h): P − k (hP) − (Ph) kᵀ + k s kᵀ, which equals
+            // (I − k h) P (I − k h)ᵀ + k r kᵀ exactly.
+            match self.covariance_update {
+                CovarianceUpdate::Joseph => {
+                    self.p.ger(-1.0, &k, &ph, 1.0);
+                    self.p.ger(-1.0, &ph, &k, 1.0);
+                    self.p.ger(si, &k, &k, 1.0);
+                }
+                CovarianceUpdate::Standard => self.p.ger(-1.0, &k, &ph, 1.0),
+            }
+            check::symmetrize(&mut self.p);
+            residual[i] = nu;
+            s[(i, i)] = si;
+            gains.set_column(i, &k);
+            nis += nu * nu / si;
+        }
+        check::finite(&self.x, step, Matrix::X)?;
+        check::finite(&self.p, step, Matrix::P)?;
+        Ok(UpdateRecord {
+            residual,
+            s,
+            gain: gains,
+            nis,
+            outcome: Outcome::Accepted,
+        })
+    }
+}
+
+/// An innovation with its covariance and factor, computed without changing the filter.
+#[derive(Debug, Clone)]
+pub struct Innovation<M: Dim>
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    /// ν = z − H x.
+    pub residual: OVector<f64, M>,
+    /// H P Hᵀ.
+    pub hph: OMatrix<f64, M, M>,
+    /// S = H P Hᵀ + R.
+    pub s: OMatrix<f64, M, M>,
+    /// Cholesky factor of S.
+    pub chol: Cholesky<f64, M>,
+    /// νᵀ S⁻¹ ν.
+    pub nis: f64,
+}

@@ -1,0 +1,66 @@
+//! # aidnav-estimation — the Kalman engine
+//!
+//! A small, generic estimation engine that knows nothing about navigation:
+//!
+//! - [`KalmanFilter`]: predict (Φ, Q) and update (z, H, R) with Cholesky-solved
+//!   gain and Joseph-form covariance, P kept symmetric, every step checked for
+//!   non-finite and non-positive-definite matrices ([`EstimationError`] names the
+//!   step and the matrix). One generic type serves compile-time sized filters
+//!   (`Const<N>`, allocation-free) and run-time sized ones (`Dyn`).
+//! - [`policy`]: measurement policies as values — accept, χ² gate, Huber, and
+//!   any closure — that see the innovation and decide; the update returns the
+//!   innovation, its covariance and the gain ([`UpdateRecord`]).
+//! - sequential scalar update for diagonal R ([`KalmanFilter::update_sequential`]).
+//! - information form and the Fisher / Cramér–Rao recursion ([`InformationFilter`],
+//!   [`FisherInformation`]).
+//! - Rauch–Tung–Striebel smoother over a stored forward pass ([`rts_smooth`]).
+//! - NIS / NEES with χ² bounds ([`consistency`]).
+//! - steady-state covariance from the discrete algebraic Riccati equation
+//!   ([`steady_state_covariance`]).
+//! - a linear Gaussian model and its filter loop reporting to an [`Observer`]
+//!   ([`LinearGaussianModel`]).
+//!
+//! ```
+//! use aidnav_estimation::{KalmanFilter, Chi2Gate, Outcome, nalgebra::{Matrix2, Vector2, Matrix1x2, Vector1, Matrix1}};
+//! // Constant-velocity model, position measured; a 50σ outlier is gated out.
+//! let dt: f64 = 1.0;
+//! let phi = Matrix2::new(1.0, dt, 0.0, 1.0);
+//! let q = Matrix2::new(dt.powi(3) / 3.0, dt.powi(2) / 2.0, dt.powi(2) / 2.0, dt) * 0.01;
+//! let h = Matrix1x2::new(1.0, 0.0);
+//! let r = Matrix1::new(1.0);
+//! let mut kf = KalmanFilter::new(Vector2::zeros(), Matrix2::identity()).unwrap();
+//! kf.predict(&phi, &q).unwrap();
+//! let rec = kf.update_with(&Vector1::new(50.0), &h, &r, &mut Chi2Gate { probability: 0.999 }).unwrap();
+//! assert_eq!(rec.outcome, Outcome::Rejected);
+//! assert_eq!(kf.state()[0], 0.0);
+//! ```
+
+pub mod consistency;
+mod check;
+pub mod error;
+pub mod information;
+pub mod kalman;
+pub mod linear;
+pub mod observer;
+pub mod policy;
+pub mod riccati;
+pub mod smoother;
+
+pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
+pub use error::{EstimationError, Matrix, Result, Step};
+pub use information::{FisherInformation, InformationFilter};
+pub use kalman::{
+    CovarianceUpdate, DynKalmanFilter, FilterAllocator, FixedKalmanFilter, Innovation,
+    KalmanFilter, UpdateRecord,
+};
+pub use linear::{LinearGaussianModel, RunOptions, RunOutput, UpdateMethod};
+pub use observer::{Collect, Discard, EpochRecord, Observer};
+pub use policy::{
+    AcceptAll, Chi2Gate, Decision, Huber, InnovationView, MeasurementPolicy, Outcome, PolicyChoice,
+};
+pub use riccati::{SteadyState, steady_state_covariance};
+pub use smoother::{ForwardEpoch, SmoothedEpoch, rts_smooth};
+
+/// The linear-algebra crate the engine is written in, re-exported so users
+/// build matrices of the very same version.
+pub use nalgebra;

@@ -1,0 +1,10 @@
+//! Engine tests against independent references (one test binary, submodules).
+
+mod common;
+mod consistency;
+mod errors;
+mod information;
+mod kalman;
+mod policies;
+mod riccati;
+mod smoother;
