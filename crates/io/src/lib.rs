@@ -1,1 +1,19 @@
-//! placeholder
+//! # aidnav-io — files in, files out
+//!
+//! - [`config`]: TOML scenario and model files onto serde structs; every error
+//!   names the file, the line, the key and, for a value out of range, the
+//!   allowed range.
+//! - [`model_file`]: the linear-model file of `aidnav filter`.
+//! - [`measurements`]: the measurement CSV of `aidnav filter` (empty cell = missing).
+//! - [`writers`]: CSV observers for filter runs, `summary.json`.
+//! - [`plot`]: SVG line charts.
+
+pub mod config;
+pub mod error;
+pub mod measurements;
+pub mod model_file;
+pub mod plot;
+pub mod writers;
+
+pub use config::{Invalid, Validate, load_toml, parse_toml};
+pub use error::{IoError, Result};

@@ -1,1 +1,13 @@
-//! placeholder
+//! # aidnav-models — state-space models
+//!
+//! Each model gives Φ, Q (and H, R where it is measured) for an epoch; the
+//! estimation engine runs them without knowing what they mean. This layer
+//! starts with the building blocks every navigation model is made of; the
+//! 14-state launch-frame model, the 3-state platform model, the local-level
+//! INS error model and the group kinematics arrive with their issues.
+
+pub mod constant_velocity;
+pub mod gauss_markov;
+
+pub use constant_velocity::ConstantVelocity;
+pub use gauss_markov::GaussMarkov;

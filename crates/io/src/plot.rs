@@ -1,0 +1,165 @@
+//! SVG line charts for curves people would rather look at than read.
+//!
+//! Pure SVG through plotters' SVG backend without system fonts, so plots work
+//! on a fresh machine with no fontconfig.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::error::{IoError, Result};
+
+/// Line style of a series.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LineStyle {
+    /// Solid line.
+    Solid,
+    /// Dashed line (bounds, references).
+    Dashed,
+}
+
+/// One curve.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// (x, y) points; non-finite y values break the line.
+    pub points: Vec<(f64, f64)>,
+    /// Style.
+    pub style: LineStyle,
+    /// Palette index (same index, same colour).
+    pub color: usize,
+}
+
+/// A chart with a title, axis labels and curves.
+#[derive(Debug, Clone)]
+pub struct LineChart {
+    /// Title on top.
+    pub title: String,
+    /// X axis label (with unit).
+    pub x_label: String,
+    /// Y axis label (with unit).
+    pub y_label: String,
+    /// Curves.
+    pub series: Vec<Series>,
+    /// Logarithmic y axis.
+    pub log_y: bool,
+}
+
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(90, 90, 90),
+];
+
+impl LineChart {
+    /// Render to an SVG file at `path` (800×500 px).
+    pub fn write_svg(&self, path: &Path) -> Result<()> {
+        let err = |e: String| IoError::Write { path: path.to_path_buf(), message: e };
+        let finite = self.series.iter().flat_map(|s| s.points.iter()).filter(|(x, y)| {
+            x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0)
+        });
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        for &(x, y) in finite {
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+        if !x0.is_finite() {
+            (x0, x1, y0, y1) = (0.0, 1.0, if self.log_y { 0.1 } else { 0.0 }, 1.0);
+        }
+        if x1 <= x0 {
+            x1 = x0 + 1.0;
+        }
+        if y1 <= y0 {
+            y1 = y0 + y0.abs().max(1.0) * 0.1;
+        }
+        let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let mut builder = ChartBuilder::on(&root);
+        builder
+            .caption(&self.title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70);
+        if self.log_y {
+            let mut chart = builder
+                .build_cartesian_2d(x0..x1, (y0..y1 * 1.05).log_scale())
+                .map_err(|e| err(e.to_string()))?;
+            chart
+                .configure_mesh()
+                .x_desc(&self.x_label)
+                .y_desc(&self.y_label)
+                .draw()
+                .map_err(|e| err(e.to_string()))?;
+            self.draw_series(&mut chart).map_err(err)?;
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| err(e.to_string()))?;
+        } else {
+            let pad = 0.05 * (y1 - y0);
+            let mut chart = builder
+                .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+                .map_err(|e| err(e.to_string()))?;
+            chart
+                .configure_mesh()
+                .x_desc(&self.x_label)
+                .y_desc(&self.y_label)
+                .draw()
+                .map_err(|e| err(e.to_string()))?;
+            self.draw_series(&mut chart).map_err(err)?;
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| err(e.to_string()))?;
+        }
+        root.present().map_err(|e| err(e.to_string()))
+    }
+
+    fn draw_series<'a, X, Y>(
+        &self,
+        chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, Y>>,
+    ) -> std::result::Result<(), String>
+    where
+        X: Ranged<ValueType = f64>,
+        Y: Ranged<ValueType = f64>,
+    {
+        for s in &self.series {
+            let color = PALETTE[s.color % PALETTE.len()];
+            let style = ShapeStyle::from(&color).stroke_width(2);
+            // Split at non-finite points so gaps stay gaps.
+            let mut segments: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+            for &(x, y) in &s.points {
+                if x.is_finite() && y.is_finite() && (!self.log_y || y > 0.0) {
+                    segments.last_mut().map(|v| v.push((x, y)));
+                } else if segments.last().is_some_and(|v| !v.is_empty()) {
+                    segments.push(Vec::new());
+                }
+            }
+            let mut first = true;
+            for seg in segments.into_iter().filter(|v| !v.is_empty()) {
+                let anno = match s.style {
+                    LineStyle::Solid => chart.draw_series(LineSeries::new(seg, style)),
+                    LineStyle::Dashed => chart.draw_series(DashedLineSeries::new(seg, 8, 5, style)),
+                }
+                .map_err(|e| e.to_string())?;
+                if first {
+                    anno.label(s.label.clone()).legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], ShapeStyle::from(&color).stroke_width(2))
+                    });
+                    first = false;
+                }
+            }
+        }
+        Ok(())
+    }
+}

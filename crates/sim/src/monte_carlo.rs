@@ -1,0 +1,129 @@
+//! Parallel Monte Carlo over all cores, deterministic whatever the thread count.
+
+use std::io::IsTerminal;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+use crate::rng::{RunRng, run_rng};
+
+/// Whether to show a progress bar.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Progress {
+    /// Show one on a terminal, unless the `CI` environment variable is set.
+    #[default]
+    Auto,
+    /// Never show one.
+    Hidden,
+}
+
+/// A Monte Carlo campaign: `runs` runs under master seed `seed`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MonteCarlo {
+    /// Number of runs.
+    pub runs: usize,
+    /// Master seed; run k uses stream k of it (see [`crate::rng`]).
+    pub seed: u64,
+    /// Progress bar policy.
+    pub progress: Progress,
+    /// Label shown before the bar.
+    pub label: String,
+}
+
+impl MonteCarlo {
+    /// `runs` runs under `seed`, progress bar on a terminal.
+    pub fn new(runs: usize, seed: u64) -> Self {
+        Self {
+            runs,
+            seed,
+            progress: Progress::Auto,
+            label: String::from("Monte Carlo"),
+        }
+    }
+
+    /// Never show a progress bar.
+    pub fn quiet(mut self) -> Self {
+        self.progress = Progress::Hidden;
+        self
+    }
+
+    /// Set the label of the progress bar.
+    pub fn with_label(mut self, label: impl Into<String>) -> Self {
+        self.label = label.into();
+        self
+    }
+
+    fn bar(&self) -> ProgressBar {
+        let show = self.progress == Progress::Auto
+            && std::io::stderr().is_terminal()
+            && std::env::var_os("CI").is_none();
+        if !show {
+            return ProgressBar::hidden();
+        }
+        let bar = ProgressBar::new(self.runs as u64);
+        let style = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} runs ({eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> ");
+        bar.set_style(style);
+        bar.set_message(self.label.clone());
+        bar
+    }
+
+    /// Run `f(run_index, rng)` for every run in parallel; results in run order.
+    pub fn run<T, F>(&self, f: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(usize, &mut RunRng) -> T + Sync,
+    {
+        let bar = self.bar();
+        let out = (0..self.runs)
+            .into_par_iter()
+            .map(|k| {
+                let mut rng = run_rng(self.seed, k as u64);
+                let r = f(k, &mut rng);
+                bar.inc(1);
+                r
+            })
+            .collect();
+        bar.finish_and_clear();
+        out
+    }
+
+    /// As [`run`](Self::run) for fallible runs: the first error (lowest run index) wins.
+    pub fn try_run<T, E, F>(&self, f: F) -> Result<Vec<T>, E>
+    where
+        T: Send,
+        E: Send,
+        F: Fn(usize, &mut RunRng) -> Result<T, E> + Sync,
+    {
+        self.run(f).into_iter().collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::RngExt;
+
+    #[test]
+    fn serial_equals_parallel() {
+        let mc = MonteCarlo::new(64, 7).quiet();
+        let work = |k: usize, rng: &mut RunRng| -> (usize, f64) {
+            let s: f64 = (0..1000).map(|_| rng.random::<f64>()).sum();
+            (k, s)
+        };
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let serial = one.install(|| mc.run(work));
+        let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+        let parallel = four.install(|| mc.run(work));
+        assert_eq!(serial, parallel);
+        assert!(serial.iter().enumerate().all(|(i, (k, _))| i == *k));
+    }
+
+    #[test]
+    fn try_run_reports_the_first_failing_run() {
+        let mc = MonteCarlo::new(10, 1).quiet();
+        let r: Result<Vec<usize>, usize> = mc.try_run(|k, _| if k >= 3 { Err(k) } else { Ok(k) });
+        assert_eq!(r, Err(3));
+    }
+}
