@@ -66,6 +66,18 @@ impl Observer for Discard {
     fn observe_epoch(&mut self, _record: &EpochRecord) {}
 }
 
+impl<T: Observer + ?Sized> Observer for &mut T {
+    fn observe_init(&mut self, states: usize, measurements: usize) {
+        (**self).observe_init(states, measurements);
+    }
+    fn observe_epoch(&mut self, record: &EpochRecord) {
+        (**self).observe_epoch(record);
+    }
+    fn observe_final(&mut self) {
+        (**self).observe_final();
+    }
+}
+
 impl<A: Observer, B: Observer> Observer for (A, B) {
     fn observe_init(&mut self, states: usize, measurements: usize) {
         self.0.observe_init(states, measurements);

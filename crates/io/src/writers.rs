@@ -84,7 +84,7 @@ impl FilterCsvWriter {
 }
 
 fn fmt(v: f64) -> String {
-    if v.is_nan() { String::new() } else { format!("{v:.12e}") }
+    if v.is_nan() { String::new() } else { format!("{v}") }
 }
 
 impl Observer for FilterCsvWriter {
