@@ -57,13 +57,13 @@ __attribute__((noinline)) bool step(Problem<N, M>& s) {
   p = ikh * s.p * ikh.transpose() + k * s.r * k.transpose();
 #else
   // Joseph form in the rank-m association, as aidnav does:
-  // A = P - K (HP) = (I-KH)P;  A (I-KH)^T + K R K^T = A - (A H^T) K^T + (K R) K^T.
+  // A = P - K (HP) = (I-KH)P;  A (I-KH)^T + K R K^T = A + (K R - A H^T) K^T.
   Eigen::Matrix<double, N, N> a = s.p;
   a.noalias() -= k * hp;
-  Eigen::Matrix<double, N, M> aht = a * s.h.transpose();
+  Eigen::Matrix<double, N, M> d = k * s.r;
+  d.noalias() -= a * s.h.transpose();
   p = a;
-  p.noalias() -= aht * k.transpose();
-  p.noalias() += (k * s.r) * k.transpose();
+  p.noalias() += d * k.transpose();
 #endif
   s.p = 0.5 * (p + p.transpose());
 #ifdef CHECKS

@@ -19,6 +19,7 @@ use nalgebra::{
 use serde::{Deserialize, Serialize};
 
 use crate::check;
+use crate::dense;
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
 
@@ -200,7 +201,11 @@ where
         check::finite(phi, step, Matrix::Phi)?;
         check::finite(q, step, Matrix::Q)?;
         check::symmetric(q, step, Matrix::Q)?;
-        let mut p = phi * &self.p * phi.transpose() + q;
+        let (nd, _) = self.p.shape_generic();
+        let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
+        dense::gemm(&mut phi_p, 1.0, phi, &self.p, 0.0);
+        let mut p = q.clone();
+        dense::gemm_nt(&mut p, 1.0, &phi_p, phi, 1.0);
         check::symmetrize(&mut p);
         check::finite(&p, step, Matrix::P)?;
         self.p = p;
@@ -226,8 +231,11 @@ where
         check::finite(r, step, Matrix::R)?;
         check::symmetric(r, step, Matrix::R)?;
         let residual = z - h * &self.x;
-        let hp = h * &self.p;
-        let mut hph = &hp * h.transpose();
+        let (md, nd) = h.shape_generic();
+        let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
+        dense::gemm(&mut hp, 1.0, h, &self.p, 0.0);
+        let mut hph = OMatrix::<f64, M, M>::zeros_generic(md, md);
+        dense::gemm_nt(&mut hph, 1.0, &hp, h, 0.0);
         check::symmetrize(&mut hph);
         let s = &hph + r;
         let chol = Cholesky::new(s.clone()).ok_or(EstimationError::NotPositiveDefinite {
@@ -346,7 +354,8 @@ where
     /// The Joseph form `(I − K H) P (I − K H)ᵀ + K R Kᵀ` is evaluated in the
     /// association that exploits the rank-m structure of K H, never forming
     /// I − K H: `A = P − K (H P)` is `(I − K H) P`, and
-    /// `A (I − K H)ᵀ = A − (A Hᵀ) Kᵀ`. Same products, O(n²m) instead of O(n³).
+    /// `A (I − K H)ᵀ + K R Kᵀ = A + (K R − A Hᵀ) Kᵀ`. The same Joseph
+    /// expression, grouped so it costs O(n²m) instead of O(n³).
     fn apply<M: Dim>(
         &mut self,
         gain: &OMatrix<f64, N, M>,
@@ -363,16 +372,16 @@ where
         self.x += gain * residual;
         // A = (I − K H) P
         let mut a = self.p.clone();
-        a.gemm(-1.0, gain, hp, 1.0);
+        dense::gemm(&mut a, -1.0, gain, hp, 1.0);
         let mut p = match self.covariance_update {
             CovarianceUpdate::Joseph => {
-                // A (I − K H)ᵀ + K R Kᵀ = A − (A Hᵀ) Kᵀ + (K R) Kᵀ
-                let aht = &a * h.transpose();
-                let kt = gain.transpose();
-                let kr = gain * r;
+                // A (I − K H)ᵀ + K R Kᵀ = A + (K R − A Hᵀ) Kᵀ
+                let (nd, md) = gain.shape_generic();
+                let mut d = OMatrix::<f64, N, M>::zeros_generic(nd, md);
+                dense::gemm(&mut d, 1.0, gain, r, 0.0);
+                dense::gemm_nt(&mut d, -1.0, &a, h, 1.0);
                 let mut p = a;
-                p.gemm(-1.0, &aht, &kt, 1.0);
-                p.gemm(1.0, &kr, &kt, 1.0);
+                dense::gemm_nt(&mut p, 1.0, &d, gain, 1.0);
                 p
             }
             CovarianceUpdate::Standard => a,

@@ -37,6 +37,7 @@
 
 pub mod consistency;
 mod check;
+mod dense;
 pub mod error;
 pub mod information;
 pub mod kalman;
