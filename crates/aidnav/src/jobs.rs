@@ -91,7 +91,10 @@ impl Observer for RunStats {
         if r.outcome != Outcome::Missing && r.nis.is_finite() {
             self.nis.push(r.nis, r.dof);
         }
-        *self.outcomes.entry(r.outcome.as_str().to_string()).or_default() += 1;
+        *self
+            .outcomes
+            .entry(r.outcome.as_str().to_string())
+            .or_default() += 1;
     }
 }
 
@@ -112,7 +115,12 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             )));
         }
     }
-    let mut writer = FilterCsvWriter::create(&job.out, &loaded.state_names, &loaded.measurement_names, job.full_covariance)?;
+    let mut writer = FilterCsvWriter::create(
+        &job.out,
+        &loaded.state_names,
+        &loaded.measurement_names,
+        job.full_covariance,
+    )?;
     let mut stats = RunStats::default();
     let mut options = loaded.options;
     options.keep_covariance = job.full_covariance;
@@ -123,12 +131,19 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             .model
             .run(table.epochs(), &options, &mut both)
             .map_err(|source| JobError::Estimation {
-                context: format!("{} with {}", job.model.display(), job.measurements.display()),
+                context: format!(
+                    "{} with {}",
+                    job.model.display(),
+                    job.measurements.display()
+                ),
                 source,
             })?
     };
     writer.finish()?;
-    let mut files = vec![job.out.join("estimates.csv"), job.out.join("innovations.csv")];
+    let mut files = vec![
+        job.out.join("estimates.csv"),
+        job.out.join("innovations.csv"),
+    ];
     if job.full_covariance {
         files.push(job.out.join("covariance.csv"));
     }
@@ -137,13 +152,23 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             context: format!("smoothing {}", job.measurements.display()),
             source,
         })?;
-        files.push(write_smoothed(&job.out, &loaded.state_names, &table.times, &smoothed)?);
+        files.push(write_smoothed(
+            &job.out,
+            &loaded.state_names,
+            &table.times,
+            &smoothed,
+        )?);
     }
     let report = FilterReport {
         epochs: out.epochs,
         states: loaded.state_names.clone(),
         final_state: out.final_state.iter().copied().collect(),
-        final_sigma: out.final_covariance.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect(),
+        final_sigma: out
+            .final_covariance
+            .diagonal()
+            .iter()
+            .map(|v| v.max(0.0).sqrt())
+            .collect(),
         mean_nis_per_dof: stats.nis.mean_per_dof(),
         outcomes: stats.outcomes,
         files: files.clone(),
@@ -163,14 +188,20 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
 }
 
 /// Run the consistency demo and write its CSV, plots and `summary.json` into `out`.
-pub fn consistency(scenario: &ConsistencyScenario, out: &Path, quiet: bool) -> JobResult<ConsistencyResult> {
+pub fn consistency(
+    scenario: &ConsistencyScenario,
+    out: &Path,
+    quiet: bool,
+) -> JobResult<ConsistencyResult> {
     let mut mc = MonteCarlo::new(scenario.runs, scenario.seed).with_label("consistency");
     if quiet {
         mc = mc.quiet();
     }
-    let result = aidnav_sim::experiments::consistency::run(scenario, &mc).map_err(|source| JobError::Estimation {
-        context: "consistency demo".into(),
-        source,
+    let result = aidnav_sim::experiments::consistency::run(scenario, &mc).map_err(|source| {
+        JobError::Estimation {
+            context: "consistency demo".into(),
+            source,
+        }
     })?;
     aidnav_io::writers::ensure_dir(out)?;
     let (lo, hi) = result.nees_epoch_bounds;
@@ -203,7 +234,12 @@ pub fn consistency(scenario: &ConsistencyScenario, out: &Path, quiet: bool) -> J
         .enumerate()
         .map(|(i, v)| Series {
             label: format!("{} (Q×{}, R×{})", v.name, v.q_scale, v.r_scale),
-            points: v.nees_per_epoch.iter().enumerate().map(|(k, &y)| (t(k), y)).collect(),
+            points: v
+                .nees_per_epoch
+                .iter()
+                .enumerate()
+                .map(|(k, &y)| (t(k), y))
+                .collect(),
             style: LineStyle::Solid,
             color: i,
         })
@@ -224,7 +260,12 @@ pub fn consistency(scenario: &ConsistencyScenario, out: &Path, quiet: bool) -> J
         log_y: true,
     }
     .write_svg(&out.join("nees.svg"))?;
-    let mut summary = Summary::new("reproduce consistency", VERSION, Some(scenario.seed), scenario);
+    let mut summary = Summary::new(
+        "reproduce consistency",
+        VERSION,
+        Some(scenario.seed),
+        scenario,
+    );
     summary.insert("runs", scenario.runs);
     summary.insert("nees_epoch_bounds", result.nees_epoch_bounds);
     summary.insert("variants", &result.variants);

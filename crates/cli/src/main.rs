@@ -122,11 +122,23 @@ fn run_filter(a: FilterArgs) -> Result<()> {
         full_covariance: a.full_covariance,
         max_epochs: a.max_epochs,
     })?;
-    println!("{} epochs filtered; mean NIS per degree of freedom {:.3}", report.epochs, report.mean_nis_per_dof);
-    let outcomes: Vec<String> = report.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    println!(
+        "{} epochs filtered; mean NIS per degree of freedom {:.3}",
+        report.epochs, report.mean_nis_per_dof
+    );
+    let outcomes: Vec<String> = report
+        .outcomes
+        .iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect();
     println!("updates: {}", outcomes.join(", "));
     println!("{:<20} {:>16} {:>14}", "state", "final estimate", "final σ");
-    for ((name, x), s) in report.states.iter().zip(&report.final_state).zip(&report.final_sigma) {
+    for ((name, x), s) in report
+        .states
+        .iter()
+        .zip(&report.final_state)
+        .zip(&report.final_sigma)
+    {
         println!("{name:<20} {x:>16.6} {s:>14.6}");
     }
     for f in &report.files {
@@ -146,7 +158,10 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
     if a.print_scenario {
         for e in &experiments {
             if *e == Experiment::Consistency {
-                println!("# aidnav reproduce consistency — default scenario\n{}", toml::to_string(&ConsistencyScenario::default())?);
+                println!(
+                    "# aidnav reproduce consistency — default scenario\n{}",
+                    toml::to_string(&ConsistencyScenario::default())?
+                );
             }
         }
         return Ok(());
@@ -172,9 +187,18 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
                     s.seed = seed;
                 }
                 aidnav::io::Validate::validate(&s).map_err(|inv| {
-                    anyhow::anyhow!("{}: {} is out of range: allowed {}", inv.key, inv.value, inv.allowed)
+                    anyhow::anyhow!(
+                        "{}: {} is out of range: allowed {}",
+                        inv.key,
+                        inv.value,
+                        inv.allowed
+                    )
                 })?;
-                let out = if a.experiment == Experiment::All || a.out.is_none() { root.join("consistency") } else { root.clone() };
+                let out = if a.experiment == Experiment::All || a.out.is_none() {
+                    root.join("consistency")
+                } else {
+                    root.clone()
+                };
                 let r = jobs::consistency(&s, &out, a.quiet).context("consistency demo")?;
                 print_consistency(&s, &r, &out);
             }
@@ -199,7 +223,15 @@ fn print_consistency(s: &ConsistencyScenario, r: &ConsistencyResult, out: &Path)
     );
     println!(
         "{:<12} {:>5} {:>5} {:>10} {:>9} {:>19} {:>13} {:>12} {:>11}  verdict",
-        "variant", "Q×", "R×", "mean NEES", "mean NIS", "NIS interval", "NEES inside", "RMS err [m]", "RMS σ [m]"
+        "variant",
+        "Q×",
+        "R×",
+        "mean NEES",
+        "mean NIS",
+        "NIS interval",
+        "NEES inside",
+        "RMS err [m]",
+        "RMS σ [m]"
     );
     for v in &r.variants {
         println!(
@@ -213,8 +245,15 @@ fn print_consistency(s: &ConsistencyScenario, r: &ConsistencyResult, out: &Path)
             100.0 * v.fraction_epochs_nees_inside,
             v.rms_position_error_m,
             v.rms_position_sigma_m,
-            if v.consistent { "consistent" } else { "INCONSISTENT" }
+            if v.consistent {
+                "consistent"
+            } else {
+                "INCONSISTENT"
+            }
         );
     }
-    println!("wrote {}/{{consistency.csv, nees.svg, summary.json}}", out.display());
+    println!(
+        "wrote {}/{{consistency.csv, nees.svg, summary.json}}",
+        out.display()
+    );
 }

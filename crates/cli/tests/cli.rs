@@ -19,7 +19,9 @@ fn column(csv_text: &str, name: &str) -> Vec<f64> {
     let mut lines = csv_text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let c = header.iter().position(|h| *h == name).unwrap();
-    lines.map(|l| l.split(',').nth(c).unwrap().parse().unwrap()).collect()
+    lines
+        .map(|l| l.split(',').nth(c).unwrap().parse().unwrap())
+        .collect()
 }
 
 #[test]
@@ -36,7 +38,11 @@ fn filter_reproduces_the_hand_checked_example() {
         dir.path().to_str().unwrap(),
         "--smooth",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // The values derived by hand in model.toml.
     let est = std::fs::read_to_string(dir.path().join("estimates.csv")).unwrap();
     let x = column(&est, "level");
@@ -55,7 +61,8 @@ fn filter_reproduces_the_hand_checked_example() {
     let inn = std::fs::read_to_string(dir.path().join("innovations.csv")).unwrap();
     assert!(inn.lines().nth(4).unwrap().ends_with(",,,0,missing"));
     let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
     assert_eq!(summary["command"], "filter");
     assert_eq!(summary["aidnav_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(summary["scenario"]["r"][0][0], 1.0);
@@ -65,21 +72,56 @@ fn filter_reproduces_the_hand_checked_example() {
 fn bad_inputs_give_errors_naming_file_line_and_key() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
-    std::fs::write(&model, "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\nrr = 3\n").unwrap();
+    std::fs::write(
+        &model,
+        "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\nrr = 3\n",
+    )
+    .unwrap();
     let z = dir.path().join("z.csv");
     std::fs::write(&z, "z1\n1\n").unwrap();
-    let out = aidnav(&["filter", "--model", model.to_str().unwrap(), "--measurements", z.to_str().unwrap(), "--out", dir.path().to_str().unwrap()]);
+    let out = aidnav(&[
+        "filter",
+        "--model",
+        model.to_str().unwrap(),
+        "--measurements",
+        z.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("m.toml:7: rr: unknown field `rr`"), "{err}");
 
-    std::fs::write(&model, "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\n").unwrap();
+    std::fs::write(
+        &model,
+        "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\n",
+    )
+    .unwrap();
     std::fs::write(&z, "z1\n1\nabc\n").unwrap();
-    let out = aidnav(&["filter", "--model", model.to_str().unwrap(), "--measurements", z.to_str().unwrap(), "--out", dir.path().to_str().unwrap()]);
+    let out = aidnav(&[
+        "filter",
+        "--model",
+        model.to_str().unwrap(),
+        "--measurements",
+        z.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("z.csv:3: column `z1`: \"abc\" is not a number"), "{err}");
+    assert!(
+        err.contains("z.csv:3: column `z1`: \"abc\" is not a number"),
+        "{err}"
+    );
 
-    let out = aidnav(&["filter", "--model", "/nonexistent.toml", "--measurements", z.to_str().unwrap(), "--out", dir.path().to_str().unwrap()]);
+    let out = aidnav(&[
+        "filter",
+        "--model",
+        "/nonexistent.toml",
+        "--measurements",
+        z.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("/nonexistent.toml: cannot read"), "{err}");
     assert!(!err.contains("panicked"));
@@ -90,35 +132,81 @@ fn scenario_range_errors_name_the_key_and_range() {
     let dir = tempfile::tempdir().unwrap();
     let s = dir.path().join("s.toml");
     std::fs::write(&s, "seed = 1\n\nconfidence = 1.5\n").unwrap();
-    let out = aidnav(&["reproduce", "consistency", "--scenario", s.to_str().unwrap(), "--out", dir.path().to_str().unwrap()]);
+    let out = aidnav(&[
+        "reproduce",
+        "consistency",
+        "--scenario",
+        s.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("s.toml:3: confidence: 1.5 is out of range: allowed 0 < confidence < 1"), "{err}");
+    assert!(
+        err.contains("s.toml:3: confidence: 1.5 is out of range: allowed 0 < confidence < 1"),
+        "{err}"
+    );
     std::fs::write(&s, "runs = \"ten\"\n").unwrap();
-    let out = aidnav(&["reproduce", "consistency", "--scenario", s.to_str().unwrap(), "--out", dir.path().to_str().unwrap()]);
+    let out = aidnav(&[
+        "reproduce",
+        "consistency",
+        "--scenario",
+        s.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("s.toml:1: runs: invalid type: string \"ten\""), "{err}");
+    assert!(
+        err.contains("s.toml:1: runs: invalid type: string \"ten\""),
+        "{err}"
+    );
 }
 
 #[test]
 fn reproduce_writes_table_plot_and_summary_with_seed_and_scenario() {
     let dir = tempfile::tempdir().unwrap();
-    let out = aidnav(&["reproduce", "consistency", "--runs", "20", "--seed", "99", "--out", dir.path().to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = aidnav(&[
+        "reproduce",
+        "consistency",
+        "--runs",
+        "20",
+        "--seed",
+        "99",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("tuned") && stdout.contains("q_too_small") && stdout.contains("seed 99"), "{stdout}");
+    assert!(
+        stdout.contains("tuned") && stdout.contains("q_too_small") && stdout.contains("seed 99"),
+        "{stdout}"
+    );
     for f in ["consistency.csv", "nees.svg", "summary.json"] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
     let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
     assert_eq!(summary["seed"], 99);
     assert_eq!(summary["scenario"]["runs"], 20);
     assert_eq!(summary["scenario"]["accel_psd"], 0.05);
     assert_eq!(summary["variants"].as_array().unwrap().len(), 3);
     // Same seed, same numbers.
     let again = tempfile::tempdir().unwrap();
-    aidnav(&["reproduce", "consistency", "--runs", "20", "--seed", "99", "--out", again.path().to_str().unwrap()]);
+    aidnav(&[
+        "reproduce",
+        "consistency",
+        "--runs",
+        "20",
+        "--seed",
+        "99",
+        "--out",
+        again.path().to_str().unwrap(),
+    ]);
     assert_eq!(
         std::fs::read_to_string(dir.path().join("consistency.csv")).unwrap(),
         std::fs::read_to_string(again.path().join("consistency.csv")).unwrap()
@@ -129,11 +217,20 @@ fn reproduce_writes_table_plot_and_summary_with_seed_and_scenario() {
 fn help_explains_every_subcommand() {
     let out = aidnav(&["--help"]);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("filter") && text.contains("reproduce"), "{text}");
+    assert!(
+        text.contains("filter") && text.contains("reproduce"),
+        "{text}"
+    );
     let out = aidnav(&["filter", "--help"]);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("--smooth") && text.contains("empty") && text.contains("--max-epochs"), "{text}");
+    assert!(
+        text.contains("--smooth") && text.contains("empty") && text.contains("--max-epochs"),
+        "{text}"
+    );
     let out = aidnav(&["reproduce", "--help"]);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("--print-scenario") && text.contains("consistency"), "{text}");
+    assert!(
+        text.contains("--print-scenario") && text.contains("consistency"),
+        "{text}"
+    );
 }

@@ -10,30 +10,82 @@ use aidnav_estimation::KalmanFilter;
 use aidnav_estimation::nalgebra::{Const, DMatrix, DVector, SMatrix, SVector};
 use criterion::{Criterion, criterion_group, criterion_main};
 
-/// Deterministic well-conditioned test matrices (no RNG needed for timing).
-fn problem(n: usize, m: usize) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DVector<f64>) {
-    let phi = DMatrix::from_fn(n, n, |i, j| if i == j { 1.0 } else { 0.01 * (((i * 7 + j * 3) % 11) as f64 - 5.0) / 5.0 });
-    let q = DMatrix::from_fn(n, n, |i, j| if i == j { 1e-4 * (1.0 + i as f64) } else { 0.0 });
-    let h = DMatrix::from_fn(m, n, |i, j| if i == j { 1.0 } else if j == i + m { 0.1 } else { 0.0 });
-    let r = DMatrix::from_fn(m, m, |i, j| if i == j { 0.5 + 0.1 * i as f64 } else { 0.01 });
+/// The matrices of one benchmark problem.
+struct Problem {
+    phi: DMatrix<f64>,
+    q: DMatrix<f64>,
+    h: DMatrix<f64>,
+    r: DMatrix<f64>,
+    p0: DMatrix<f64>,
+    z: DVector<f64>,
+}
+
+/// Deterministic well-conditioned test matrices (no RNG needed for timing);
+/// bench/cpp and bench/filterpy_step.py build the very same ones.
+fn problem(n: usize, m: usize) -> Problem {
+    let phi = DMatrix::from_fn(n, n, |i, j| {
+        if i == j {
+            1.0
+        } else {
+            0.01 * (((i * 7 + j * 3) % 11) as f64 - 5.0) / 5.0
+        }
+    });
+    let q = DMatrix::from_fn(
+        n,
+        n,
+        |i, j| if i == j { 1e-4 * (1.0 + i as f64) } else { 0.0 },
+    );
+    let h = DMatrix::from_fn(m, n, |i, j| {
+        if i == j {
+            1.0
+        } else if j == i + m {
+            0.1
+        } else {
+            0.0
+        }
+    });
+    let r = DMatrix::from_fn(
+        m,
+        m,
+        |i, j| if i == j { 0.5 + 0.1 * i as f64 } else { 0.01 },
+    );
     let a = DMatrix::from_fn(n, n, |i, j| (((i * 5 + j * 13) % 17) as f64 - 8.0) / 8.0);
     let p0 = &a * a.transpose() / n as f64 + DMatrix::identity(n, n);
     let z = DVector::from_fn(m, |i, _| 0.1 * i as f64);
-    (phi, q, h, r, p0, z)
+    Problem {
+        phi,
+        q,
+        h,
+        r,
+        p0,
+        z,
+    }
 }
 
 fn bench_fixed<const N: usize, const M: usize>(c: &mut Criterion, name: &str) {
-    let (phi, q, h, r, p0, z) = problem(N, M);
+    let Problem {
+        phi,
+        q,
+        h,
+        r,
+        p0,
+        z,
+    } = problem(N, M);
     let phi: SMatrix<f64, N, N> = phi.fixed_view::<N, N>(0, 0).into_owned();
     let q: SMatrix<f64, N, N> = q.fixed_view::<N, N>(0, 0).into_owned();
     let h: SMatrix<f64, M, N> = h.fixed_view::<M, N>(0, 0).into_owned();
     let r: SMatrix<f64, M, M> = r.fixed_view::<M, M>(0, 0).into_owned();
     let z: SVector<f64, M> = z.fixed_rows::<M>(0).into_owned();
-    let mut kf = KalmanFilter::<Const<N>>::new(SVector::zeros(), p0.fixed_view::<N, N>(0, 0).into_owned()).unwrap();
+    let mut kf =
+        KalmanFilter::<Const<N>>::new(SVector::zeros(), p0.fixed_view::<N, N>(0, 0).into_owned())
+            .unwrap();
     c.bench_function(name, |b| {
         b.iter(|| {
             kf.predict(black_box(&phi), black_box(&q)).unwrap();
-            black_box(kf.update(black_box(&z), black_box(&h), black_box(&r)).unwrap());
+            black_box(
+                kf.update(black_box(&z), black_box(&h), black_box(&r))
+                    .unwrap(),
+            );
         })
     });
     let base = kf.clone();
@@ -47,19 +99,32 @@ fn bench_fixed<const N: usize, const M: usize>(c: &mut Criterion, name: &str) {
     c.bench_function(&format!("{name}/update_only"), |b| {
         b.iter(|| {
             let mut k = base.clone();
-            black_box(k.update(black_box(&z), black_box(&h), black_box(&r)).unwrap());
+            black_box(
+                k.update(black_box(&z), black_box(&h), black_box(&r))
+                    .unwrap(),
+            );
             black_box(k)
         })
     });
 }
 
 fn bench_dyn(c: &mut Criterion, name: &str, n: usize, m: usize) {
-    let (phi, q, h, r, p0, z) = problem(n, m);
+    let Problem {
+        phi,
+        q,
+        h,
+        r,
+        p0,
+        z,
+    } = problem(n, m);
     let mut kf = KalmanFilter::new(DVector::zeros(n), p0).unwrap();
     c.bench_function(name, |b| {
         b.iter(|| {
             kf.predict(black_box(&phi), black_box(&q)).unwrap();
-            black_box(kf.update(black_box(&z), black_box(&h), black_box(&r)).unwrap());
+            black_box(
+                kf.update(black_box(&z), black_box(&h), black_box(&r))
+                    .unwrap(),
+            );
         })
     });
 }

@@ -15,13 +15,21 @@ use nalgebra::{DefaultAllocator, Dim, OMatrix, allocator::Allocator};
 const SMALL_DYN: usize = 32;
 
 fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -> bool {
-    let all_static = R::try_to_usize().is_some() && K::try_to_usize().is_some() && C::try_to_usize().is_some();
+    let all_static =
+        R::try_to_usize().is_some() && K::try_to_usize().is_some() && C::try_to_usize().is_some();
     all_static || r.max(k).max(c) <= SMALL_DYN
 }
 
 /// out = α · a · b + β · out, for column-major a (r×k), b (k×c), out (r×c).
 #[inline(always)]
-fn kernel_nn(r: usize, k: usize, c: usize, alpha: f64, a: &[f64], b: &[f64], beta: f64, out: &mut [f64]) {
+fn kernel_nn(
+    (r, k, c): (usize, usize, usize),
+    alpha: f64,
+    a: &[f64],
+    b: &[f64],
+    beta: f64,
+    out: &mut [f64],
+) {
     for j in 0..c {
         let oc = &mut out[j * r..(j + 1) * r];
         if beta == 0.0 {
@@ -42,7 +50,14 @@ fn kernel_nn(r: usize, k: usize, c: usize, alpha: f64, a: &[f64], b: &[f64], bet
 
 /// out = α · a · bᵀ + β · out, for column-major a (r×k), b (c×k), out (r×c).
 #[inline(always)]
-fn kernel_nt(r: usize, k: usize, c: usize, alpha: f64, a: &[f64], b: &[f64], beta: f64, out: &mut [f64]) {
+fn kernel_nt(
+    (r, k, c): (usize, usize, usize),
+    alpha: f64,
+    a: &[f64],
+    b: &[f64],
+    beta: f64,
+    out: &mut [f64],
+) {
     for j in 0..c {
         let oc = &mut out[j * r..(j + 1) * r];
         if beta == 0.0 {
@@ -73,7 +88,14 @@ pub(crate) fn gemm<R: Dim, K: Dim, C: Dim>(
 {
     let (r, k, c) = (a.nrows(), a.ncols(), b.ncols());
     if use_kernel::<R, K, C>(r, k, c) {
-        kernel_nn(r, k, c, alpha, a.as_slice(), b.as_slice(), beta, out.as_mut_slice());
+        kernel_nn(
+            (r, k, c),
+            alpha,
+            a.as_slice(),
+            b.as_slice(),
+            beta,
+            out.as_mut_slice(),
+        );
     } else {
         out.gemm(alpha, a, b, beta);
     }
@@ -92,7 +114,14 @@ pub(crate) fn gemm_nt<R: Dim, K: Dim, C: Dim>(
 {
     let (r, k, c) = (a.nrows(), a.ncols(), b.nrows());
     if use_kernel::<R, K, C>(r, k, c) {
-        kernel_nt(r, k, c, alpha, a.as_slice(), b.as_slice(), beta, out.as_mut_slice());
+        kernel_nt(
+            (r, k, c),
+            alpha,
+            a.as_slice(),
+            b.as_slice(),
+            beta,
+            out.as_mut_slice(),
+        );
     } else {
         out.gemm(alpha, a, &b.transpose(), beta);
     }

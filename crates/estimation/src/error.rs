@@ -139,7 +139,9 @@ pub enum EstimationError {
         asymmetry: f64,
     },
     /// The sequential update needs a diagonal R.
-    #[error("{step}: {matrix} must be diagonal for the sequential update (element ({row}, {col}) = {value:e})")]
+    #[error(
+        "{step}: {matrix} must be diagonal for the sequential update (element ({row}, {col}) = {value:e})"
+    )]
     NotDiagonal {
         /// Step in which it was found.
         step: Step,

@@ -17,12 +17,18 @@ use crate::check;
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::kalman::FilterAllocator;
 
+/// An information matrix with, optionally, its information vector.
+type InformationPair<N> = (OMatrix<f64, N, N>, Option<OVector<f64, N>>);
+
+/// A state estimate with its covariance.
+pub type StateAndCovariance<N> = (OVector<f64, N>, OMatrix<f64, N, N>);
+
 /// `Hᵀ R⁻¹ H` and, if given, `Hᵀ R⁻¹ z`, by Cholesky solve of R.
 fn measurement_information<N: Dim, M: Dim>(
     h: &OMatrix<f64, M, N>,
     r: &OMatrix<f64, M, M>,
     z: Option<&OVector<f64, M>>,
-) -> Result<(OMatrix<f64, N, N>, Option<OVector<f64, N>>)>
+) -> Result<InformationPair<N>>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
@@ -53,7 +59,7 @@ fn transport_information<N: Dim + DimMin<N, Output = N>>(
     phi: &OMatrix<f64, N, N>,
     info: &OMatrix<f64, N, N>,
     vec: Option<&OVector<f64, N>>,
-) -> Result<(OMatrix<f64, N, N>, Option<OVector<f64, N>>)>
+) -> Result<InformationPair<N>>
 where
     DefaultAllocator: Allocator<N> + Allocator<N, N>,
 {
@@ -176,7 +182,7 @@ where
     }
 
     /// Back to covariance form: (x̂, P). Fails while Y is singular (not yet observable).
-    pub fn state_and_covariance(&self) -> Result<(OVector<f64, N>, OMatrix<f64, N, N>)> {
+    pub fn state_and_covariance(&self) -> Result<StateAndCovariance<N>> {
         let chol = Cholesky::new(self.info_matrix.clone()).ok_or(
             EstimationError::NotPositiveDefinite {
                 step: Step::CramerRao,
@@ -284,11 +290,10 @@ where
 
     /// P_Γ = F⁻¹ (Cholesky inverse); fails while F is singular.
     pub fn cramer_rao_bound(&self) -> Result<OMatrix<f64, N, N>> {
-        let chol =
-            Cholesky::new(self.f.clone()).ok_or(EstimationError::NotPositiveDefinite {
-                step: Step::CramerRao,
-                matrix: Matrix::Information,
-            })?;
+        let chol = Cholesky::new(self.f.clone()).ok_or(EstimationError::NotPositiveDefinite {
+            step: Step::CramerRao,
+            matrix: Matrix::Information,
+        })?;
         let mut p = chol.inverse();
         check::symmetrize(&mut p);
         Ok(p)

@@ -13,9 +13,7 @@
 //! keeps P positive semi-definite under rounding; P is symmetrised after every
 //! step and checked for non-finite values.
 
-use nalgebra::{
-    Cholesky, DefaultAllocator, Dim, Dyn, OMatrix, OVector, allocator::Allocator,
-};
+use nalgebra::{Cholesky, DefaultAllocator, Dim, Dyn, OMatrix, OVector, allocator::Allocator};
 use serde::{Deserialize, Serialize};
 
 use crate::check;
@@ -26,12 +24,7 @@ use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outc
 /// Allocation bounds for a filter of `N` states and `M` measurements, named
 /// once so the generic signatures stay readable.
 pub trait FilterAllocator<N: Dim, M: Dim>:
-    Allocator<N>
-    + Allocator<M>
-    + Allocator<N, N>
-    + Allocator<M, M>
-    + Allocator<N, M>
-    + Allocator<M, N>
+    Allocator<N> + Allocator<M> + Allocator<N, N> + Allocator<M, M> + Allocator<N, M> + Allocator<M, N>
 {
 }
 

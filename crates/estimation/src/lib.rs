@@ -35,8 +35,8 @@
 //! assert_eq!(kf.state()[0], 0.0);
 //! ```
 
-pub mod consistency;
 mod check;
+pub mod consistency;
 mod dense;
 pub mod error;
 pub mod information;

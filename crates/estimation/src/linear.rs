@@ -105,7 +105,12 @@ impl LinearGaussianModel {
     /// epoch*; every later epoch is predicted with (Φ, Q) from the one before,
     /// then updated with the components present. An epoch with no component
     /// present is a pure prediction (outcome `missing`).
-    pub fn run<'a, I, O>(&self, epochs: I, options: &RunOptions, observer: &mut O) -> Result<RunOutput>
+    pub fn run<'a, I, O>(
+        &self,
+        epochs: I,
+        options: &RunOptions,
+        observer: &mut O,
+    ) -> Result<RunOutput>
     where
         I: IntoIterator<Item = (f64, &'a [Option<f64>])>,
         O: Observer + ?Sized,
@@ -141,9 +146,15 @@ impl LinearGaussianModel {
             let (nis, outcome) = if present.is_empty() {
                 (f64::NAN, Outcome::Missing)
             } else {
-                let zv = DVector::from_iterator(present.len(), present.iter().map(|&i| z[i].unwrap_or(f64::NAN)));
+                let zv = DVector::from_iterator(
+                    present.len(),
+                    present.iter().map(|&i| z[i].unwrap_or(f64::NAN)),
+                );
                 let h = self.h.select_rows(present.iter());
-                let r = self.r.select_rows(present.iter()).select_columns(present.iter());
+                let r = self
+                    .r
+                    .select_rows(present.iter())
+                    .select_columns(present.iter());
                 let rec = match options.update {
                     UpdateMethod::Batch => kf.update_with(&zv, &h, &r, &mut policy),
                     UpdateMethod::Sequential => kf.update_sequential(&zv, &h, &r),

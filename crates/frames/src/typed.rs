@@ -38,7 +38,17 @@ impl<F> PartialEq for Vec3<F> {
 }
 impl<F> fmt::Debug for Vec3<F> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "Vec3<{}>({}, {}, {})", std::any::type_name::<F>().rsplit("::").next().unwrap_or("?"), self.v.x, self.v.y, self.v.z)
+        write!(
+            f,
+            "Vec3<{}>({}, {}, {})",
+            std::any::type_name::<F>()
+                .rsplit("::")
+                .next()
+                .unwrap_or("?"),
+            self.v.x,
+            self.v.y,
+            self.v.z
+        )
     }
 }
 
@@ -49,7 +59,10 @@ impl<F> Vec3<F> {
     }
     /// Declare that a raw vector is expressed in `F` (the caller asserts it).
     pub fn assume_in_frame(v: Vector3<f64>) -> Self {
-        Self { v, frame: PhantomData }
+        Self {
+            v,
+            frame: PhantomData,
+        }
     }
     /// The raw components.
     pub fn raw(&self) -> Vector3<f64> {
@@ -107,7 +120,10 @@ impl<A, B> fmt::Debug for Rotation<A, B> {
 impl<From, To> Rotation<From, To> {
     /// Declare that `q` rotates `From` vectors into `To` (the caller asserts it).
     pub fn assume_from_quaternion(q: UnitQuaternion<f64>) -> Self {
-        Self { q, frames: PhantomData }
+        Self {
+            q,
+            frames: PhantomData,
+        }
     }
     /// The quaternion.
     pub fn quaternion(&self) -> UnitQuaternion<f64> {
@@ -140,8 +156,12 @@ mod tests {
 
     #[test]
     fn chaining_equals_applying_in_turn() {
-        let ab = Rotation::<Body, Ned>::assume_from_quaternion(UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3));
-        let bc = Rotation::<Ned, Ecef>::assume_from_quaternion(UnitQuaternion::from_euler_angles(-0.4, 0.5, 1.2));
+        let ab = Rotation::<Body, Ned>::assume_from_quaternion(UnitQuaternion::from_euler_angles(
+            0.1, -0.2, 0.3,
+        ));
+        let bc = Rotation::<Ned, Ecef>::assume_from_quaternion(UnitQuaternion::from_euler_angles(
+            -0.4, 0.5, 1.2,
+        ));
         let v = Vec3::<Body>::new(1.0, -2.0, 0.5);
         let d = (bc * ab * v - bc * (ab * v)).norm();
         assert!(d < 1e-14);

@@ -40,8 +40,14 @@ mod tests {
 
     #[test]
     fn partial_correction_leaves_the_residual_error() {
-        let truth = AxisError { bias: 0.05, scale_factor: 0.02 };
-        let estimate = AxisError { bias: 0.04, scale_factor: 0.02 };
+        let truth = AxisError {
+            bias: 0.05,
+            scale_factor: 0.02,
+        };
+        let estimate = AxisError {
+            bias: 0.04,
+            scale_factor: 0.02,
+        };
         let t = 20.0;
         let left = estimate.correct(truth.corrupt(t)) - t;
         assert!((left - 0.01 / 1.02).abs() < 1e-14);

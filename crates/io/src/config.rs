@@ -84,7 +84,12 @@ pub fn probability(key: &str, value: f64) -> std::result::Result<(), Invalid> {
 }
 
 /// Error unless `lo ≤ value ≤ hi` for integers.
-pub fn count_in_range(key: &str, value: usize, lo: usize, hi: usize) -> std::result::Result<(), Invalid> {
+pub fn count_in_range(
+    key: &str,
+    value: usize,
+    lo: usize,
+    hi: usize,
+) -> std::result::Result<(), Invalid> {
     if (lo..=hi).contains(&value) {
         Ok(())
     } else {
@@ -175,7 +180,11 @@ pub fn find_key_line(text: &str, key: &str) -> Option<usize> {
             continue;
         };
         let k = unquote(k.trim());
-        let full = if table.is_empty() { k.clone() } else { format!("{table}.{k}") };
+        let full = if table.is_empty() {
+            k.clone()
+        } else {
+            format!("{table}.{k}")
+        };
         if full == key {
             return Some(i + 1);
         }
@@ -244,13 +253,18 @@ mod tests {
     }
 
     fn err(text: &str) -> String {
-        parse_toml::<Doc>(text, Path::new("s.toml")).unwrap_err().to_string()
+        parse_toml::<Doc>(text, Path::new("s.toml"))
+            .unwrap_err()
+            .to_string()
     }
 
     #[test]
     fn unknown_key_names_file_line_and_key() {
         let e = err("runs = 3\n\n[inner]\nk = 1.0\nkk = 2\n");
-        assert!(e.starts_with("s.toml:5: inner.kk: unknown field `kk`"), "{e}");
+        assert!(
+            e.starts_with("s.toml:5: inner.kk: unknown field `kk`"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -263,9 +277,15 @@ mod tests {
     #[test]
     fn out_of_range_names_the_allowed_range() {
         let e = err("runs = 0\n[inner]\nk = 1.0\n");
-        assert_eq!(e, "s.toml:1: runs: 0 is out of range: allowed 1 ≤ runs ≤ 1000");
+        assert_eq!(
+            e,
+            "s.toml:1: runs: 0 is out of range: allowed 1 ≤ runs ≤ 1000"
+        );
         let e = err("runs = 2\n[inner]\n# comment\nk = -1.5\n");
-        assert_eq!(e, "s.toml:4: inner.k: -1.5 is out of range: allowed k > 0 and finite");
+        assert_eq!(
+            e,
+            "s.toml:4: inner.k: -1.5 is out of range: allowed k > 0 and finite"
+        );
     }
 
     #[test]

@@ -43,12 +43,19 @@ impl MeasurementTable {
 
     /// (time, values) per epoch, as the filter loop takes them.
     pub fn epochs(&self) -> impl Iterator<Item = (f64, &[Option<f64>])> {
-        self.times.iter().copied().zip(self.values.iter().map(Vec::as_slice))
+        self.times
+            .iter()
+            .copied()
+            .zip(self.values.iter().map(Vec::as_slice))
     }
 }
 
 /// Read a measurement CSV whose columns must be `names` (plus optional `time`).
-pub fn read_measurements(path: &Path, names: &[String], max_epochs: usize) -> Result<MeasurementTable> {
+pub fn read_measurements(
+    path: &Path,
+    names: &[String],
+    max_epochs: usize,
+) -> Result<MeasurementTable> {
     let file = std::fs::File::open(path).map_err(|source| IoError::Read {
         path: path.to_path_buf(),
         source,
@@ -80,7 +87,11 @@ pub fn parse_measurements<R: std::io::Read>(
         .map_err(|e| data_err(1, "(header)", e.to_string()))?
         .clone();
     if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
-        return Err(data_err(1, "(header)", "the file has no header line".into()));
+        return Err(data_err(
+            1,
+            "(header)",
+            "the file has no header line".into(),
+        ));
     }
     let mut time_col = None;
     let mut slot = vec![usize::MAX; header.len()];
@@ -99,12 +110,23 @@ pub fn parse_measurements<R: std::io::Read>(
             return Err(data_err(
                 1,
                 h,
-                format!("unknown column; the model's measurements are {names:?} (plus an optional `time`)"),
+                format!(
+                    "unknown column; the model's measurements are {names:?} (plus an optional `time`)"
+                ),
             ));
         }
     }
-    if let Some(missing) = names.iter().enumerate().find(|(i, _)| !slot.contains(i)).map(|(_, n)| n) {
-        return Err(data_err(1, missing, "column missing from the header".into()));
+    if let Some(missing) = names
+        .iter()
+        .enumerate()
+        .find(|(i, _)| !slot.contains(i))
+        .map(|(_, n)| n)
+    {
+        return Err(data_err(
+            1,
+            missing,
+            "column missing from the header".into(),
+        ));
     }
     let mut table = MeasurementTable {
         times: Vec::new(),
@@ -131,7 +153,9 @@ pub fn parse_measurements<R: std::io::Read>(
         if table.len() >= max_epochs {
             return Err(IoError::Limit {
                 path: origin.to_path_buf(),
-                message: format!("more than {max_epochs} epochs; raise the limit with --max-epochs"),
+                message: format!(
+                    "more than {max_epochs} epochs; raise the limit with --max-epochs"
+                ),
             });
         }
         let mut values = vec![None; names.len()];
@@ -139,13 +163,17 @@ pub fn parse_measurements<R: std::io::Read>(
         for (c, cell) in record.iter().enumerate() {
             let col = &header[c];
             if Some(c) == time_col {
-                time = parse_number(cell).map_err(|m| data_err(line, col, m))?.ok_or_else(|| {
-                    data_err(line, col, "empty time cell".into())
-                })?;
+                time = parse_number(cell)
+                    .map_err(|m| data_err(line, col, m))?
+                    .ok_or_else(|| data_err(line, col, "empty time cell".into()))?;
                 if let Some(&prev) = table.times.last()
                     && time <= prev
                 {
-                    return Err(data_err(line, col, format!("time {time} is not after the previous {prev}")));
+                    return Err(data_err(
+                        line,
+                        col,
+                        format!("time {time} is not after the previous {prev}"),
+                    ));
                 }
             } else {
                 values[slot[c]] = parse_number(cell).map_err(|m| data_err(line, col, m))?;
@@ -163,7 +191,9 @@ fn parse_number(cell: &str) -> std::result::Result<Option<f64>, String> {
     }
     match cell.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(Some(v)),
-        Ok(v) => Err(format!("non-finite value {v}; leave the cell empty for a missing value")),
+        Ok(v) => Err(format!(
+            "non-finite value {v}; leave the cell empty for a missing value"
+        )),
         Err(_) => Err(format!("{cell:?} is not a number")),
     }
 }
@@ -202,9 +232,15 @@ mod tests {
         let e = parse("time,a\n").unwrap_err().to_string();
         assert!(e.starts_with("z.csv:1: column `b`: column missing"), "{e}");
         let e = parse("time,a,b\n1,1,2\n1,1,2\n").unwrap_err().to_string();
-        assert!(e.starts_with("z.csv:3: column `time`: time 1 is not after"), "{e}");
+        assert!(
+            e.starts_with("z.csv:3: column `time`: time 1 is not after"),
+            "{e}"
+        );
         let e = parse("time,a,b\n1,1\n").unwrap_err().to_string();
-        assert!(e.starts_with("z.csv:2: column `(row)`: 2 cells, the header has 3"), "{e}");
+        assert!(
+            e.starts_with("z.csv:2: column `(row)`: 2 cells, the header has 3"),
+            "{e}"
+        );
         let e = parse("time,a,b\n1,inf,2\n").unwrap_err().to_string();
         assert!(e.contains("non-finite"), "{e}");
     }

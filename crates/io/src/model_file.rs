@@ -30,7 +30,7 @@ use aidnav_estimation::{
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use crate::config::{Invalid, Validate, find_key_line, load_toml, probability, positive};
+use crate::config::{Invalid, Validate, find_key_line, load_toml, positive, probability};
 use crate::error::{IoError, Result};
 
 /// Upper bound on the number of states or measurement components in a model
@@ -48,11 +48,20 @@ pub enum MatrixSpec {
 }
 
 impl MatrixSpec {
-    fn to_matrix(&self, key: &str, rows: usize, cols: usize) -> std::result::Result<DMatrix<f64>, Invalid> {
+    fn to_matrix(
+        &self,
+        key: &str,
+        rows: usize,
+        cols: usize,
+    ) -> std::result::Result<DMatrix<f64>, Invalid> {
         match self {
             MatrixSpec::Full(r) => {
                 if r.len() != rows {
-                    return Err(Invalid::new(key, format!("{} rows", r.len()), format!("{rows} rows")));
+                    return Err(Invalid::new(
+                        key,
+                        format!("{} rows", r.len()),
+                        format!("{rows} rows"),
+                    ));
                 }
                 for (i, row) in r.iter().enumerate() {
                     if row.len() != cols {
@@ -67,10 +76,18 @@ impl MatrixSpec {
             }
             MatrixSpec::Diagonal(d) => {
                 if rows != cols {
-                    return Err(Invalid::new(key, "a diagonal", format!("a full {rows}×{cols} matrix")));
+                    return Err(Invalid::new(
+                        key,
+                        "a diagonal",
+                        format!("a full {rows}×{cols} matrix"),
+                    ));
                 }
                 if d.len() != rows {
-                    return Err(Invalid::new(key, format!("a diagonal of {}", d.len()), format!("a diagonal of {rows}")));
+                    return Err(Invalid::new(
+                        key,
+                        format!("a diagonal of {}", d.len()),
+                        format!("a diagonal of {rows}"),
+                    ));
                 }
                 Ok(DMatrix::from_diagonal(&DVector::from_column_slice(d)))
             }
@@ -121,14 +138,24 @@ impl Validate for ModelFile {
     fn validate(&self) -> std::result::Result<(), Invalid> {
         let n = self.x0.len();
         if n == 0 || n > MAX_MODEL_DIM {
-            return Err(Invalid::new("x0", format!("{n} states"), format!("1 to {MAX_MODEL_DIM} states")));
+            return Err(Invalid::new(
+                "x0",
+                format!("{n} states"),
+                format!("1 to {MAX_MODEL_DIM} states"),
+            ));
         }
         let m = match &self.h {
             MatrixSpec::Full(rows) => rows.len(),
-            MatrixSpec::Diagonal(_) => return Err(Invalid::new("h", "a diagonal", "rows [[…], …]")),
+            MatrixSpec::Diagonal(_) => {
+                return Err(Invalid::new("h", "a diagonal", "rows [[…], …]"));
+            }
         };
         if m == 0 || m > MAX_MODEL_DIM {
-            return Err(Invalid::new("h", format!("{m} rows"), format!("1 to {MAX_MODEL_DIM} rows")));
+            return Err(Invalid::new(
+                "h",
+                format!("{m} rows"),
+                format!("1 to {MAX_MODEL_DIM} rows"),
+            ));
         }
         self.phi.to_matrix("phi", n, n)?;
         self.q.to_matrix("q", n, n)?;
@@ -140,7 +167,11 @@ impl Validate for ModelFile {
         if let Some(names) = &self.measurements
             && names.iter().any(|s| s == "time")
         {
-            return Err(Invalid::new("measurements", "\"time\"", "names other than \"time\" (reserved for the time column)"));
+            return Err(Invalid::new(
+                "measurements",
+                "\"time\"",
+                "names other than \"time\" (reserved for the time column)",
+            ));
         }
         match self.filter.policy {
             PolicyChoice::None => {}
@@ -149,7 +180,9 @@ impl Validate for ModelFile {
             }
             PolicyChoice::Huber { k } => positive("k", k).map_err(|e| e.within("filter.policy"))?,
         }
-        if self.filter.update == UpdateMethod::Sequential && self.filter.policy != PolicyChoice::None {
+        if self.filter.update == UpdateMethod::Sequential
+            && self.filter.policy != PolicyChoice::None
+        {
             return Err(Invalid::new(
                 "filter.update",
                 "\"sequential\" with a policy",
@@ -160,14 +193,26 @@ impl Validate for ModelFile {
     }
 }
 
-fn check_names(key: &str, names: Option<&[String]>, count: usize) -> std::result::Result<(), Invalid> {
+fn check_names(
+    key: &str,
+    names: Option<&[String]>,
+    count: usize,
+) -> std::result::Result<(), Invalid> {
     let Some(names) = names else { return Ok(()) };
     if names.len() != count {
-        return Err(Invalid::new(key, format!("{} names", names.len()), format!("{count} names")));
+        return Err(Invalid::new(
+            key,
+            format!("{} names", names.len()),
+            format!("{count} names"),
+        ));
     }
     for (i, a) in names.iter().enumerate() {
         if a.trim().is_empty() || a.contains(',') {
-            return Err(Invalid::new(key, format!("{a:?}"), "non-empty names without commas"));
+            return Err(Invalid::new(
+                key,
+                format!("{a:?}"),
+                "non-empty names without commas",
+            ));
         }
         if names[..i].contains(a) {
             return Err(Invalid::new(key, format!("{a:?} twice"), "unique names"));
@@ -244,12 +289,19 @@ pub fn load_model(path: &Path) -> Result<LoadedModel> {
     };
     if options.update == UpdateMethod::Sequential {
         let r = model.r();
-        if let Some((i, j)) = (0..m).flat_map(|i| (0..m).map(move |j| (i, j))).find(|&(i, j)| i != j && r[(i, j)] != 0.0) {
+        if let Some((i, j)) = (0..m)
+            .flat_map(|i| (0..m).map(move |j| (i, j)))
+            .find(|&(i, j)| i != j && r[(i, j)] != 0.0)
+        {
             return Err(IoError::Config {
                 path: path.to_path_buf(),
                 line: find_key_line(&text, "r").unwrap_or(0),
                 key: "r".into(),
-                message: format!("element ({}, {}) is non-zero: filter.update = \"sequential\" needs a diagonal R", i + 1, j + 1),
+                message: format!(
+                    "element ({}, {}) is non-zero: filter.update = \"sequential\" needs a diagonal R",
+                    i + 1,
+                    j + 1
+                ),
             });
         }
     }
@@ -297,21 +349,37 @@ mod tests {
 
     #[test]
     fn wrong_row_length_names_key_and_line() {
-        let e = load(&GOOD.replace("h = [[1.0, 0.0]]", "h = [[1.0, 0.0, 3.0]]")).unwrap_err().to_string();
-        assert!(e.contains(":3: h: row 1 with 3 entries is out of range: allowed 2 entries per row"), "{e}");
+        let e = load(&GOOD.replace("h = [[1.0, 0.0]]", "h = [[1.0, 0.0, 3.0]]"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":3: h: row 1 with 3 entries is out of range: allowed 2 entries per row"),
+            "{e}"
+        );
     }
 
     #[test]
     fn non_positive_r_is_named() {
-        let e = load(&GOOD.replace("r = [4.0]", "r = [-4.0]")).unwrap_err().to_string();
-        assert!(e.contains(":4: r: initialise: R (measurement noise) is not positive definite"), "{e}");
+        let e = load(&GOOD.replace("r = [4.0]", "r = [-4.0]"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":4: r: initialise: R (measurement noise) is not positive definite"),
+            "{e}"
+        );
     }
 
     #[test]
     fn bad_policy_parameter_is_named() {
-        let text = format!("{GOOD}[filter]\npolicy = {{ kind = \"chi2_gate\", probability = 1.5 }}\n");
+        let text =
+            format!("{GOOD}[filter]\npolicy = {{ kind = \"chi2_gate\", probability = 1.5 }}\n");
         let e = load(&text).unwrap_err().to_string();
-        assert!(e.contains(":8: filter.policy.probability: 1.5 is out of range: allowed 0 < probability < 1"), "{e}");
+        assert!(
+            e.contains(
+                ":8: filter.policy.probability: 1.5 is out of range: allowed 0 < probability < 1"
+            ),
+            "{e}"
+        );
     }
 
     #[test]

@@ -58,11 +58,21 @@ const PALETTE: [RGBColor; 6] = [
 impl LineChart {
     /// Render to an SVG file at `path` (800×500 px).
     pub fn write_svg(&self, path: &Path) -> Result<()> {
-        let err = |e: String| IoError::Write { path: path.to_path_buf(), message: e };
-        let finite = self.series.iter().flat_map(|s| s.points.iter()).filter(|(x, y)| {
-            x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0)
-        });
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let err = |e: String| IoError::Write {
+            path: path.to_path_buf(),
+            message: e,
+        };
+        let finite = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|(x, y)| x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0));
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
         for &(x, y) in finite {
             x0 = x0.min(x);
             x1 = x1.max(x);
@@ -140,7 +150,9 @@ impl LineChart {
             let mut segments: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
             for &(x, y) in &s.points {
                 if x.is_finite() && y.is_finite() && (!self.log_y || y > 0.0) {
-                    segments.last_mut().map(|v| v.push((x, y)));
+                    if let Some(v) = segments.last_mut() {
+                        v.push((x, y));
+                    }
                 } else if segments.last().is_some_and(|v| !v.is_empty()) {
                     segments.push(Vec::new());
                 }
@@ -154,7 +166,10 @@ impl LineChart {
                 .map_err(|e| e.to_string())?;
                 if first {
                     anno.label(s.label.clone()).legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], ShapeStyle::from(&color).stroke_width(2))
+                        PathElement::new(
+                            vec![(x, y), (x + 20, y)],
+                            ShapeStyle::from(&color).stroke_width(2),
+                        )
                     });
                     first = false;
                 }

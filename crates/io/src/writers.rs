@@ -43,7 +43,12 @@ pub struct FilterCsvWriter {
 
 impl FilterCsvWriter {
     /// Open the files in `dir`; names label the columns.
-    pub fn create(dir: &Path, states: &[String], measurements: &[String], full_covariance: bool) -> Result<Self> {
+    pub fn create(
+        dir: &Path,
+        states: &[String],
+        measurements: &[String],
+        full_covariance: bool,
+    ) -> Result<Self> {
         ensure_dir(dir)?;
         let est = dir.join("estimates.csv");
         let inn = dir.join("innovations.csv");
@@ -51,7 +56,11 @@ impl FilterCsvWriter {
         Ok(Self {
             estimates: (est.clone(), csv_writer(&est)?),
             innovations: (inn.clone(), csv_writer(&inn)?),
-            covariance: if full_covariance { Some((cov.clone(), csv_writer(&cov)?)) } else { None },
+            covariance: if full_covariance {
+                Some((cov.clone(), csv_writer(&cov)?))
+            } else {
+                None
+            },
             states: states.to_vec(),
             measurements: measurements.to_vec(),
             error: None,
@@ -84,7 +93,11 @@ impl FilterCsvWriter {
 }
 
 fn fmt(v: f64) -> String {
-    if v.is_nan() { String::new() } else { format!("{v}") }
+    if v.is_nan() {
+        String::new()
+    } else {
+        format!("{v}")
+    }
 }
 
 impl Observer for FilterCsvWriter {
@@ -97,7 +110,11 @@ impl Observer for FilterCsvWriter {
         self.keep(r);
         let mut h = vec!["epoch".to_string(), "time".to_string()];
         h.extend(self.measurements.iter().map(|s| format!("innovation_{s}")));
-        h.extend(self.measurements.iter().map(|s| format!("sigma_innovation_{s}")));
+        h.extend(
+            self.measurements
+                .iter()
+                .map(|s| format!("sigma_innovation_{s}")),
+        );
         h.extend(["nis", "dof", "outcome"].map(String::from));
         let (p, w) = &mut self.innovations;
         let r = w.write_record(&h).map_err(|e| (p.clone(), e));
@@ -154,7 +171,12 @@ impl Observer for FilterCsvWriter {
 }
 
 /// Write `smoothed.csv`: epoch, time, smoothed states and their σ.
-pub fn write_smoothed(dir: &Path, states: &[String], times: &[f64], smoothed: &[SmoothedEpoch<Dyn>]) -> Result<PathBuf> {
+pub fn write_smoothed(
+    dir: &Path,
+    states: &[String],
+    times: &[f64],
+    smoothed: &[SmoothedEpoch<Dyn>],
+) -> Result<PathBuf> {
     let path = dir.join("smoothed.csv");
     let mut w = csv_writer(&path)?;
     let mut h = vec!["epoch".to_string(), "time".to_string()];
@@ -172,15 +194,28 @@ pub fn write_smoothed(dir: &Path, states: &[String], times: &[f64], smoothed: &[
 }
 
 /// Write a CSV with a header and numeric rows (NaN written as an empty cell).
-pub fn write_table(path: &Path, header: &[&str], rows: impl IntoIterator<Item = Vec<f64>>) -> Result<()> {
+pub fn write_table(
+    path: &Path,
+    header: &[&str],
+    rows: impl IntoIterator<Item = Vec<f64>>,
+) -> Result<()> {
     let mut w = csv_writer(path)?;
     w.write_record(header).map_err(|e| write_err(path, e))?;
     for row in rows {
         if row.len() != header.len() {
-            return Err(write_err(path, format!("row of {} values for {} columns", row.len(), header.len())));
+            return Err(write_err(
+                path,
+                format!("row of {} values for {} columns", row.len(), header.len()),
+            ));
         }
-        w.write_record(row.iter().map(|&v| if v.is_nan() { String::new() } else { format!("{v}") }))
-            .map_err(|e| write_err(path, e))?;
+        w.write_record(row.iter().map(|&v| {
+            if v.is_nan() {
+                String::new()
+            } else {
+                format!("{v}")
+            }
+        }))
+        .map_err(|e| write_err(path, e))?;
     }
     w.flush().map_err(|e| write_err(path, e))
 }
@@ -206,7 +241,12 @@ pub struct Summary {
 
 impl Summary {
     /// A summary for `command` of aidnav `version`.
-    pub fn new(command: impl Into<String>, version: impl Into<String>, seed: Option<u64>, scenario: &impl Serialize) -> Self {
+    pub fn new(
+        command: impl Into<String>,
+        version: impl Into<String>,
+        seed: Option<u64>,
+        scenario: &impl Serialize,
+    ) -> Self {
         Self {
             tool: "aidnav",
             aidnav_version: version.into(),

@@ -55,7 +55,10 @@ pub fn simulate<R: Rng + ?Sized>(
         truth.push(x.clone());
         measurements.push(zs);
     }
-    LinearSimulation { truth, measurements }
+    LinearSimulation {
+        truth,
+        measurements,
+    }
 }
 
 #[cfg(test)]

@@ -112,9 +112,15 @@ mod tests {
             let s: f64 = (0..1000).map(|_| rng.random::<f64>()).sum();
             (k, s)
         };
-        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
         let serial = one.install(|| mc.run(work));
-        let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+        let four = rayon::ThreadPoolBuilder::new()
+            .num_threads(4)
+            .build()
+            .unwrap();
         let parallel = four.install(|| mc.run(work));
         assert_eq!(serial, parallel);
         assert!(serial.iter().enumerate().all(|(i, (k, _))| i == *k));

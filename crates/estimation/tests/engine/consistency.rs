@@ -39,7 +39,10 @@ fn campaign(t: Tuning) -> (Chi2Mean, f64) {
     for run in 0..RUNS {
         let mut g = ChaCha8Rng::seed_from_u64(20261123);
         g.set_stream(run as u64);
-        let mut truth = Vector2::new(p0[(0, 0)].sqrt() * normal(&mut g), p0[(1, 1)].sqrt() * normal(&mut g));
+        let mut truth = Vector2::new(
+            p0[(0, 0)].sqrt() * normal(&mut g),
+            p0[(1, 1)].sqrt() * normal(&mut g),
+        );
         let mut kf = KalmanFilter::new(Vector2::zeros(), p0).unwrap();
         for (k, slot) in nees_sum.iter_mut().enumerate() {
             if k > 0 {
@@ -62,22 +65,45 @@ fn campaign(t: Tuning) -> (Chi2Mean, f64) {
 
 #[test]
 fn tuned_filter_is_consistent() {
-    let (nis, inside) = campaign(Tuning { q_scale: 1.0, r_scale: 1.0 });
+    let (nis, inside) = campaign(Tuning {
+        q_scale: 1.0,
+        r_scale: 1.0,
+    });
     let (lo, hi) = nis.bounds(CONFIDENCE);
-    assert!(nis.is_consistent(CONFIDENCE), "mean NIS {} outside [{lo}, {hi}]", nis.mean());
-    assert!(inside >= TUNED_MIN_INSIDE, "only {inside} of epochs inside the NEES bounds");
+    assert!(
+        nis.is_consistent(CONFIDENCE),
+        "mean NIS {} outside [{lo}, {hi}]",
+        nis.mean()
+    );
+    assert!(
+        inside >= TUNED_MIN_INSIDE,
+        "only {inside} of epochs inside the NEES bounds"
+    );
 }
 
 #[test]
 fn filter_with_too_little_process_noise_is_detected() {
-    let (nis, inside) = campaign(Tuning { q_scale: 0.01, r_scale: 1.0 });
+    let (nis, inside) = campaign(Tuning {
+        q_scale: 0.01,
+        r_scale: 1.0,
+    });
     assert!(!nis.is_consistent(CONFIDENCE), "mean NIS {}", nis.mean());
     assert!(nis.mean() > nis.bounds(CONFIDENCE).1);
-    assert!(inside <= MISTUNED_MAX_INSIDE, "{inside} of epochs inside the NEES bounds");
+    assert!(
+        inside <= MISTUNED_MAX_INSIDE,
+        "{inside} of epochs inside the NEES bounds"
+    );
 }
 
 #[test]
 fn filter_with_too_much_measurement_noise_is_detected() {
-    let (nis, _) = campaign(Tuning { q_scale: 1.0, r_scale: 10.0 });
-    assert!(nis.mean() < nis.bounds(CONFIDENCE).0, "mean NIS {}", nis.mean());
+    let (nis, _) = campaign(Tuning {
+        q_scale: 1.0,
+        r_scale: 10.0,
+    });
+    assert!(
+        nis.mean() < nis.bounds(CONFIDENCE).0,
+        "mean NIS {}",
+        nis.mean()
+    );
 }

@@ -1,7 +1,9 @@
 //! Bad matrices give errors naming the step and the matrix, never a panic or NaN.
 
 use aidnav_estimation::nalgebra::{DMatrix, DVector, Matrix1, Vector1};
-use aidnav_estimation::{EstimationError, KalmanFilter, LinearGaussianModel, Matrix, Step, Collect, RunOptions};
+use aidnav_estimation::{
+    Collect, EstimationError, KalmanFilter, LinearGaussianModel, Matrix, RunOptions, Step,
+};
 use proptest::prelude::*;
 
 use crate::common::min_eigenvalue;
@@ -9,23 +11,51 @@ use crate::common::min_eigenvalue;
 #[test]
 fn nan_measurement_is_named() {
     let mut kf = KalmanFilter::new(Vector1::new(0.0), Matrix1::new(1.0)).unwrap();
-    let err = kf.update(&Vector1::new(f64::NAN), &Matrix1::new(1.0), &Matrix1::new(1.0)).unwrap_err();
-    assert_eq!(err, EstimationError::NonFinite { step: Step::Update, matrix: Matrix::Z });
+    let err = kf
+        .update(
+            &Vector1::new(f64::NAN),
+            &Matrix1::new(1.0),
+            &Matrix1::new(1.0),
+        )
+        .unwrap_err();
+    assert_eq!(
+        err,
+        EstimationError::NonFinite {
+            step: Step::Update,
+            matrix: Matrix::Z
+        }
+    );
     assert!(err.to_string().contains("update") && err.to_string().contains("z"));
 }
 
 #[test]
 fn indefinite_innovation_covariance_is_named() {
     let mut kf = KalmanFilter::new(Vector1::new(0.0), Matrix1::new(1.0)).unwrap();
-    let err = kf.update(&Vector1::new(0.0), &Matrix1::new(1.0), &Matrix1::new(-5.0)).unwrap_err();
-    assert_eq!(err, EstimationError::NotPositiveDefinite { step: Step::Update, matrix: Matrix::S });
+    let err = kf
+        .update(&Vector1::new(0.0), &Matrix1::new(1.0), &Matrix1::new(-5.0))
+        .unwrap_err();
+    assert_eq!(
+        err,
+        EstimationError::NotPositiveDefinite {
+            step: Step::Update,
+            matrix: Matrix::S
+        }
+    );
 }
 
 #[test]
 fn overflowing_prediction_is_caught() {
     let mut kf = KalmanFilter::new(Vector1::new(1.0), Matrix1::new(1.0)).unwrap();
-    let err = kf.predict(&Matrix1::new(1e200), &Matrix1::new(0.0)).unwrap_err();
-    assert_eq!(err, EstimationError::NonFinite { step: Step::Predict, matrix: Matrix::P });
+    let err = kf
+        .predict(&Matrix1::new(1e200), &Matrix1::new(0.0))
+        .unwrap_err();
+    assert_eq!(
+        err,
+        EstimationError::NonFinite {
+            step: Step::Predict,
+            matrix: Matrix::P
+        }
+    );
 }
 
 #[test]
@@ -33,11 +63,39 @@ fn asymmetric_q_and_wrong_shapes_are_named() {
     let mut kf = KalmanFilter::new(DVector::zeros(2), DMatrix::identity(2, 2)).unwrap();
     let q = DMatrix::from_row_slice(2, 2, &[1.0, 0.5, 0.0, 1.0]);
     let err = kf.predict(&DMatrix::identity(2, 2), &q).unwrap_err();
-    assert!(matches!(err, EstimationError::NotSymmetric { step: Step::Predict, matrix: Matrix::Q, .. }));
-    let err = kf.predict(&DMatrix::identity(3, 3), &DMatrix::zeros(2, 2)).unwrap_err();
-    assert!(matches!(err, EstimationError::DimensionMismatch { matrix: Matrix::Phi, rows: 3, .. }));
-    let err = kf.update(&DVector::zeros(1), &DMatrix::zeros(1, 3), &DMatrix::identity(1, 1)).unwrap_err();
-    assert!(matches!(err, EstimationError::DimensionMismatch { matrix: Matrix::H, .. }));
+    assert!(matches!(
+        err,
+        EstimationError::NotSymmetric {
+            step: Step::Predict,
+            matrix: Matrix::Q,
+            ..
+        }
+    ));
+    let err = kf
+        .predict(&DMatrix::identity(3, 3), &DMatrix::zeros(2, 2))
+        .unwrap_err();
+    assert!(matches!(
+        err,
+        EstimationError::DimensionMismatch {
+            matrix: Matrix::Phi,
+            rows: 3,
+            ..
+        }
+    ));
+    let err = kf
+        .update(
+            &DVector::zeros(1),
+            &DMatrix::zeros(1, 3),
+            &DMatrix::identity(1, 1),
+        )
+        .unwrap_err();
+    assert!(matches!(
+        err,
+        EstimationError::DimensionMismatch {
+            matrix: Matrix::H,
+            ..
+        }
+    ));
 }
 
 #[test]
@@ -53,9 +111,18 @@ fn run_errors_carry_the_epoch() {
     .unwrap();
     let data = [[Some(1.0)], [Some(1.0)], [Some(1.0)]];
     let err = model
-        .run(data.iter().enumerate().map(|(k, z)| (k as f64, z.as_slice())), &RunOptions::default(), &mut Collect::default())
+        .run(
+            data.iter()
+                .enumerate()
+                .map(|(k, z)| (k as f64, z.as_slice())),
+            &RunOptions::default(),
+            &mut Collect::default(),
+        )
         .unwrap_err();
-    assert!(matches!(err, EstimationError::AtEpoch { epoch: 1, .. }), "{err}");
+    assert!(
+        matches!(err, EstimationError::AtEpoch { epoch: 1, .. }),
+        "{err}"
+    );
     assert!(err.to_string().starts_with("epoch 1: predict"), "{err}");
 }
 

@@ -35,9 +35,19 @@ fn information_filter_starts_from_a_diffuse_prior() {
     let mut inf = InformationFilter::new(DVector::zeros(1), DMatrix::zeros(1, 1)).unwrap();
     assert!(inf.state_and_covariance().is_err());
     let one = DMatrix::identity(1, 1);
-    inf.update(&DVector::from_element(1, 2.0), &one, &DMatrix::from_element(1, 1, 1.0)).unwrap();
+    inf.update(
+        &DVector::from_element(1, 2.0),
+        &one,
+        &DMatrix::from_element(1, 1, 1.0),
+    )
+    .unwrap();
     inf.predict(&one, &DMatrix::zeros(1, 1)).unwrap();
-    inf.update(&DVector::from_element(1, 5.0), &one, &DMatrix::from_element(1, 1, 2.0)).unwrap();
+    inf.update(
+        &DVector::from_element(1, 5.0),
+        &one,
+        &DMatrix::from_element(1, 1, 2.0),
+    )
+    .unwrap();
     let (x, p) = inf.state_and_covariance().unwrap();
     assert!((x[0] - (2.0 + 5.0 / 2.0) / 1.5).abs() < 1e-14);
     assert!((p[(0, 0)] - 1.0 / 1.5).abs() < 1e-14);

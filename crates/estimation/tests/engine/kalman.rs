@@ -54,11 +54,16 @@ fn random_walk_scalar_matches_hand_recursion() {
     }
 }
 
-fn random_problem(
-    seed: u64,
-    n: usize,
-    m: usize,
-) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, Vec<DVector<f64>>) {
+struct Problem {
+    phi: DMatrix<f64>,
+    q: DMatrix<f64>,
+    h: DMatrix<f64>,
+    r: DMatrix<f64>,
+    p0: DMatrix<f64>,
+    zs: Vec<DVector<f64>>,
+}
+
+fn random_problem(seed: u64, n: usize, m: usize) -> Problem {
     let mut g = rng(seed);
     let phi = random_transition(&mut g, n);
     let q = random_spd(&mut g, n, 1e-3) * 0.01;
@@ -66,14 +71,28 @@ fn random_problem(
     let r = random_spd(&mut g, m, 0.1);
     let p0 = random_spd(&mut g, n, 0.5);
     let zs = (0..40).map(|_| random_vector(&mut g, m)).collect();
-    (phi, q, h, r, p0, zs)
+    Problem {
+        phi,
+        q,
+        h,
+        r,
+        p0,
+        zs,
+    }
 }
 
 #[test]
 fn fixed_and_dynamic_sizes_agree() {
     const N: usize = 15;
     const M: usize = 6;
-    let (phi, q, h, r, p0, zs) = random_problem(7, N, M);
+    let Problem {
+        phi,
+        q,
+        h,
+        r,
+        p0,
+        zs,
+    } = random_problem(7, N, M);
     let mut dynf = KalmanFilter::<Dyn>::new(DVector::zeros(N), p0.clone()).unwrap();
     let fixed = |m: &DMatrix<f64>| m.fixed_view::<N, N>(0, 0).into_owned();
     let mut fix = KalmanFilter::<Const<N>>::new(SVector::zeros(), fixed(&p0)).unwrap();
@@ -99,7 +118,14 @@ fn fixed_and_dynamic_sizes_agree() {
 
 #[test]
 fn joseph_and_standard_agree_for_the_optimal_gain() {
-    let (phi, q, h, r, p0, zs) = random_problem(11, 8, 3);
+    let Problem {
+        phi,
+        q,
+        h,
+        r,
+        p0,
+        zs,
+    } = random_problem(11, 8, 3);
     let mut joseph = KalmanFilter::<Dyn>::new(DVector::zeros(8), p0.clone()).unwrap();
     let mut standard = KalmanFilter::<Dyn>::new(DVector::zeros(8), p0)
         .unwrap()
@@ -117,7 +143,9 @@ fn joseph_and_standard_agree_for_the_optimal_gain() {
 
 #[test]
 fn sequential_equals_batch_for_diagonal_r() {
-    let (phi, q, h, _, p0, zs) = random_problem(13, 6, 4);
+    let Problem {
+        phi, q, h, p0, zs, ..
+    } = random_problem(13, 6, 4);
     let r = DMatrix::from_diagonal(&DVector::from_vec(vec![0.5, 1.0, 2.0, 0.1]));
     let mut batch = KalmanFilter::<Dyn>::new(DVector::zeros(6), p0.clone()).unwrap();
     let mut seq = KalmanFilter::<Dyn>::new(DVector::zeros(6), p0).unwrap();
@@ -151,9 +179,14 @@ fn fixed_size_update_allocates_nothing_and_is_deterministic() {
     let run = || {
         let mut kf = KalmanFilter::new(SVector::<f64, 3>::zeros(), p0).unwrap();
         for k in 0..10 {
-            kf.predict(&SMatrix::identity(), &(SMatrix::identity() * 0.01)).unwrap();
-            kf.update(&SVector::<f64, 1>::new(k as f64), &h, &SMatrix::<f64, 1, 1>::new(1.0))
+            kf.predict(&SMatrix::identity(), &(SMatrix::identity() * 0.01))
                 .unwrap();
+            kf.update(
+                &SVector::<f64, 1>::new(k as f64),
+                &h,
+                &SMatrix::<f64, 1, 1>::new(1.0),
+            )
+            .unwrap();
         }
         kf
     };

@@ -1,6 +1,8 @@
 //! Policies as values on the engine: constructed cases.
 
-use aidnav_estimation::nalgebra::{DMatrix, DVector, Matrix1, Matrix2, Matrix1x2, Vector1, Vector2};
+use aidnav_estimation::nalgebra::{
+    DMatrix, DVector, Matrix1, Matrix1x2, Matrix2, Vector1, Vector2,
+};
 use aidnav_estimation::{
     Chi2Gate, Decision, Huber, InnovationView, KalmanFilter, Outcome, PolicyChoice,
 };
@@ -22,7 +24,12 @@ fn chi2_gate_rejects_a_50_sigma_outlier_and_keeps_the_prediction() {
     let p_before = *kf.covariance();
     let sigma = 2f64.sqrt(); // √S = √(1 + 1)
     let rec = kf
-        .update_with(&Vector1::new(1.0 + 50.0 * sigma), &H, &r(), &mut Chi2Gate { probability: 0.999 })
+        .update_with(
+            &Vector1::new(1.0 + 50.0 * sigma),
+            &H,
+            &r(),
+            &mut Chi2Gate { probability: 0.999 },
+        )
         .unwrap();
     assert_eq!(rec.outcome, Outcome::Rejected);
     assert_eq!(*kf.state(), before);
@@ -35,7 +42,12 @@ fn chi2_gate_rejects_a_50_sigma_outlier_and_keeps_the_prediction() {
 fn chi2_gate_accepts_an_ordinary_measurement() {
     let mut kf = filter();
     let rec = kf
-        .update_with(&Vector1::new(2.0), &H, &r(), &mut Chi2Gate { probability: 0.999 })
+        .update_with(
+            &Vector1::new(2.0),
+            &H,
+            &r(),
+            &mut Chi2Gate { probability: 0.999 },
+        )
         .unwrap();
     assert_eq!(rec.outcome, Outcome::Accepted);
     assert!((kf.state()[0] - 1.5).abs() < 1e-15);
@@ -77,7 +89,9 @@ fn limiting_closure_clips_the_innovation_keeping_its_sign() {
         }
     };
     let mut kf = filter();
-    let rec = kf.update_with(&Vector1::new(-100.0), &H, &r(), &mut limit).unwrap();
+    let rec = kf
+        .update_with(&Vector1::new(-100.0), &H, &r(), &mut limit)
+        .unwrap();
     assert_eq!(rec.outcome, Outcome::Limited);
     let bound = (gamma * 2.0f64).sqrt();
     // Gain for x is P00 / S = 0.5; the clipped innovation is −bound.
@@ -91,13 +105,21 @@ fn adaptive_gain_covariance_keeps_p_honest() {
     // A policy that forms the gain from C = 4 S (too cautious): the Joseph
     // form must give the true covariance of that estimator,
     // P = P − K H P − P Hᵀ Kᵀ + K S Kᵀ (an independent expansion).
-    let mut kf = KalmanFilter::new(DVector::from_vec(vec![0.0, 0.0]), DMatrix::from_row_slice(2, 2, &[2.0, 0.3, 0.3, 1.0])).unwrap();
+    let mut kf = KalmanFilter::new(
+        DVector::from_vec(vec![0.0, 0.0]),
+        DMatrix::from_row_slice(2, 2, &[2.0, 0.3, 0.3, 1.0]),
+    )
+    .unwrap();
     let p = kf.covariance().clone();
     let h = DMatrix::from_row_slice(1, 2, &[1.0, 0.0]);
     let r = DMatrix::from_element(1, 1, 0.5);
     let s = &h * &p * h.transpose() + &r;
-    let mut policy = |v: &InnovationView<'_, aidnav_estimation::nalgebra::Dyn>| Decision::GainCovariance(v.s * 4.0);
-    let rec = kf.update_with(&DVector::from_element(1, 1.0), &h, &r, &mut policy).unwrap();
+    let mut policy = |v: &InnovationView<'_, aidnav_estimation::nalgebra::Dyn>| {
+        Decision::GainCovariance(v.s * 4.0)
+    };
+    let rec = kf
+        .update_with(&DVector::from_element(1, 1.0), &h, &r, &mut policy)
+        .unwrap();
     assert_eq!(rec.outcome, Outcome::AdaptiveGain);
     let k = &p * h.transpose() / (4.0 * s[(0, 0)]);
     assert!((&rec.gain - &k).abs().max() < 1e-15);
@@ -110,11 +132,22 @@ fn policy_choice_dispatches_by_value() {
     let z = Vector1::new(200.0);
     let mut a = filter();
     let mut b = filter();
-    let ra = a.update_with(&z, &H, &r(), &mut PolicyChoice::Chi2Gate { probability: 0.99 }).unwrap();
-    let rb = b.update_with(&z, &H, &r(), &mut PolicyChoice::Huber { k: 2.0 }).unwrap();
+    let ra = a
+        .update_with(
+            &z,
+            &H,
+            &r(),
+            &mut PolicyChoice::Chi2Gate { probability: 0.99 },
+        )
+        .unwrap();
+    let rb = b
+        .update_with(&z, &H, &r(), &mut PolicyChoice::Huber { k: 2.0 })
+        .unwrap();
     assert_eq!(ra.outcome, Outcome::Rejected);
     assert_eq!(rb.outcome, Outcome::Reweighted);
     let mut c = filter();
-    let rc = c.update_with(&z, &H, &r(), &mut PolicyChoice::None).unwrap();
+    let rc = c
+        .update_with(&z, &H, &r(), &mut PolicyChoice::None)
+        .unwrap();
     assert_eq!(rc.outcome, Outcome::Accepted);
 }

@@ -23,10 +23,17 @@ fn scalar_random_walk_closed_form() {
     }
 }
 
-fn dare_residual(phi: &DMatrix<f64>, h: &DMatrix<f64>, q: &DMatrix<f64>, r: &DMatrix<f64>, x: &DMatrix<f64>) -> f64 {
+fn dare_residual(
+    phi: &DMatrix<f64>,
+    h: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    x: &DMatrix<f64>,
+) -> f64 {
     let s = h * x * h.transpose() + r;
     let s_inv = s.try_inverse().unwrap();
-    let rhs = phi * x * phi.transpose() - phi * x * h.transpose() * s_inv * h * x * phi.transpose() + q;
+    let rhs =
+        phi * x * phi.transpose() - phi * x * h.transpose() * s_inv * h * x * phi.transpose() + q;
     (rhs - x).abs().max()
 }
 
@@ -35,7 +42,8 @@ fn filter_converges_to_the_doubling_solution() {
     // Constant-velocity model plus a random 4-state model with 2 measurements.
     let dt: f64 = 0.5;
     let cv_phi = DMatrix::from_row_slice(2, 2, &[1.0, dt, 0.0, 1.0]);
-    let cv_q = DMatrix::from_row_slice(2, 2, &[dt.powi(3) / 3.0, dt * dt / 2.0, dt * dt / 2.0, dt]) * 0.2;
+    let cv_q =
+        DMatrix::from_row_slice(2, 2, &[dt.powi(3) / 3.0, dt * dt / 2.0, dt * dt / 2.0, dt]) * 0.2;
     let cv_h = DMatrix::from_row_slice(1, 2, &[1.0, 0.0]);
     let cv_r = DMatrix::from_element(1, 1, 4.0);
     let mut g = rng(3);
@@ -56,8 +64,11 @@ fn filter_converges_to_the_doubling_solution() {
             let _ = prior;
         }
         let scale = ss.filtered.abs().max();
-        assert!(max_abs_diff(kf.covariance(), &ss.filtered) < 1e-10 * scale,
-            "filtered P differs from DARE: {:e}", max_abs_diff(kf.covariance(), &ss.filtered));
+        assert!(
+            max_abs_diff(kf.covariance(), &ss.filtered) < 1e-10 * scale,
+            "filtered P differs from DARE: {:e}",
+            max_abs_diff(kf.covariance(), &ss.filtered)
+        );
         kf.predict(&phi, &q).unwrap();
         assert!(max_abs_diff(kf.covariance(), &ss.predicted) < 1e-10 * scale);
     }

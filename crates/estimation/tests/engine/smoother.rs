@@ -16,10 +16,22 @@ fn static_state_smooths_to_the_final_estimate() {
     )
     .unwrap();
     let zs = [[1.0, 3.0], [0.5, 2.5], [1.5, 3.5], [0.9, 2.9]];
-    let data: Vec<Vec<Option<f64>>> = zs.iter().map(|z| z.iter().map(|&v| Some(v)).collect()).collect();
-    let opts = RunOptions { keep_forward_pass: true, ..Default::default() };
+    let data: Vec<Vec<Option<f64>>> = zs
+        .iter()
+        .map(|z| z.iter().map(|&v| Some(v)).collect())
+        .collect();
+    let opts = RunOptions {
+        keep_forward_pass: true,
+        ..Default::default()
+    };
     let out = model
-        .run(data.iter().enumerate().map(|(k, z)| (k as f64, z.as_slice())), &opts, &mut Collect::default())
+        .run(
+            data.iter()
+                .enumerate()
+                .map(|(k, z)| (k as f64, z.as_slice())),
+            &opts,
+            &mut Collect::default(),
+        )
         .unwrap();
     let smoothed = rts_smooth(&out.forward).unwrap();
     for s in &smoothed {
@@ -34,10 +46,23 @@ fn random_walk_smoother_equals_batch_least_squares() {
     // The smoothed means solve the batch normal equations over (x_0..x_T);
     // the smoothed variances are the diagonal of their inverse.
     let (p0, q, r) = (5.0, 0.4, 1.5);
-    let z: Vec<Option<f64>> = [0.3, 1.1, f64::NAN, 0.7, 2.0, f64::NAN, f64::NAN, 1.4, 0.9, 1.8, 2.2, 1.0]
-        .iter()
-        .map(|v| (!v.is_nan()).then_some(*v))
-        .collect();
+    let z: Vec<Option<f64>> = [
+        0.3,
+        1.1,
+        f64::NAN,
+        0.7,
+        2.0,
+        f64::NAN,
+        f64::NAN,
+        1.4,
+        0.9,
+        1.8,
+        2.2,
+        1.0,
+    ]
+    .iter()
+    .map(|v| (!v.is_nan()).then_some(*v))
+    .collect();
     let t = z.len();
     let mut a = DMatrix::<f64>::zeros(t, t);
     let mut b = DVector::<f64>::zeros(t);
@@ -68,13 +93,28 @@ fn random_walk_smoother_equals_batch_least_squares() {
     )
     .unwrap();
     let data: Vec<[Option<f64>; 1]> = z.iter().map(|v| [*v]).collect();
-    let opts = RunOptions { keep_forward_pass: true, ..Default::default() };
+    let opts = RunOptions {
+        keep_forward_pass: true,
+        ..Default::default()
+    };
     let out = model
-        .run(data.iter().enumerate().map(|(k, z)| (k as f64, z.as_slice())), &opts, &mut Collect::default())
+        .run(
+            data.iter()
+                .enumerate()
+                .map(|(k, z)| (k as f64, z.as_slice())),
+            &opts,
+            &mut Collect::default(),
+        )
         .unwrap();
     let smoothed = rts_smooth(&out.forward).unwrap();
     for k in 0..t {
-        assert!((smoothed[k].x[0] - batch_mean[k]).abs() < 1e-12, "mean at {k}");
-        assert!((smoothed[k].p[(0, 0)] - batch_cov[(k, k)]).abs() < 1e-12, "var at {k}");
+        assert!(
+            (smoothed[k].x[0] - batch_mean[k]).abs() < 1e-12,
+            "mean at {k}"
+        );
+        assert!(
+            (smoothed[k].p[(0, 0)] - batch_cov[(k, k)]).abs() < 1e-12,
+            "var at {k}"
+        );
     }
 }

@@ -75,7 +75,10 @@ impl Validate for ConsistencyScenario {
         positive("accel_psd", self.accel_psd)?;
         positive("position_sigma_m", self.position_sigma_m)?;
         positive("initial_position_sigma_m", self.initial_position_sigma_m)?;
-        positive("initial_velocity_sigma_mps", self.initial_velocity_sigma_mps)?;
+        positive(
+            "initial_velocity_sigma_mps",
+            self.initial_velocity_sigma_mps,
+        )?;
         probability("confidence", self.confidence)?;
         positive("mistuned_q_scale", self.mistuned_q_scale)?;
         positive("mistuned_r_scale", self.mistuned_r_scale)?;
@@ -139,51 +142,70 @@ struct RunSums {
 }
 
 /// Run the demo. Errors only if the engine reports one (it should not).
-pub fn run(s: &ConsistencyScenario, mc: &MonteCarlo) -> Result<ConsistencyResult, aidnav_estimation::EstimationError> {
-    let cv = ConstantVelocity::new(s.dt_s, s.accel_psd).ok_or(aidnav_estimation::EstimationError::NonFinite {
-        step: aidnav_estimation::Step::Initialise,
-        matrix: aidnav_estimation::Matrix::Q,
-    })?;
+pub fn run(
+    s: &ConsistencyScenario,
+    mc: &MonteCarlo,
+) -> Result<ConsistencyResult, aidnav_estimation::EstimationError> {
+    let cv = ConstantVelocity::new(s.dt_s, s.accel_psd).ok_or(
+        aidnav_estimation::EstimationError::NonFinite {
+            step: aidnav_estimation::Step::Initialise,
+            matrix: aidnav_estimation::Matrix::Q,
+        },
+    )?;
     let phi = cv.transition();
     let q = cv.process_noise();
     let q_factor = q.cholesky().map(|c| c.l()).unwrap_or_else(Matrix2::zeros);
     let (h, r) = ConstantVelocity::position_measurement(s.position_sigma_m);
-    let p0 = Matrix2::new(s.initial_position_sigma_m.powi(2), 0.0, 0.0, s.initial_velocity_sigma_mps.powi(2));
-    let scales = [(1.0, 1.0), (s.mistuned_q_scale, 1.0), (1.0, s.mistuned_r_scale)];
+    let p0 = Matrix2::new(
+        s.initial_position_sigma_m.powi(2),
+        0.0,
+        0.0,
+        s.initial_velocity_sigma_mps.powi(2),
+    );
+    let scales = [
+        (1.0, 1.0),
+        (s.mistuned_q_scale, 1.0),
+        (1.0, s.mistuned_r_scale),
+    ];
     let names = ["tuned", "q_too_small", "r_too_large"];
     let epochs = s.epochs;
-    let per_run = mc.try_run(|_, rng| -> Result<RunSums, aidnav_estimation::EstimationError> {
-        let mut out = RunSums {
-            nees: std::array::from_fn(|_| Vec::with_capacity(epochs)),
-            nis: std::array::from_fn(|_| Vec::with_capacity(epochs)),
-            sq_err: [0.0; VARIANTS],
-            sq_sigma: [0.0; VARIANTS],
-        };
-        let mut truth = Vector2::new(
-            s.initial_position_sigma_m * standard_normal(rng),
-            s.initial_velocity_sigma_mps * standard_normal(rng),
-        );
-        let first = KalmanFilter::new(Vector2::zeros(), p0)?;
-        let mut filters: [_; VARIANTS] = std::array::from_fn(|_| first.clone());
-        for k in 0..epochs {
-            if k > 0 {
-                truth = phi * truth + q_factor * Vector2::new(standard_normal(rng), standard_normal(rng));
-            }
-            let z = Vector1::new(truth[0] + s.position_sigma_m * standard_normal(rng));
-            for (v, kf) in filters.iter_mut().enumerate() {
-                let (qs, rs) = scales[v];
+    let per_run = mc.try_run(
+        |_, rng| -> Result<RunSums, aidnav_estimation::EstimationError> {
+            let mut out = RunSums {
+                nees: std::array::from_fn(|_| Vec::with_capacity(epochs)),
+                nis: std::array::from_fn(|_| Vec::with_capacity(epochs)),
+                sq_err: [0.0; VARIANTS],
+                sq_sigma: [0.0; VARIANTS],
+            };
+            let mut truth = Vector2::new(
+                s.initial_position_sigma_m * standard_normal(rng),
+                s.initial_velocity_sigma_mps * standard_normal(rng),
+            );
+            let first = KalmanFilter::new(Vector2::zeros(), p0)?;
+            let mut filters: [_; VARIANTS] = std::array::from_fn(|_| first.clone());
+            for k in 0..epochs {
                 if k > 0 {
-                    kf.predict(&phi, &(q * qs)).map_err(|e| e.at_epoch(k))?;
+                    truth = phi * truth
+                        + q_factor * Vector2::new(standard_normal(rng), standard_normal(rng));
                 }
-                let rec = kf.update(&z, &h, &(r * rs)).map_err(|e| e.at_epoch(k))?;
-                out.nis[v].push(rec.nis);
-                out.nees[v].push(nees(&truth, kf.state(), kf.covariance()).map_err(|e| e.at_epoch(k))?);
-                out.sq_err[v] += (kf.state()[0] - truth[0]).powi(2);
-                out.sq_sigma[v] += kf.covariance()[(0, 0)];
+                let z = Vector1::new(truth[0] + s.position_sigma_m * standard_normal(rng));
+                for (v, kf) in filters.iter_mut().enumerate() {
+                    let (qs, rs) = scales[v];
+                    if k > 0 {
+                        kf.predict(&phi, &(q * qs)).map_err(|e| e.at_epoch(k))?;
+                    }
+                    let rec = kf.update(&z, &h, &(r * rs)).map_err(|e| e.at_epoch(k))?;
+                    out.nis[v].push(rec.nis);
+                    out.nees[v].push(
+                        nees(&truth, kf.state(), kf.covariance()).map_err(|e| e.at_epoch(k))?,
+                    );
+                    out.sq_err[v] += (kf.state()[0] - truth[0]).powi(2);
+                    out.sq_sigma[v] += kf.covariance()[(0, 0)];
+                }
             }
-        }
-        Ok(out)
-    })?;
+            Ok(out)
+        },
+    )?;
     let runs = per_run.len() as f64;
     let samples = runs * epochs as f64;
     let nees_epoch_bounds = mean_chi2_bounds(2, per_run.len(), s.confidence);
@@ -203,7 +225,11 @@ pub fn run(s: &ConsistencyScenario, mc: &MonteCarlo) -> Result<ConsistencyResult
                 sq_sigma += r.sq_sigma[v];
             }
             let (lo, hi) = nees_epoch_bounds;
-            let inside = nees_per_epoch.iter().filter(|m| (lo..=hi).contains(*m)).count() as f64 / epochs as f64;
+            let inside = nees_per_epoch
+                .iter()
+                .filter(|m| (lo..=hi).contains(*m))
+                .count() as f64
+                / epochs as f64;
             let nis_inside = nis_all.is_consistent(s.confidence);
             VariantResult {
                 name: names[v].to_string(),
@@ -222,7 +248,10 @@ pub fn run(s: &ConsistencyScenario, mc: &MonteCarlo) -> Result<ConsistencyResult
             }
         })
         .collect();
-    Ok(ConsistencyResult { nees_epoch_bounds, variants })
+    Ok(ConsistencyResult {
+        nees_epoch_bounds,
+        variants,
+    })
 }
 
 #[cfg(test)]
@@ -231,7 +260,11 @@ mod tests {
 
     #[test]
     fn reduced_run_demo_separates_tuned_from_mistuned() {
-        let s = ConsistencyScenario { runs: 60, epochs: 120, ..Default::default() };
+        let s = ConsistencyScenario {
+            runs: 60,
+            epochs: 120,
+            ..Default::default()
+        };
         let r = run(&s, &MonteCarlo::new(s.runs, s.seed).quiet()).unwrap();
         assert!(r.variants[0].consistent, "{:?}", r.variants[0]);
         assert!(!r.variants[1].consistent);
