@@ -11,6 +11,38 @@ fn aidnav(args: &[&str]) -> Output {
         .expect("the aidnav binary runs")
 }
 
+/// Run a command expected to fail and return its standard error.
+fn failure(args: &[&str]) -> String {
+    let out = aidnav(args);
+    assert!(!out.status.success(), "expected failure: {args:?}");
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+fn filter_failure(model: &Path, z: &Path, out: &Path) -> String {
+    failure(&[
+        "filter",
+        "--model",
+        model.to_str().unwrap(),
+        "--measurements",
+        z.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ])
+}
+
+fn reproduce_failure(scenario: &Path, out: &Path) -> String {
+    failure(&[
+        "reproduce",
+        "consistency",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ])
+}
+
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
@@ -72,59 +104,23 @@ fn filter_reproduces_the_hand_checked_example() {
 fn bad_inputs_give_errors_naming_file_line_and_key() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.toml");
-    std::fs::write(
-        &model,
-        "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\nrr = 3\n",
-    )
-    .unwrap();
+    let good = "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\n";
+    std::fs::write(&model, format!("{good}rr = 3\n")).unwrap();
     let z = dir.path().join("z.csv");
     std::fs::write(&z, "z1\n1\n").unwrap();
-    let out = aidnav(&[
-        "filter",
-        "--model",
-        model.to_str().unwrap(),
-        "--measurements",
-        z.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = filter_failure(&model, &z, dir.path());
     assert!(err.contains("m.toml:7: rr: unknown field `rr`"), "{err}");
 
-    std::fs::write(
-        &model,
-        "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\n",
-    )
-    .unwrap();
+    std::fs::write(&model, good).unwrap();
     std::fs::write(&z, "z1\n1\nabc\n").unwrap();
-    let out = aidnav(&[
-        "filter",
-        "--model",
-        model.to_str().unwrap(),
-        "--measurements",
-        z.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = filter_failure(&model, &z, dir.path());
     assert!(
         err.contains("z.csv:3: column `z1`: \"abc\" is not a number"),
         "{err}"
     );
 
-    let out = aidnav(&[
-        "filter",
-        "--model",
-        "/nonexistent.toml",
-        "--measurements",
-        z.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = filter_failure(Path::new("/nonexistent.toml"), &z, dir.path());
     assert!(err.contains("/nonexistent.toml: cannot read"), "{err}");
-    assert!(!err.contains("panicked"));
 }
 
 #[test]
@@ -132,30 +128,13 @@ fn scenario_range_errors_name_the_key_and_range() {
     let dir = tempfile::tempdir().unwrap();
     let s = dir.path().join("s.toml");
     std::fs::write(&s, "seed = 1\n\nconfidence = 1.5\n").unwrap();
-    let out = aidnav(&[
-        "reproduce",
-        "consistency",
-        "--scenario",
-        s.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = reproduce_failure(&s, dir.path());
     assert!(
         err.contains("s.toml:3: confidence: 1.5 is out of range: allowed 0 < confidence < 1"),
         "{err}"
     );
     std::fs::write(&s, "runs = \"ten\"\n").unwrap();
-    let out = aidnav(&[
-        "reproduce",
-        "consistency",
-        "--scenario",
-        s.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = reproduce_failure(&s, dir.path());
     assert!(
         err.contains("s.toml:1: runs: invalid type: string \"ten\""),
         "{err}"

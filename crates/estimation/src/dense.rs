@@ -20,41 +20,15 @@ fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -> bool {
     all_static || r.max(k).max(c) <= SMALL_DYN
 }
 
-/// out = α · a · b + β · out, for column-major a (r×k), b (k×c), out (r×c).
+/// out = α · a · B + β · out for column-major a (r×k) and out (r×c), where
+/// `b(kk, j)` reads element (kk, j) of B (k×c): B itself, or a transpose.
+/// Axpy form: each output column accumulates scaled columns of a.
 #[inline(always)]
-fn kernel_nn(
+fn kernel(
     (r, k, c): (usize, usize, usize),
     alpha: f64,
     a: &[f64],
-    b: &[f64],
-    beta: f64,
-    out: &mut [f64],
-) {
-    for j in 0..c {
-        let oc = &mut out[j * r..(j + 1) * r];
-        if beta == 0.0 {
-            oc.fill(0.0);
-        } else if beta != 1.0 {
-            oc.iter_mut().for_each(|v| *v *= beta);
-        }
-        let bc = &b[j * k..(j + 1) * k];
-        for (kk, &bkj) in bc.iter().enumerate() {
-            let s = alpha * bkj;
-            let ac = &a[kk * r..(kk + 1) * r];
-            for (o, &x) in oc.iter_mut().zip(ac) {
-                *o += x * s;
-            }
-        }
-    }
-}
-
-/// out = α · a · bᵀ + β · out, for column-major a (r×k), b (c×k), out (r×c).
-#[inline(always)]
-fn kernel_nt(
-    (r, k, c): (usize, usize, usize),
-    alpha: f64,
-    a: &[f64],
-    b: &[f64],
+    b: impl Fn(usize, usize) -> f64,
     beta: f64,
     out: &mut [f64],
 ) {
@@ -66,7 +40,7 @@ fn kernel_nt(
             oc.iter_mut().for_each(|v| *v *= beta);
         }
         for kk in 0..k {
-            let s = alpha * b[kk * c + j];
+            let s = alpha * b(kk, j);
             let ac = &a[kk * r..(kk + 1) * r];
             for (o, &x) in oc.iter_mut().zip(ac) {
                 *o += x * s;
@@ -88,11 +62,12 @@ pub(crate) fn gemm<R: Dim, K: Dim, C: Dim>(
 {
     let (r, k, c) = (a.nrows(), a.ncols(), b.ncols());
     if use_kernel::<R, K, C>(r, k, c) {
-        kernel_nn(
+        let b = b.as_slice();
+        kernel(
             (r, k, c),
             alpha,
             a.as_slice(),
-            b.as_slice(),
+            |kk, j| b[j * k + kk],
             beta,
             out.as_mut_slice(),
         );
@@ -114,11 +89,12 @@ pub(crate) fn gemm_nt<R: Dim, K: Dim, C: Dim>(
 {
     let (r, k, c) = (a.nrows(), a.ncols(), b.nrows());
     if use_kernel::<R, K, C>(r, k, c) {
-        kernel_nt(
+        let b = b.as_slice();
+        kernel(
             (r, k, c),
             alpha,
             a.as_slice(),
-            b.as_slice(),
+            |kk, j| b[kk * c + j],
             beta,
             out.as_mut_slice(),
         );

@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use plotters::coord::ranged1d::ValueFormatter;
 use plotters::prelude::*;
 
 use crate::error::{IoError, Result};
@@ -100,39 +101,39 @@ impl LineChart {
             let mut chart = builder
                 .build_cartesian_2d(x0..x1, (y0..y1 * 1.05).log_scale())
                 .map_err(|e| err(e.to_string()))?;
-            chart
-                .configure_mesh()
-                .x_desc(&self.x_label)
-                .y_desc(&self.y_label)
-                .draw()
-                .map_err(|e| err(e.to_string()))?;
-            self.draw_series(&mut chart).map_err(err)?;
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| err(e.to_string()))?;
+            self.draw_into(&mut chart).map_err(err)?;
         } else {
             let pad = 0.05 * (y1 - y0);
             let mut chart = builder
                 .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
                 .map_err(|e| err(e.to_string()))?;
-            chart
-                .configure_mesh()
-                .x_desc(&self.x_label)
-                .y_desc(&self.y_label)
-                .draw()
-                .map_err(|e| err(e.to_string()))?;
-            self.draw_series(&mut chart).map_err(err)?;
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| err(e.to_string()))?;
+            self.draw_into(&mut chart).map_err(err)?;
         }
         root.present().map_err(|e| err(e.to_string()))
+    }
+
+    /// Mesh, curves and legend, whatever the y axis.
+    fn draw_into<'a, X, Y>(
+        &self,
+        chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, Y>>,
+    ) -> std::result::Result<(), String>
+    where
+        X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+        Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    {
+        chart
+            .configure_mesh()
+            .x_desc(&self.x_label)
+            .y_desc(&self.y_label)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        self.draw_series(chart)?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())
     }
 
     fn draw_series<'a, X, Y>(
