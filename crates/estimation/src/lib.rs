@@ -17,6 +17,7 @@
 //! - NIS / NEES with χ² bounds ([`consistency`]).
 //! - steady-state covariance from the discrete algebraic Riccati equation
 //!   ([`steady_state_covariance`]).
+//! - self-organising (GMDH) time-series model selection ([`gmdh`]).
 //! - a linear Gaussian model and its filter loop reporting to an [`Observer`]
 //!   ([`LinearGaussianModel`]).
 //!
@@ -39,6 +40,7 @@ mod check;
 pub mod consistency;
 mod dense;
 pub mod error;
+pub mod gmdh;
 pub mod information;
 pub mod kalman;
 pub mod linear;

@@ -3,6 +3,7 @@
 mod common;
 mod consistency;
 mod errors;
+mod gmdh;
 mod information;
 mod kalman;
 mod policies;
