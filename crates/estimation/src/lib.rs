@@ -10,6 +10,7 @@
 //! - [`policy`]: measurement policies as values — accept, χ² gate, Huber, and
 //!   any closure — that see the innovation and decide; the update returns the
 //!   innovation, its covariance and the gain ([`UpdateRecord`]).
+//! - the adaptive / anomaly-tolerant policies of spec 20 ([`adaptive`]).
 //! - sequential scalar update for diagonal R ([`KalmanFilter::update_sequential`]).
 //! - information form and the Fisher / Cramér–Rao recursion ([`InformationFilter`],
 //!   [`FisherInformation`]).
@@ -36,6 +37,7 @@
 //! assert_eq!(kf.state()[0], 0.0);
 //! ```
 
+pub mod adaptive;
 mod check;
 pub mod consistency;
 mod dense;

@@ -1,5 +1,6 @@
 //! Engine tests against independent references (one test binary, submodules).
 
+mod adaptive;
 mod common;
 mod consistency;
 mod errors;
