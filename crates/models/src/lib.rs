@@ -2,12 +2,14 @@
 //!
 //! Each model gives Φ, Q (and H, R where it is measured) for an epoch; the
 //! estimation engine runs them without knowing what they mean. This layer
-//! starts with the building blocks every navigation model is made of; the
-//! 14-state launch-frame model, the 3-state platform model, the local-level
+//! starts with the building blocks every navigation model is made of and the
+//! 3-state platform channel of spec 20; the 14-state launch-frame model, the local-level
 //! INS error model and the group kinematics arrive with their issues.
 
 pub mod constant_velocity;
 pub mod gauss_markov;
+pub mod platform;
 
 pub use constant_velocity::ConstantVelocity;
 pub use gauss_markov::GaussMarkov;
+pub use platform::PlatformChannel;

@@ -3,7 +3,7 @@
 //! Seeded random streams whose output does not depend on the number of
 //! threads ([`rng`]), a parallel Monte Carlo runner with a progress bar
 //! ([`monte_carlo`]), truth and measurement simulation of linear Gaussian
-//! models ([`linear`]), and the experiments built on them ([`experiments`]).
+//! models ([`linear`]), measurement faults and outages ([`faults`]), and the experiments built on them ([`experiments`]).
 //!
 //! ```
 //! use aidnav_sim::{MonteCarlo, rng::RngExt};
@@ -17,6 +17,7 @@
 //! ```
 
 pub mod experiments;
+pub mod faults;
 pub mod linear;
 pub mod monte_carlo;
 pub mod rng;
