@@ -121,8 +121,8 @@ pub fn plan<R: Rng + ?Sized>(
     }
     let burst = |error: &mut Vec<f64>, rng: &mut R, start: usize, length: usize, m: SigmaRange| {
         let s = sign(rng);
-        for k in start..(start + length).min(epochs) {
-            error[k] = s * magnitude(rng, m, sigma);
+        for e in error.iter_mut().skip(start).take(length) {
+            *e = s * magnitude(rng, m, sigma);
         }
     };
     for spec in specs {
