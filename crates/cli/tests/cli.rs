@@ -213,3 +213,44 @@ fn help_explains_every_subcommand() {
         "{text}"
     );
 }
+
+#[test]
+fn reproduce_anomalies_writes_the_rms_keys_other_tools_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = aidnav(&[
+        "reproduce",
+        "anomalies",
+        "--runs",
+        "3",
+        "--seed",
+        "5",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    for key in [
+        "kf_known_clean",
+        "kf_plain",
+        "kf_reject",
+        "adaptive_reject",
+        "developed",
+        "chi2_gate",
+        "huber",
+    ] {
+        assert!(
+            summary["rms"][key]
+                .as_f64()
+                .is_some_and(|v| v.is_finite() && v > 0.0),
+            "rms.{key}"
+        );
+    }
+    assert_eq!(summary["seed"], 5);
+    assert!(dir.path().join("anomalies_example.svg").is_file());
+}

@@ -17,6 +17,8 @@ pub enum LineStyle {
     Solid,
     /// Dashed line (bounds, references).
     Dashed,
+    /// Unconnected markers (events such as anomalous fixes).
+    Points,
 }
 
 /// One curve.
@@ -163,6 +165,8 @@ impl LineChart {
                 let anno = match s.style {
                     LineStyle::Solid => chart.draw_series(LineSeries::new(seg, style)),
                     LineStyle::Dashed => chart.draw_series(DashedLineSeries::new(seg, 8, 5, style)),
+                    LineStyle::Points => chart
+                        .draw_series(seg.into_iter().map(|p| Circle::new(p, 2, color.filled()))),
                 }
                 .map_err(|e| e.to_string())?;
                 if first {
