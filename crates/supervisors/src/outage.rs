@@ -1,0 +1,217 @@
+//! Outage bridging (spec 20, paper eqs. 10–11): while GNSS is lost, the INS
+//! output is corrected with a *predicted* error, from a predictor chosen by
+//! the outage's age — the relay algorithm.
+//!
+//! [`OutageBridge::start`] takes the history of one error estimate recorded
+//! during stable GNSS and builds every predictor once:
+//! - hold: the last estimate;
+//! - trend: `k t + d` fitted by least squares on the last `trend_window_s`;
+//! - self-organising model: [`aidnav_estimation::gmdh`] selection on the last
+//!   `model_window_s` (candidates: polynomial, the given frequencies such as
+//!   the Schuler frequency, and a searched grid);
+//! - combined ("modified") trend: `w(τ) · trend + (1 − w(τ)) · model` with
+//!   `w(τ) = max(0, 1 − τ / blend_s)`, so it starts on the trend and ends on
+//!   the model (spec 20 result 4: identical at the end of long prediction);
+//! - relay: hold until T1, trend until T2, combined trend until T3, the model
+//!   after (T0 = the outage start).
+//!
+//! The a-priori model predictor (propagating the filter state with Φ) needs
+//! the whole state and lives with the filter, not here.
+
+use aidnav_estimation::gmdh::{GmdhConfig, GmdhError, GmdhModel, select};
+use serde::{Deserialize, Serialize};
+
+/// A scalar predictor of the error during an outage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Predictor {
+    /// Last estimate.
+    Hold,
+    /// Linear trend on the last window.
+    Trend,
+    /// Trend blended into the self-organising model.
+    CombinedTrend,
+    /// Self-organising (GMDH) model.
+    Gmdh,
+    /// Switched by outage age.
+    Relay,
+}
+
+/// Switch ages of the relay, seconds after the outage starts (T1 < T2 < T3).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RelaySchedule {
+    /// Hold until T1.
+    pub t1_s: f64,
+    /// Trend until T2.
+    pub t2_s: f64,
+    /// Combined trend until T3; the model after.
+    pub t3_s: f64,
+}
+
+impl RelaySchedule {
+    /// The predictor the relay uses at outage age `age_s`.
+    pub fn choose(&self, age_s: f64) -> Predictor {
+        if age_s <= self.t1_s {
+            Predictor::Hold
+        } else if age_s <= self.t2_s {
+            Predictor::Trend
+        } else if age_s <= self.t3_s {
+            Predictor::CombinedTrend
+        } else {
+            Predictor::Gmdh
+        }
+    }
+}
+
+/// Windows and model selection of the bridge.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BridgeConfig {
+    /// History used by the trend [s].
+    pub trend_window_s: f64,
+    /// History used by the self-organising model [s].
+    pub model_window_s: f64,
+    /// Prediction length over which the combined trend moves from trend to model [s].
+    pub blend_s: f64,
+    /// Relay switch ages.
+    pub relay: RelaySchedule,
+    /// Model selection.
+    pub gmdh: GmdhConfig,
+}
+
+/// Every predictor, built at the outage start from the recorded history.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutageBridge {
+    t0: f64,
+    last: f64,
+    slope: f64,
+    intercept: f64,
+    model: GmdhModel,
+    blend_s: f64,
+    relay: RelaySchedule,
+}
+
+/// Least-squares line through (t, y).
+fn line(t: &[f64], y: &[f64]) -> (f64, f64) {
+    let n = t.len() as f64;
+    let (mt, my) = (t.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (a, b) in t.iter().zip(y) {
+        sxy += (a - mt) * (b - my);
+        sxx += (a - mt) * (a - mt);
+    }
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (slope, my - slope * mt)
+}
+
+impl OutageBridge {
+    /// Build the predictors from `times` / `estimates` (oldest first) recorded
+    /// up to the outage start `times.last()`.
+    pub fn start(
+        times: &[f64],
+        estimates: &[f64],
+        config: &BridgeConfig,
+    ) -> Result<Self, GmdhError> {
+        let (Some(&t0), Some(&last)) = (times.last(), estimates.last()) else {
+            return Err(GmdhError::TooFewSamples {
+                samples: 0,
+                needed: 6,
+            });
+        };
+        let from = |w: f64| times.partition_point(|&t| t < t0 - w);
+        let k = from(config.trend_window_s).min(times.len().saturating_sub(2));
+        let (slope, intercept) = line(&times[k..], &estimates[k..]);
+        let m = from(config.model_window_s);
+        let model = select(&times[m..], &estimates[m..], &config.gmdh)?.model;
+        Ok(Self {
+            t0,
+            last,
+            slope,
+            intercept,
+            model,
+            blend_s: config.blend_s,
+            relay: config.relay,
+        })
+    }
+
+    /// The selected self-organising model.
+    pub fn model(&self) -> &GmdhModel {
+        &self.model
+    }
+
+    /// Prediction of `predictor` at time `t` (≥ the outage start).
+    pub fn predict(&self, predictor: Predictor, t: f64) -> f64 {
+        let age = t - self.t0;
+        match predictor {
+            Predictor::Hold => self.last,
+            Predictor::Trend => self.slope * t + self.intercept,
+            Predictor::Gmdh => self.model.predict(t),
+            Predictor::CombinedTrend => {
+                let w = (1.0 - age / self.blend_s).clamp(0.0, 1.0);
+                w * (self.slope * t + self.intercept) + (1.0 - w) * self.model.predict(t)
+            }
+            Predictor::Relay => self.predict(self.relay.choose(age), t),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config() -> BridgeConfig {
+        BridgeConfig {
+            trend_window_s: 50.0,
+            model_window_s: 1000.0,
+            blend_s: 200.0,
+            relay: RelaySchedule {
+                t1_s: 10.0,
+                t2_s: 100.0,
+                t3_s: 300.0,
+            },
+            gmdh: GmdhConfig {
+                frequencies: vec![2.0 * std::f64::consts::PI / 500.0],
+                ..GmdhConfig::default()
+            },
+        }
+    }
+
+    #[test]
+    fn predictors_on_a_known_signal() {
+        let w = 2.0 * std::f64::consts::PI / 500.0;
+        let f = |t: f64| 3.0 * (w * t).sin() + 0.5;
+        let t: Vec<f64> = (0..1000).map(f64::from).collect();
+        let y: Vec<f64> = t.iter().map(|&t| f(t)).collect();
+        let b = OutageBridge::start(&t, &y, &config()).unwrap();
+        assert_eq!(b.predict(Predictor::Hold, 1500.0), f(999.0));
+        // The model knows the signal: exact far beyond the window.
+        assert!((b.predict(Predictor::Gmdh, 1700.0) - f(1700.0)).abs() < 1e-6);
+        // The trend follows the local slope: good shortly after, bad later.
+        // (curvature over the 50 s window biases the line by ≈ f″ W² / 6 ≈ 0.06)
+        assert!((b.predict(Predictor::Trend, 1005.0) - f(1005.0)).abs() < 0.1);
+        assert!((b.predict(Predictor::Trend, 1400.0) - f(1400.0)).abs() > 1.0);
+        // Combined: trend at the start, model after the blend.
+        assert_eq!(
+            b.predict(Predictor::CombinedTrend, 999.0),
+            b.predict(Predictor::Trend, 999.0)
+        );
+        assert_eq!(
+            b.predict(Predictor::CombinedTrend, 1300.0),
+            b.predict(Predictor::Gmdh, 1300.0)
+        );
+        // Relay: follows its schedule.
+        for (age, p) in [
+            (5.0, Predictor::Hold),
+            (50.0, Predictor::Trend),
+            (200.0, Predictor::CombinedTrend),
+            (400.0, Predictor::Gmdh),
+        ] {
+            assert_eq!(
+                b.predict(Predictor::Relay, 999.0 + age),
+                b.predict(p, 999.0 + age),
+                "age {age}"
+            );
+        }
+    }
+}
