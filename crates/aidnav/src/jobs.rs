@@ -8,11 +8,12 @@ use aidnav_estimation::{Chi2Mean, EpochRecord, EstimationError, Observer, Outcom
 use aidnav_io::IoError;
 use aidnav_io::measurements::read_measurements;
 use aidnav_io::model_file::load_model;
-use aidnav_io::plot::{LineChart, LineStyle, Series};
+use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
 use aidnav_io::writers::{FilterCsvWriter, Summary, write_smoothed, write_table};
 use aidnav_sim::MonteCarlo;
 use aidnav_sim::experiments::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
 use aidnav_sim::experiments::consistency::{ConsistencyResult, ConsistencyScenario};
+use aidnav_sim::experiments::outages::{OutagesResult, OutagesScenario, PREDICTORS};
 use serde::Serialize;
 
 use crate::VERSION;
@@ -250,7 +251,7 @@ pub fn consistency(
             label: label.into(),
             points: vec![(0.0, b), (t(epochs - 1), b)],
             style: LineStyle::Dashed,
-            color: 5,
+            color: TRUTH_COLOR,
         });
     }
     LineChart {
@@ -363,6 +364,89 @@ pub fn anomalies(
     summary.insert("rms", rms);
     summary.insert("scores", &result.scores);
     summary.insert("anomaly_fraction", result.anomaly_fraction);
+    summary.write(out)?;
+    Ok(result)
+}
+
+/// Run the spec-20 outages experiment and write `outage_example.csv`,
+/// `outage_predictors.svg` and `summary.json` into `out`.
+pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult<OutagesResult> {
+    let mut mc = MonteCarlo::new(scenario.runs, scenario.seed).with_label("outages");
+    if quiet {
+        mc = mc.quiet();
+    }
+    let result = aidnav_sim::experiments::outages::run(scenario, &mc)
+        .map_err(|e| JobError::Refused(format!("outages experiment: {e}")))?;
+    aidnav_io::writers::ensure_dir(out)?;
+    let ex = &result.example;
+    let mut header: Vec<String> = vec!["outage age [s]".into(), "true_dv [m/s]".into()];
+    header.extend(PREDICTORS.iter().map(|p| format!("{p} [m/s]")));
+    let header_ref: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_table(
+        &out.join("outage_example.csv"),
+        &header_ref,
+        (0..ex.truth.len()).map(|k| {
+            let mut row = vec![ex.age_s[k], ex.truth[k]];
+            row.extend(ex.predictions.iter().map(|p| p[k]));
+            row
+        }),
+    )?;
+    let mut series = vec![Series {
+        label: "true δV (uncorrected INS error)".into(),
+        points: ex
+            .age_s
+            .iter()
+            .copied()
+            .zip(ex.truth.iter().copied())
+            .collect(),
+        style: LineStyle::Solid,
+        color: TRUTH_COLOR,
+    }];
+    for (j, name) in PREDICTORS.iter().enumerate() {
+        series.push(Series {
+            label: format!("predicted, {name}"),
+            points: ex
+                .age_s
+                .iter()
+                .copied()
+                .zip(ex.predictions[j].iter().copied())
+                .collect(),
+            style: if *name == "relay" {
+                LineStyle::Solid
+            } else {
+                LineStyle::Dashed
+            },
+            color: j,
+        });
+    }
+    LineChart {
+        title: format!(
+            "Predictors during a {:.0} s GNSS outage, run 0",
+            result.long.length_s
+        ),
+        x_label: "time since the outage started [s]".into(),
+        y_label: "δV [m/s]".into(),
+        series,
+        log_y: false,
+    }
+    .write_svg(&out.join("outage_predictors.svg"))?;
+    let mut summary = Summary::new("reproduce outages", VERSION, Some(scenario.seed), scenario);
+    for (key, scores) in [("short", &result.short), ("long", &result.long)] {
+        let improvement: serde_json::Map<String, serde_json::Value> = scores
+            .predictors
+            .iter()
+            .map(|p| (p.name.clone(), serde_json::json!(p.improvement)))
+            .collect();
+        summary.insert(
+            key,
+            serde_json::json!({
+                "length_s": scores.length_s,
+                "uncorrected_rms_mps": scores.uncorrected_rms_mps,
+                "improvement": improvement,
+                "predictors": scores.predictors,
+            }),
+        );
+    }
     summary.write(out)?;
     Ok(result)
 }

@@ -254,3 +254,68 @@ fn reproduce_anomalies_writes_the_rms_keys_other_tools_read() {
     assert_eq!(summary["seed"], 5);
     assert!(dir.path().join("anomalies_example.svg").is_file());
 }
+
+#[test]
+fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = aidnav(&[
+        "reproduce",
+        "outages",
+        "--runs",
+        "2",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    for case in ["short", "long"] {
+        for key in [
+            "apriori",
+            "hold",
+            "trend",
+            "combined_trend",
+            "gmdh",
+            "relay",
+        ] {
+            assert!(
+                summary[case]["improvement"][key]
+                    .as_f64()
+                    .is_some_and(f64::is_finite),
+                "{case}.improvement.{key}"
+            );
+        }
+    }
+    assert!(dir.path().join("outage_predictors.svg").is_file());
+}
+
+#[test]
+fn print_scenario_round_trips_through_the_loader() {
+    let dir = tempfile::tempdir().unwrap();
+    for exp in ["consistency", "anomalies", "outages"] {
+        let out = aidnav(&["reproduce", exp, "--print-scenario"]);
+        assert!(out.status.success());
+        let path = dir.path().join(format!("{exp}.toml"));
+        std::fs::write(&path, &out.stdout).unwrap();
+        let run = aidnav(&[
+            "reproduce",
+            exp,
+            "--scenario",
+            path.to_str().unwrap(),
+            "--runs",
+            "1",
+            "--out",
+            dir.path().join(exp).to_str().unwrap(),
+        ]);
+        assert!(
+            run.status.success(),
+            "{exp}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+}

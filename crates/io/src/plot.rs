@@ -49,14 +49,20 @@ pub struct LineChart {
     pub log_y: bool,
 }
 
-const PALETTE: [RGBColor; 6] = [
+/// Colours by index; the last one (black) is [`TRUTH_COLOR`].
+const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
     RGBColor(255, 127, 14),
     RGBColor(148, 103, 189),
-    RGBColor(90, 90, 90),
+    RGBColor(140, 86, 75),
+    RGBColor(23, 190, 207),
+    RGBColor(0, 0, 0),
 ];
+
+/// Palette index of black, for truth curves and references.
+pub const TRUTH_COLOR: usize = 7;
 
 impl LineChart {
     /// Render to an SVG file at `path` (800×500 px).

@@ -74,10 +74,18 @@ pub struct BridgeConfig {
     pub model_window_s: f64,
     /// Prediction length over which the combined trend moves from trend to model [s].
     pub blend_s: f64,
+    /// Use every n-th sample of the model window for the selection (speed;
+    /// the last sample is always used). Default 1.
+    #[serde(default = "one")]
+    pub model_decimation: usize,
     /// Relay switch ages.
     pub relay: RelaySchedule,
     /// Model selection.
     pub gmdh: GmdhConfig,
+}
+
+fn one() -> usize {
+    1
 }
 
 /// Every predictor, built at the outage start from the recorded history.
@@ -123,7 +131,19 @@ impl OutageBridge {
         let k = from(config.trend_window_s).min(times.len().saturating_sub(2));
         let (slope, intercept) = line(&times[k..], &estimates[k..]);
         let m = from(config.model_window_s);
-        let model = select(&times[m..], &estimates[m..], &config.gmdh)?.model;
+        let step = config.model_decimation.max(1);
+        let last_index = times.len() - 1;
+        let keep: Vec<usize> = (m..times.len())
+            .rev()
+            .step_by(step)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .rev()
+            .collect();
+        debug_assert_eq!(keep.last(), Some(&last_index));
+        let mt: Vec<f64> = keep.iter().map(|&i| times[i]).collect();
+        let my: Vec<f64> = keep.iter().map(|&i| estimates[i]).collect();
+        let model = select(&mt, &my, &config.gmdh)?.model;
         Ok(Self {
             t0,
             last,
@@ -165,6 +185,7 @@ mod tests {
             trend_window_s: 50.0,
             model_window_s: 1000.0,
             blend_s: 200.0,
+            model_decimation: 1,
             relay: RelaySchedule {
                 t1_s: 10.0,
                 t2_s: 100.0,

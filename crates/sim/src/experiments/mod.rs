@@ -4,3 +4,4 @@
 
 pub mod anomalies;
 pub mod consistency;
+pub mod outages;
