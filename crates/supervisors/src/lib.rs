@@ -3,11 +3,13 @@
 //! Supervisors read the filter's outputs and matrices and decide; they do not
 //! filter. This layer starts with a windowed NIS monitor (is the filter still
 //! consistent with its measurements?) and the outage bridge with its relay
-//! predictor (spec 20); the Cramér–Rao convergence criterion and the
-//! efficiency criterion arrive with their issues.
+//! predictor and the efficiency criterion (spec 20); the Cramér–Rao
+//! convergence criterion arrives with its issue.
 
+pub mod efficiency;
 pub mod nis_monitor;
 pub mod outage;
 
+pub use efficiency::{EfficiencyCriterion, Source};
 pub use nis_monitor::{NisMonitor, NisVerdict};
 pub use outage::{BridgeConfig, OutageBridge, Predictor, RelaySchedule};
