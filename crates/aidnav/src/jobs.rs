@@ -430,7 +430,36 @@ pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult
         log_y: false,
     }
     .write_svg(&out.join("outage_predictors.svg"))?;
+    let eff = &result.efficiency_example;
+    let end = eff.age_s.last().copied().unwrap_or(1.0);
+    LineChart {
+        title: "Efficiency criterion K_eff = σ_GNSS / σ_KOI, run 0 (outage, then GNSS back)".into(),
+        x_label: "time since the outage started [s]".into(),
+        y_label: "K_eff".into(),
+        series: vec![
+            Series {
+                label: "K_eff".into(),
+                points: eff
+                    .age_s
+                    .iter()
+                    .copied()
+                    .zip(eff.k_eff.iter().copied())
+                    .collect(),
+                style: LineStyle::Solid,
+                color: 0,
+            },
+            Series {
+                label: "K_eff = 1 (above: INS + filter, below: GNSS)".into(),
+                points: vec![(0.0, 1.0), (end, 1.0)],
+                style: LineStyle::Dashed,
+                color: TRUTH_COLOR,
+            },
+        ],
+        log_y: true,
+    }
+    .write_svg(&out.join("efficiency.svg"))?;
     let mut summary = Summary::new("reproduce outages", VERSION, Some(scenario.seed), scenario);
+    summary.insert("efficiency", &result.efficiency);
     for (key, scores) in [("short", &result.short), ("long", &result.long)] {
         let improvement: serde_json::Map<String, serde_json::Value> = scores
             .predictors

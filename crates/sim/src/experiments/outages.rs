@@ -20,7 +20,20 @@ use aidnav_supervisors::outage::{BridgeConfig, OutageBridge, Predictor, RelaySch
 use nalgebra::{Matrix3, Vector1, Vector3};
 use serde::{Deserialize, Serialize};
 
+use aidnav_estimation::adaptive::{AnomalyDetector, Limiting};
+use aidnav_supervisors::efficiency::{
+    AdaptiveScalarVariance, EfficiencyCriterion, Source, VarianceFeedback,
+};
+
+/// Innovations averaged by the adaptive σ_KOI (eq. 15's M[θ²]).
+const ADAPTIVE_VARIANCE_WINDOW: usize = 10;
+
 use crate::experiments::anomalies::percentile;
+use crate::faults::{FaultSpec, Outage, SigmaRange, plan};
+use crate::rng::channel_rng;
+
+/// Stream of the recovery faults (0 is truth and fix noise).
+const CHANNEL_RECOVERY_FAULTS: u64 = 1;
 use crate::monte_carlo::MonteCarlo;
 use crate::rng::standard_normal;
 
@@ -56,6 +69,14 @@ pub struct OutagesScenario {
     pub long_outage_s: f64,
     /// Predictors and relay schedule.
     pub bridge: BridgeConfig,
+    /// GNSS is back for this long after the long outage [s] (efficiency criterion phase). Default 600.
+    pub recovery_s: f64,
+    /// Faults on the returning GNSS (the paper stresses bursts right after an outage).
+    pub recovery_faults: Vec<FaultSpec>,
+    /// σ_GNSS of the efficiency criterion (prior data) [m/s]. Default: the GNSS noise σ, 0.1.
+    pub efficiency_sigma_gnss_mps: f64,
+    /// Anomaly level γ of the filter's limiting during recovery. Default 9.
+    pub recovery_gamma: f64,
 }
 
 impl Default for OutagesScenario {
@@ -93,6 +114,16 @@ impl Default for OutagesScenario {
                     ..GmdhConfig::default()
                 },
             },
+            recovery_s: 600.0,
+            recovery_faults: vec![FaultSpec::AfterOutage {
+                length: 30,
+                magnitude: SigmaRange {
+                    min: 5.0,
+                    max: 30.0,
+                },
+            }],
+            efficiency_sigma_gnss_mps: 0.1,
+            recovery_gamma: 9.0,
         }
     }
 }
@@ -149,6 +180,9 @@ impl Validate for OutagesScenario {
             ));
         }
         positive("blend_s", self.bridge.blend_s).map_err(|e| e.within("bridge"))?;
+        positive("recovery_s", self.recovery_s)?;
+        positive("efficiency_sigma_gnss_mps", self.efficiency_sigma_gnss_mps)?;
+        positive("recovery_gamma", self.recovery_gamma)?;
         Ok(())
     }
 }
@@ -190,6 +224,35 @@ pub struct OutageExample {
     pub predictions: Vec<Vec<f64>>,
 }
 
+/// Navigation error after the outage by source (spec 20 Fig. 10).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EfficiencyScores {
+    /// Recovery phase length [s].
+    pub length_s: f64,
+    /// RMS velocity error navigating on GNSS alone [m/s].
+    pub rms_always_gnss_mps: f64,
+    /// RMS velocity error navigating on INS + filter [m/s].
+    pub rms_always_integrated_mps: f64,
+    /// RMS velocity error with the source chosen per epoch by K_eff [m/s].
+    pub rms_selected_mps: f64,
+    /// Fraction of recovery epochs on which K_eff chose INS + filter.
+    pub fraction_integrated: f64,
+    /// As `rms_selected_mps`, with σ_KOI from the innovation-fed variance of
+    /// eqs. 14–15 ([`AdaptiveScalarVariance`], 10-epoch window) instead of the filter's P.
+    pub rms_selected_adaptive_mps: f64,
+    /// Fraction of recovery epochs on which that selection chose INS + filter.
+    pub fraction_integrated_adaptive: f64,
+}
+
+/// Run 0's K_eff from the outage start to the end of recovery.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EfficiencyExample {
+    /// Time since the outage started [s].
+    pub age_s: Vec<f64>,
+    /// K_eff = σ_GNSS / σ_KOI.
+    pub k_eff: Vec<f64>,
+}
+
 /// Result of the experiment.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutagesResult {
@@ -197,9 +260,14 @@ pub struct OutagesResult {
     pub short: OutageScores,
     /// Long outage.
     pub long: OutageScores,
+    /// After the long outage: GNSS alone vs INS + filter vs K_eff selection.
+    pub efficiency: EfficiencyScores,
     /// Run 0, for plots.
     #[serde(skip)]
     pub example: OutageExample,
+    /// Run 0's K_eff, for plots.
+    #[serde(skip)]
+    pub efficiency_example: EfficiencyExample,
 }
 
 /// What can stop the experiment.
@@ -217,7 +285,12 @@ pub enum OutagesError {
 struct RunOut {
     // [short|long][uncorrected, predictors…] sums of squares
     sq: [Vec<f64>; 2],
+    // recovery: [gnss, integrated, selected by P, selected by adaptive variance]
+    // sums of squares, and epochs on integrated for both selections
+    recovery_sq: [f64; 4],
+    recovery_integrated: [usize; 2],
     example: Option<OutageExample>,
+    efficiency_example: Option<EfficiencyExample>,
 }
 
 /// Run the experiment.
@@ -226,6 +299,10 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
     let start = (sc.outage_start_s / dt).round() as usize;
     let short = (sc.short_outage_s / dt).round().max(1.0) as usize;
     let long = (sc.long_outage_s / dt).round().max(1.0) as usize;
+    let recovery = (sc.recovery_s / dt).round().max(1.0) as usize;
+    let criterion = EfficiencyCriterion {
+        sigma_gnss: sc.efficiency_sigma_gnss_mps,
+    };
     let phi = sc.platform.transition();
     let q = sc.platform.process_noise();
     let (h, r) = sc.platform.velocity_measurement();
@@ -266,6 +343,7 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             vec![0.0; PREDICTORS.len() + 1],
         ];
         let keep = k == 0;
+        let mut eff_example = EfficiencyExample::default();
         let mut example = OutageExample {
             predictions: vec![Vec::new(); PREDICTORS.len()],
             ..OutageExample::default()
@@ -302,9 +380,78 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
                 for (j, p) in preds.iter().enumerate() {
                     example.predictions[j].push(*p);
                 }
+                eff_example.age_s.push(i as f64 * dt);
+                eff_example
+                    .k_eff
+                    .push(criterion.coefficient(apriori.covariance()[(0, 0)].sqrt()));
+            }
+        }
+        // GNSS returns: the filter resumes from its propagated state; the
+        // navigation source is chosen per epoch by K_eff.
+        let mut fault_rng = channel_rng(sc.seed, k as u64, CHANNEL_RECOVERY_FAULTS);
+        let faults = plan(
+            &sc.recovery_faults,
+            &[Outage {
+                start: 0,
+                length: 0,
+            }],
+            recovery,
+            sigma,
+            &mut fault_rng,
+        );
+        let mut recovery_sq = [0.0; 4];
+        let mut recovery_integrated = [0; 2];
+        let mut adaptive_variance = AdaptiveScalarVariance::new(
+            phi[(0, 0)],
+            r[(0, 0)],
+            apriori.covariance()[(0, 0)],
+            VarianceFeedback::MeanSquare {
+                window: ADAPTIVE_VARIANCE_WINDOW,
+            },
+        )
+        .unwrap_or_else(|| unreachable!("R > 0 is validated"));
+        let mut policy = Limiting {
+            detector: AnomalyDetector {
+                gamma: sc.recovery_gamma,
+            },
+        };
+        for i in 0..recovery {
+            x = phi * x + forcing + Vector3::new(0.0, 0.0, drift_step_sigma * standard_normal(rng));
+            apriori
+                .predict(&phi, &q)
+                .map_err(|err| err.at_epoch(start + long + i))?;
+            let gnss_error = sigma * standard_normal(rng) + faults.error[i];
+            let z = Vector1::new(x[0] + gnss_error);
+            let rec = apriori
+                .update_with(&z, &h, &r, &mut policy)
+                .map_err(|err| err.at_epoch(start + long + i))?;
+            adaptive_variance.step(rec.residual[0]);
+            let integrated_error = apriori.state()[0] - x[0];
+            let (source, k_eff) = criterion.select(apriori.covariance()[(0, 0)].sqrt());
+            let selected_error = match source {
+                Source::Gnss => gnss_error,
+                Source::Integrated => integrated_error,
+            };
+            let (source_adaptive, _) = criterion.select(adaptive_variance.variance().sqrt());
+            let selected_adaptive_error = match source_adaptive {
+                Source::Gnss => gnss_error,
+                Source::Integrated => integrated_error,
+            };
+            recovery_integrated[0] += usize::from(source == Source::Integrated);
+            recovery_integrated[1] += usize::from(source_adaptive == Source::Integrated);
+            recovery_sq[0] += gnss_error * gnss_error;
+            recovery_sq[1] += integrated_error * integrated_error;
+            recovery_sq[2] += selected_error * selected_error;
+            recovery_sq[3] += selected_adaptive_error * selected_adaptive_error;
+            if keep {
+                eff_example.age_s.push((long + i + 1) as f64 * dt);
+                eff_example.k_eff.push(k_eff);
             }
         }
         Ok(RunOut {
+            recovery_sq,
+            recovery_integrated,
+            efficiency_example: keep.then_some(eff_example),
             sq,
             example: keep.then_some(example),
         })
@@ -336,12 +483,35 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             predictors,
         }
     };
+    let n_rec = (per_run.len() * recovery) as f64;
+    let rec = |i: usize| (per_run.iter().map(|r| r.recovery_sq[i]).sum::<f64>() / n_rec).sqrt();
     let result = OutagesResult {
         short: score(0, short),
         long: score(1, long),
+        efficiency: EfficiencyScores {
+            length_s: recovery as f64 * dt,
+            rms_always_gnss_mps: rec(0),
+            rms_always_integrated_mps: rec(1),
+            rms_selected_mps: rec(2),
+            fraction_integrated: per_run
+                .iter()
+                .map(|r| r.recovery_integrated[0] as f64)
+                .sum::<f64>()
+                / n_rec,
+            rms_selected_adaptive_mps: rec(3),
+            fraction_integrated_adaptive: per_run
+                .iter()
+                .map(|r| r.recovery_integrated[1] as f64)
+                .sum::<f64>()
+                / n_rec,
+        },
         example: per_run
             .iter()
             .find_map(|r| r.example.clone())
+            .unwrap_or_default(),
+        efficiency_example: per_run
+            .iter()
+            .find_map(|r| r.efficiency_example.clone())
             .unwrap_or_default(),
     };
     Ok(result)
