@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use aidnav::io::config::load_toml;
 use aidnav::io::measurements::DEFAULT_MAX_EPOCHS;
 use aidnav::jobs::{self, FilterJob};
+use aidnav::sim::experiments::MonteCarloScenario;
 use aidnav::sim::experiments::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::sim::experiments::consistency::{ConsistencyResult, ConsistencyScenario};
 use aidnav::sim::experiments::outages::{OutageScores, OutagesResult, OutagesScenario};
@@ -156,6 +157,43 @@ fn run_filter(a: FilterArgs) -> Result<()> {
 /// Quick defaults for `reproduce all`: fewer runs, same physics.
 const QUICK_RUNS: usize = 100;
 
+/// The scenario of one experiment — from `--scenario` or the defaults, with
+/// `--runs` / `--seed` applied and `reproduce all`'s quick run count — checked,
+/// and its output directory.
+fn scenario_and_out<S>(a: &ReproduceArgs, root: &Path, name: &str) -> Result<(S, PathBuf)>
+where
+    S: Default + serde::de::DeserializeOwned + aidnav::io::Validate + MonteCarloScenario,
+{
+    let mut s = match &a.scenario {
+        Some(p) => load_toml::<S>(p)?.0,
+        None => S::default(),
+    };
+    if a.experiment == Experiment::All {
+        let runs = s.runs_mut();
+        *runs = (*runs).min(QUICK_RUNS);
+    }
+    if let Some(r) = a.runs {
+        *s.runs_mut() = r;
+    }
+    if let Some(seed) = a.seed {
+        *s.seed_mut() = seed;
+    }
+    s.validate().map_err(|inv| {
+        anyhow::anyhow!(
+            "{}: {} is out of range: allowed {}",
+            inv.key,
+            inv.value,
+            inv.allowed
+        )
+    })?;
+    let out = if a.experiment == Experiment::All || a.out.is_none() {
+        root.join(name)
+    } else {
+        root.to_path_buf()
+    };
+    Ok((s, out))
+}
+
 fn run_reproduce(a: ReproduceArgs) -> Result<()> {
     let experiments: Vec<Experiment> = match a.experiment {
         Experiment::All => vec![
@@ -189,92 +227,17 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
     for e in experiments {
         match e {
             Experiment::Consistency => {
-                let mut s = match &a.scenario {
-                    Some(p) => load_toml::<ConsistencyScenario>(p)?.0,
-                    None => ConsistencyScenario::default(),
-                };
-                if a.experiment == Experiment::All {
-                    s.runs = s.runs.min(QUICK_RUNS);
-                }
-                if let Some(r) = a.runs {
-                    s.runs = r;
-                }
-                if let Some(seed) = a.seed {
-                    s.seed = seed;
-                }
-                aidnav::io::Validate::validate(&s).map_err(|inv| {
-                    anyhow::anyhow!(
-                        "{}: {} is out of range: allowed {}",
-                        inv.key,
-                        inv.value,
-                        inv.allowed
-                    )
-                })?;
-                let out = if a.experiment == Experiment::All || a.out.is_none() {
-                    root.join("consistency")
-                } else {
-                    root.clone()
-                };
+                let (s, out) = scenario_and_out::<ConsistencyScenario>(&a, &root, "consistency")?;
                 let r = jobs::consistency(&s, &out, a.quiet).context("consistency demo")?;
                 print_consistency(&s, &r, &out);
             }
             Experiment::Anomalies => {
-                let mut s = match &a.scenario {
-                    Some(p) => load_toml::<AnomaliesScenario>(p)?.0,
-                    None => AnomaliesScenario::default(),
-                };
-                if a.experiment == Experiment::All {
-                    s.runs = s.runs.min(QUICK_RUNS);
-                }
-                if let Some(r) = a.runs {
-                    s.runs = r;
-                }
-                if let Some(seed) = a.seed {
-                    s.seed = seed;
-                }
-                aidnav::io::Validate::validate(&s).map_err(|inv| {
-                    anyhow::anyhow!(
-                        "{}: {} is out of range: allowed {}",
-                        inv.key,
-                        inv.value,
-                        inv.allowed
-                    )
-                })?;
-                let out = if a.experiment == Experiment::All || a.out.is_none() {
-                    root.join("anomalies")
-                } else {
-                    root.clone()
-                };
+                let (s, out) = scenario_and_out::<AnomaliesScenario>(&a, &root, "anomalies")?;
                 let r = jobs::anomalies(&s, &out, a.quiet).context("anomalies experiment")?;
                 print_anomalies(&s, &r, &out);
             }
             Experiment::Outages => {
-                let mut s = match &a.scenario {
-                    Some(p) => load_toml::<OutagesScenario>(p)?.0,
-                    None => OutagesScenario::default(),
-                };
-                if a.experiment == Experiment::All {
-                    s.runs = s.runs.min(QUICK_RUNS);
-                }
-                if let Some(r) = a.runs {
-                    s.runs = r;
-                }
-                if let Some(seed) = a.seed {
-                    s.seed = seed;
-                }
-                aidnav::io::Validate::validate(&s).map_err(|inv| {
-                    anyhow::anyhow!(
-                        "{}: {} is out of range: allowed {}",
-                        inv.key,
-                        inv.value,
-                        inv.allowed
-                    )
-                })?;
-                let out = if a.experiment == Experiment::All || a.out.is_none() {
-                    root.join("outages")
-                } else {
-                    root.clone()
-                };
+                let (s, out) = scenario_and_out::<OutagesScenario>(&a, &root, "outages")?;
                 let r = jobs::outages(&s, &out, a.quiet).context("outages experiment")?;
                 print_outages(&s, &r, &out);
             }

@@ -124,19 +124,7 @@ impl Validate for AnomaliesScenario {
     fn validate(&self) -> Result<(), Invalid> {
         count_in_range("runs", self.runs, 1, 100_000)?;
         count_in_range("epochs", self.epochs, 10, 1_000_000)?;
-        let p = &self.platform;
-        positive("dt_s", p.dt_s).map_err(|e| e.within("platform"))?;
-        positive("beta_per_s", p.beta_per_s).map_err(|e| e.within("platform"))?;
-        positive("drift_sigma_rad_s", p.drift_sigma_rad_s).map_err(|e| e.within("platform"))?;
-        positive("gnss_velocity_sigma_mps", p.gnss_velocity_sigma_mps)
-            .map_err(|e| e.within("platform"))?;
-        if !p.accel_bias_m_s2.is_finite() {
-            return Err(Invalid::new(
-                "platform.accel_bias_m_s2",
-                p.accel_bias_m_s2,
-                "a finite number",
-            ));
-        }
+        super::validate_platform(&self.platform)?;
         positive(
             "initial_velocity_sigma_mps",
             self.initial_velocity_sigma_mps,

@@ -5,3 +5,51 @@
 pub mod anomalies;
 pub mod consistency;
 pub mod outages;
+
+use aidnav_io::config::{Invalid, positive};
+use aidnav_models::PlatformChannel;
+
+/// Range checks of a `[platform]` table, shared by the spec-20 scenarios.
+pub(crate) fn validate_platform(p: &PlatformChannel) -> Result<(), Invalid> {
+    positive("dt_s", p.dt_s).map_err(|e| e.within("platform"))?;
+    positive("beta_per_s", p.beta_per_s).map_err(|e| e.within("platform"))?;
+    positive("drift_sigma_rad_s", p.drift_sigma_rad_s).map_err(|e| e.within("platform"))?;
+    positive("gnss_velocity_sigma_mps", p.gnss_velocity_sigma_mps)
+        .map_err(|e| e.within("platform"))?;
+    if !p.accel_bias_m_s2.is_finite() {
+        return Err(Invalid::new(
+            "platform.accel_bias_m_s2",
+            p.accel_bias_m_s2,
+            "a finite number",
+        ));
+    }
+    Ok(())
+}
+
+/// What every Monte Carlo scenario has: a run count and a master seed, so
+/// the CLI can override both the same way for every experiment.
+pub trait MonteCarloScenario {
+    /// Number of runs.
+    fn runs_mut(&mut self) -> &mut usize;
+    /// Master seed.
+    fn seed_mut(&mut self) -> &mut u64;
+}
+
+macro_rules! monte_carlo_scenario {
+    ($($t:ty),*) => {$(
+        impl MonteCarloScenario for $t {
+            fn runs_mut(&mut self) -> &mut usize {
+                &mut self.runs
+            }
+            fn seed_mut(&mut self) -> &mut u64 {
+                &mut self.seed
+            }
+        }
+    )*};
+}
+
+monte_carlo_scenario!(
+    anomalies::AnomaliesScenario,
+    consistency::ConsistencyScenario,
+    outages::OutagesScenario
+);

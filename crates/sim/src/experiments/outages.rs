@@ -131,12 +131,7 @@ impl Default for OutagesScenario {
 impl Validate for OutagesScenario {
     fn validate(&self) -> Result<(), Invalid> {
         count_in_range("runs", self.runs, 1, 100_000)?;
-        let p = &self.platform;
-        positive("dt_s", p.dt_s).map_err(|e| e.within("platform"))?;
-        positive("beta_per_s", p.beta_per_s).map_err(|e| e.within("platform"))?;
-        positive("drift_sigma_rad_s", p.drift_sigma_rad_s).map_err(|e| e.within("platform"))?;
-        positive("gnss_velocity_sigma_mps", p.gnss_velocity_sigma_mps)
-            .map_err(|e| e.within("platform"))?;
+        super::validate_platform(&self.platform)?;
         positive(
             "initial_velocity_sigma_mps",
             self.initial_velocity_sigma_mps,
@@ -152,7 +147,7 @@ impl Validate for OutagesScenario {
                 "short_outage_s ≤ long_outage_s",
             ));
         }
-        let epochs = (self.outage_start_s + self.long_outage_s) / p.dt_s;
+        let epochs = (self.outage_start_s + self.long_outage_s) / self.platform.dt_s;
         if epochs > 1e7 {
             return Err(Invalid::new(
                 "long_outage_s",
