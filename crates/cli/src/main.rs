@@ -302,7 +302,7 @@ fn paper_anomalies(name: &str) -> &'static str {
     match name {
         "developed" => "8–10 % better than KF, 5 % better than adaptive",
         "kf_plain" => "reference (\"Kalman filter\")",
-        "adaptive_reject" => "reference (\"adaptive\")",
+        "adaptive" => "reference (\"adaptive\")",
         _ => "—",
     }
 }
