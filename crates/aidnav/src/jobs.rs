@@ -33,6 +33,9 @@ pub enum JobError {
         /// The engine's error.
         source: EstimationError,
     },
+    /// The outages experiment (its filter or its model selection).
+    #[error("outages experiment: {0}")]
+    Outages(#[from] aidnav_sim::experiments::outages::OutagesError),
     /// The job refuses the request (size limits and the like).
     #[error("{0}")]
     Refused(String),
@@ -189,16 +192,19 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
     Ok(report)
 }
 
+/// The Monte Carlo runner of an experiment, with or without a progress bar.
+fn campaign(runs: usize, seed: u64, label: &str, quiet: bool) -> MonteCarlo {
+    let mc = MonteCarlo::new(runs, seed).with_label(label);
+    if quiet { mc.quiet() } else { mc }
+}
+
 /// Run the consistency demo and write its CSV, plots and `summary.json` into `out`.
 pub fn consistency(
     scenario: &ConsistencyScenario,
     out: &Path,
     quiet: bool,
 ) -> JobResult<ConsistencyResult> {
-    let mut mc = MonteCarlo::new(scenario.runs, scenario.seed).with_label("consistency");
-    if quiet {
-        mc = mc.quiet();
-    }
+    let mc = campaign(scenario.runs, scenario.seed, "consistency", quiet);
     let result = aidnav_sim::experiments::consistency::run(scenario, &mc).map_err(|source| {
         JobError::Estimation {
             context: "consistency demo".into(),
@@ -282,10 +288,7 @@ pub fn anomalies(
     out: &Path,
     quiet: bool,
 ) -> JobResult<AnomaliesResult> {
-    let mut mc = MonteCarlo::new(scenario.runs, scenario.seed).with_label("anomalies");
-    if quiet {
-        mc = mc.quiet();
-    }
+    let mc = campaign(scenario.runs, scenario.seed, "anomalies", quiet);
     let result = aidnav_sim::experiments::anomalies::run(scenario, &mc).map_err(|source| {
         JobError::Estimation {
             context: "anomalies experiment".into(),
@@ -371,12 +374,8 @@ pub fn anomalies(
 /// Run the spec-20 outages experiment and write `outage_example.csv`,
 /// `outage_predictors.svg` and `summary.json` into `out`.
 pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult<OutagesResult> {
-    let mut mc = MonteCarlo::new(scenario.runs, scenario.seed).with_label("outages");
-    if quiet {
-        mc = mc.quiet();
-    }
-    let result = aidnav_sim::experiments::outages::run(scenario, &mc)
-        .map_err(|e| JobError::Refused(format!("outages experiment: {e}")))?;
+    let mc = campaign(scenario.runs, scenario.seed, "outages", quiet);
+    let result = aidnav_sim::experiments::outages::run(scenario, &mc)?;
     aidnav_io::writers::ensure_dir(out)?;
     let ex = &result.example;
     let mut header: Vec<String> = vec!["outage age [s]".into(), "true_dv [m/s]".into()];

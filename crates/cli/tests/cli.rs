@@ -43,6 +43,10 @@ fn reproduce_failure(scenario: &Path, out: &Path) -> String {
     ])
 }
 
+fn read_summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
@@ -92,9 +96,7 @@ fn filter_reproduces_the_hand_checked_example() {
     }
     let inn = std::fs::read_to_string(dir.path().join("innovations.csv")).unwrap();
     assert!(inn.lines().nth(4).unwrap().ends_with(",,,0,missing"));
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
-            .unwrap();
+    let summary = read_summary(dir.path());
     assert_eq!(summary["command"], "filter");
     assert_eq!(summary["aidnav_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(summary["scenario"]["r"][0][0], 1.0);
@@ -167,9 +169,7 @@ fn reproduce_writes_table_plot_and_summary_with_seed_and_scenario() {
     for f in ["consistency.csv", "nees.svg", "summary.json"] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
-            .unwrap();
+    let summary = read_summary(dir.path());
     assert_eq!(summary["seed"], 99);
     assert_eq!(summary["scenario"]["runs"], 20);
     assert_eq!(summary["scenario"]["accel_psd"], 0.05);
@@ -232,9 +232,7 @@ fn reproduce_anomalies_writes_the_rms_keys_other_tools_read() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
-            .unwrap();
+    let summary = read_summary(dir.path());
     for key in [
         "kf_known_clean",
         "kf_plain",
@@ -271,9 +269,7 @@ fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
-            .unwrap();
+    let summary = read_summary(dir.path());
     for case in ["short", "long"] {
         for key in [
             "apriori",

@@ -31,7 +31,16 @@ impl AnomalyDetector {
     where
         DefaultAllocator: Allocator<M> + Allocator<M, M>,
     {
-        view.residual.norm_squared() > self.gamma * view.s.trace()
+        self.exceeds(view.residual, view.s)
+    }
+
+    /// Eq. 5 on an innovation ν and its covariance S given directly (for
+    /// schemes that must decide before the update, e.g. whether ν may feed Q).
+    pub fn exceeds<M: Dim>(&self, residual: &OVector<f64, M>, s: &OMatrix<f64, M, M>) -> bool
+    where
+        DefaultAllocator: Allocator<M> + Allocator<M, M>,
+    {
+        residual.norm_squared() > self.gamma * s.trace()
     }
 
     /// The gate radius `√(γ tr S)`.

@@ -132,15 +132,12 @@ impl OutageBridge {
         let (slope, intercept) = line(&times[k..], &estimates[k..]);
         let m = from(config.model_window_s);
         let step = config.model_decimation.max(1);
-        let last_index = times.len() - 1;
-        let keep: Vec<usize> = (m..times.len())
-            .rev()
-            .step_by(step)
-            .collect::<Vec<_>>()
-            .into_iter()
-            .rev()
+        // Every step-th sample counted back from the last, so the model always
+        // sees the sample at the outage start.
+        let n = times.len();
+        let keep: Vec<usize> = (m..n)
+            .filter(|i| (n - 1 - i).is_multiple_of(step))
             .collect();
-        debug_assert_eq!(keep.last(), Some(&last_index));
         let mt: Vec<f64> = keep.iter().map(|&i| times[i]).collect();
         let my: Vec<f64> = keep.iter().map(|&i| estimates[i]).collect();
         let model = select(&mt, &my, &config.gmdh)?.model;
