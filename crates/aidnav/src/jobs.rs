@@ -282,7 +282,8 @@ pub fn consistency(
 }
 
 /// Run the spec-20 anomalies experiment and write `anomalies_example.csv`,
-/// `anomalies_example.svg` and `summary.json` into `out`.
+/// `anomalies_example.svg`, the paper-like Figs. 3–8 (`fig03_…svg` to
+/// `fig08_…svg`) and `summary.json` into `out`.
 pub fn anomalies(
     scenario: &AnomaliesScenario,
     out: &Path,
@@ -364,6 +365,7 @@ pub fn anomalies(
         .iter()
         .map(|s| (s.name.clone(), serde_json::json!(s.rms_mps)))
         .collect();
+    crate::figures::anomaly_figures(&result, scenario.illustration.at_epoch, dt, out)?;
     summary.insert("rms", rms);
     summary.insert("scores", &result.scores);
     summary.insert("anomaly_fraction", result.anomaly_fraction);
@@ -372,7 +374,8 @@ pub fn anomalies(
 }
 
 /// Run the spec-20 outages experiment and write `outage_example.csv`,
-/// `outage_predictors.svg` and `summary.json` into `out`.
+/// `outage_predictors.svg` (Fig. 9), `efficiency.svg`,
+/// `fig10_recovery_errors.svg` and `summary.json` into `out`.
 pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult<OutagesResult> {
     let mc = campaign(scenario.runs, scenario.seed, "outages", quiet);
     let result = aidnav_sim::experiments::outages::run(scenario, &mc)?;
@@ -457,6 +460,7 @@ pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult
         log_y: true,
     }
     .write_svg(&out.join("efficiency.svg"))?;
+    crate::figures::recovery_figure(&result.efficiency_example, out)?;
     let mut summary = Summary::new("reproduce outages", VERSION, Some(scenario.seed), scenario);
     summary.insert("efficiency", &result.efficiency);
     for (key, scores) in [("short", &result.short), ("long", &result.long)] {

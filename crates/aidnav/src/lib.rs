@@ -1,5 +1,6 @@
 #![doc = include_str!("../../../README.md")]
 
+mod figures;
 pub mod jobs;
 
 pub use aidnav_estimation as estimation;

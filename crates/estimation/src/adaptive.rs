@@ -8,6 +8,8 @@
 //!   — clipped to the gate, direction (sign) kept.
 //! - [`AdaptiveGain`] (eq. 4): gain from the empirical innovation covariance
 //!   of a sliding window instead of the model's S.
+//! - [`LimitedAdaptiveGain`] (eq. 9's update): the eq. 4 gain with the
+//!   eq. 5 detector and the eq. 8 limiting.
 //! - [`innovation_feedback_q`] (eq. 3): the process-noise term `K ν νᵀ Kᵀ`
 //!   that replaces Q in the innovation-feedback adaptive filter; use it with
 //!   the split predict (`predict_state`, `innovation`, `predict_covariance`).
@@ -154,6 +156,27 @@ where
         }
         self.next = (self.next + 1) % self.capacity;
     }
+
+    /// Record the innovation ν and return eq. 4's gain covariance: M̂ when its
+    /// diagonal exceeds that of `hph` (by the rule), else `hph`; None until
+    /// the window is full.
+    pub fn observe(
+        &mut self,
+        residual: &OVector<f64, M>,
+        hph: &OMatrix<f64, M, M>,
+    ) -> Option<OMatrix<f64, M, M>> {
+        let (md, _) = hph.shape_generic();
+        let mut outer = OMatrix::<f64, M, M>::zeros_generic(md, md);
+        outer.ger(1.0, residual, residual, 0.0);
+        self.push(outer);
+        let m_hat = self.empirical_covariance()?;
+        let exceeds = (0..residual.len()).map(|i| m_hat[(i, i)] > hph[(i, i)]);
+        let use_empirical = match self.rule {
+            DiagonalRule::All => exceeds.into_iter().all(|b| b),
+            DiagonalRule::Any => exceeds.into_iter().any(|b| b),
+        };
+        Some(if use_empirical { m_hat } else { hph.clone() })
+    }
 }
 
 impl<M: Dim> MeasurementPolicy<M> for AdaptiveGain<M>
@@ -161,23 +184,48 @@ where
     DefaultAllocator: Allocator<M> + Allocator<M, M>,
 {
     fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M> {
-        let (md, _) = view.hph.shape_generic();
-        let mut outer = OMatrix::<f64, M, M>::zeros_generic(md, md);
-        outer.ger(1.0, view.residual, view.residual, 0.0);
-        self.push(outer);
-        let Some(m_hat) = self.empirical_covariance() else {
-            return Decision::Accept;
-        };
-        let m = view.residual.len();
-        let exceeds = (0..m).map(|i| m_hat[(i, i)] > view.hph[(i, i)]);
-        let use_empirical = match self.rule {
-            DiagonalRule::All => exceeds.into_iter().all(|b| b),
-            DiagonalRule::Any => exceeds.into_iter().any(|b| b),
-        };
-        if use_empirical {
-            Decision::GainCovariance(m_hat)
-        } else {
-            Decision::GainCovariance(view.hph.clone())
+        match self.observe(view.residual, view.hph) {
+            Some(c) => Decision::GainCovariance(c),
+            None => Decision::Accept,
+        }
+    }
+}
+
+/// Spec 20 eq. 9's measurement update, the developed algorithm: the adaptive
+/// gain of eq. 4 and, when the detector of eq. 5 fires, the innovation
+/// limited to the gate (eq. 8, direction kept). The window of M̂ records the
+/// innovation actually used (the limited one on anomalies), so a burst
+/// cannot blow M̂ up without bound. (The innovation-feedback prior of eq. 3
+/// is the caller's: [`innovation_feedback_q`] with the split predict.)
+#[derive(Debug, Clone)]
+pub struct LimitedAdaptiveGain<M: Dim>
+where
+    DefaultAllocator: Allocator<M, M>,
+{
+    /// Eq. 4's window.
+    pub gain: AdaptiveGain<M>,
+    /// Eq. 5's detector.
+    pub detector: AnomalyDetector,
+}
+
+impl<M: Dim> MeasurementPolicy<M> for LimitedAdaptiveGain<M>
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M> {
+        if !self.detector.is_anomalous(view) {
+            return match self.gain.observe(view.residual, view.hph) {
+                Some(c) => Decision::GainCovariance(c),
+                None => Decision::Accept,
+            };
+        }
+        let residual = view.residual * (self.detector.bound(view) / view.residual.norm());
+        match self.gain.observe(&residual, view.hph) {
+            Some(covariance) => Decision::LimitWithGainCovariance {
+                residual,
+                covariance,
+            },
+            None => Decision::ReplaceResidual(residual),
         }
     }
 }

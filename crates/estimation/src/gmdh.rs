@@ -104,6 +104,18 @@ pub struct GmdhConfig {
     /// golden-section search between their grid neighbours (on the training
     /// part only). Default true.
     pub refine: bool,
+    /// Forecast horizon H beyond the last sample that the model is selected
+    /// for [s]. When set, the external criterion becomes the combined
+    /// criterion `regularity + balance`, where the *balance of forecasts* is
+    /// the mean squared difference, over (t_last, t_last + H], between the
+    /// structure fitted on the earlier half of the samples and the same
+    /// structure fitted on the later half, divided by the variance of the
+    /// checking part. A structure whose extrapolation depends on which
+    /// stretch of the record it was fitted to (a harmonic slower than the
+    /// record, a high power of t) is penalised in proportion to the horizon
+    /// actually predicted; an alternating split cannot see this when the
+    /// samples are correlated in time. Default none (regularity alone).
+    pub horizon_s: Option<f64>,
 }
 
 impl Default for GmdhConfig {
@@ -118,6 +130,7 @@ impl Default for GmdhConfig {
             min_improvement: 0.02,
             noise_guard: 15.0,
             refine: true,
+            horizon_s: None,
         }
     }
 }
@@ -186,7 +199,8 @@ impl GmdhModel {
 pub struct GmdhSelection {
     /// Winning structure refitted on all samples.
     pub model: GmdhModel,
-    /// Its regularity criterion on B (fitted on A).
+    /// Its external criterion: the regularity on B (fitted on A), plus the
+    /// balance of forecasts when [`GmdhConfig::horizon_s`] is set.
     pub criterion: f64,
     /// Best criterion at each complexity explored (1 unit, 2 units, …).
     pub best_by_complexity: Vec<f64>,
@@ -269,6 +283,9 @@ fn harmonic_residual(omega: f64, degree: u32, w: &Window<'_>, train: &[usize]) -
         None => f64::INFINITY,
     }
 }
+
+/// Points on the forecast horizon where the balance criterion compares forecasts.
+const BALANCE_POINTS: usize = 64;
 
 /// Number of searched harmonics refined (the best by training residual).
 const REFINED_HARMONICS: usize = 3;
@@ -418,9 +435,45 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
         t_mid,
         half_span,
     };
+    let (early, late): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| i < n / 2);
+    let horizon_grid: Vec<f64> = match config.horizon_s {
+        Some(h) => {
+            if !(h.is_finite() && h > 0.0) {
+                return Err(GmdhError::Config(format!("horizon_s {h} must be > 0")));
+            }
+            (1..=BALANCE_POINTS)
+                .map(|k| t[n - 1] + h * k as f64 / BALANCE_POINTS as f64)
+                .collect()
+        }
+        None => Vec::new(),
+    };
+    let check_variance = {
+        let mean = check.iter().map(|&i| y[i]).sum::<f64>() / check.len() as f64;
+        (check.iter().map(|&i| (y[i] - mean).powi(2)).sum::<f64>() / check.len() as f64)
+            .max(f64::MIN_POSITIVE)
+    };
     let score = |units: &[Unit]| -> Option<f64> {
         let coef = fit(units, &window, &train)?;
-        Some(criterion(units, &coef, &window, &check))
+        let regularity = criterion(units, &coef, &window, &check);
+        if horizon_grid.is_empty() {
+            return Some(regularity);
+        }
+        let model = |idx: &[usize]| {
+            fit(units, &window, idx).map(|coefficients| GmdhModel {
+                units: units.to_vec(),
+                coefficients,
+                t_mid,
+                half_span,
+            })
+        };
+        let (a, b) = (model(&early)?, model(&late)?);
+        let balance = horizon_grid
+            .iter()
+            .map(|&t| (a.predict(t) - b.predict(t)).powi(2))
+            .sum::<f64>()
+            / horizon_grid.len() as f64
+            / check_variance;
+        Some(regularity + balance)
     };
     if config.refine && grid_ratio > 1.0 {
         let mut searched = candidates.split_off(given);

@@ -314,15 +314,19 @@ where
                 (Outcome::Reweighted, gain)
             }
             Decision::GainCovariance(c) => {
-                check::shape(&c, (z.len(), z.len()), step, Matrix::S)?;
-                check::finite(&c, step, Matrix::S)?;
-                let chol = Cholesky::new(c).ok_or(EstimationError::NotPositiveDefinite {
-                    step,
-                    matrix: Matrix::S,
-                })?;
-                let gain = Self::gain(&chol, &innov.hp);
+                let gain = Self::gain_from(c, &innov.hp, z.len(), step)?;
                 self.apply(&gain, &innov.residual, &innov.hp, h, r, step)?;
                 (Outcome::AdaptiveGain, gain)
+            }
+            Decision::LimitWithGainCovariance {
+                residual,
+                covariance,
+            } => {
+                check::shape(&residual, (z.len(), 1), step, Matrix::Innovation)?;
+                check::finite(&residual, step, Matrix::Innovation)?;
+                let gain = Self::gain_from(covariance, &innov.hp, z.len(), step)?;
+                self.apply(&gain, &residual, &innov.hp, h, r, step)?;
+                (Outcome::Limited, gain)
             }
         };
         Ok(UpdateRecord {
@@ -340,6 +344,25 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         chol.solve(hp).transpose()
+    }
+
+    /// K = P⁻ Hᵀ C⁻¹ for a policy-supplied C (checked: shape, finite, positive definite).
+    fn gain_from<M: Dim>(
+        c: OMatrix<f64, M, M>,
+        hp: &OMatrix<f64, M, N>,
+        m: usize,
+        step: Step,
+    ) -> Result<OMatrix<f64, N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        check::shape(&c, (m, m), step, Matrix::S)?;
+        check::finite(&c, step, Matrix::S)?;
+        let chol = Cholesky::new(c).ok_or(EstimationError::NotPositiveDefinite {
+            step,
+            matrix: Matrix::S,
+        })?;
+        Ok(Self::gain(&chol, hp))
     }
 
     /// x += K ν; P by the configured form; symmetrise and check.

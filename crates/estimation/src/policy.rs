@@ -56,6 +56,14 @@ where
     /// updated in Joseph form with the true R, so P stays the covariance of
     /// the estimate actually produced.
     GainCovariance(OMatrix<f64, M, M>),
+    /// Both at once (spec 20 eq. 9): use `residual` instead of ν with the gain
+    /// K = P⁻ Hᵀ C⁻¹ formed from `covariance`. Recorded as [`Outcome::Limited`].
+    LimitWithGainCovariance {
+        /// The limited innovation.
+        residual: OVector<f64, M>,
+        /// C of the gain.
+        covariance: OMatrix<f64, M, M>,
+    },
 }
 
 /// How the update ended, as recorded per epoch.

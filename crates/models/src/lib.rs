@@ -12,4 +12,4 @@ pub mod platform;
 
 pub use constant_velocity::ConstantVelocity;
 pub use gauss_markov::GaussMarkov;
-pub use platform::PlatformChannel;
+pub use platform::{PlatformChannel, PlatformTruth};

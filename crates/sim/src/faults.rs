@@ -6,6 +6,7 @@
 //! A [`FaultPlan`] is per epoch: an additive error (0 where clean) and whether
 //! the measurement is lost to an outage.
 
+use aidnav_io::config::Invalid;
 use rand::Rng;
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
@@ -50,6 +51,16 @@ pub enum FaultSpec {
         /// Magnitude range.
         magnitude: SigmaRange,
     },
+    /// An anomaly of `sigmas` · σ (signed) on `length` epochs from `start`:
+    /// a fault placed by hand (illustrations, tests).
+    Fixed {
+        /// First anomalous epoch.
+        start: usize,
+        /// Number of anomalous epochs.
+        length: usize,
+        /// Signed magnitude in units of σ.
+        sigmas: f64,
+    },
     /// A burst of `length` epochs starting right after each outage ends.
     AfterOutage {
         /// Burst length [epochs].
@@ -76,6 +87,52 @@ pub struct FaultPlan {
     pub error: Vec<f64>,
     /// Whether the epoch's measurement is lost to an outage.
     pub lost: Vec<bool>,
+}
+
+impl FaultSpec {
+    /// Range checks (a scenario file's `[[faults]]` entry).
+    pub fn validate(&self) -> Result<(), Invalid> {
+        let magnitude = match *self {
+            FaultSpec::SingleOutliers { magnitude, .. }
+            | FaultSpec::Bursts { magnitude, .. }
+            | FaultSpec::RandomRate { magnitude, .. }
+            | FaultSpec::AfterOutage { magnitude, .. } => Some(magnitude),
+            FaultSpec::Fixed { sigmas, .. } => {
+                if !sigmas.is_finite() {
+                    return Err(Invalid::new("sigmas", sigmas, "a finite number"));
+                }
+                None
+            }
+        };
+        if let Some(m) = magnitude
+            && !(m.min >= 0.0 && m.max >= m.min && m.max.is_finite())
+        {
+            return Err(Invalid::new(
+                "magnitude",
+                format!("{}..{}", m.min, m.max),
+                "0 ≤ min ≤ max, finite",
+            ));
+        }
+        if let FaultSpec::RandomRate { rate, .. } = *self
+            && !(0.0..=1.0).contains(&rate)
+        {
+            return Err(Invalid::new("rate", rate, "0 ≤ rate ≤ 1"));
+        }
+        if let FaultSpec::Bursts {
+            min_length,
+            max_length,
+            ..
+        } = *self
+            && min_length > max_length
+        {
+            return Err(Invalid::new(
+                "min_length",
+                min_length,
+                "min_length ≤ max_length",
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl FaultPlan {
@@ -153,6 +210,15 @@ pub fn plan<R: Rng + ?Sized>(
                     if rng.random::<f64>() < rate {
                         *e = sign(rng) * magnitude(rng, m, sigma);
                     }
+                }
+            }
+            FaultSpec::Fixed {
+                start,
+                length,
+                sigmas,
+            } => {
+                for e in error.iter_mut().skip(start).take(length) {
+                    *e = sigmas * sigma;
                 }
             }
             FaultSpec::AfterOutage {
@@ -252,5 +318,35 @@ mod tests {
         let b = plan(&specs, &[], 1000, 1.0, &mut run_rng(3, 4));
         assert_eq!(a, b);
         assert!(a.anomaly_fraction() > 0.0);
+    }
+
+    #[test]
+    fn fixed_faults_land_where_placed_and_specs_are_validated() {
+        let p = plan(
+            &[FaultSpec::Fixed {
+                start: 5,
+                length: 3,
+                sigmas: -30.0,
+            }],
+            &[],
+            10,
+            0.1,
+            &mut run_rng(1, 0),
+        );
+        let hit: Vec<usize> = (0..10).filter(|&k| p.is_anomalous(k)).collect();
+        assert_eq!(hit, [5, 6, 7]);
+        assert!((p.error[6] + 3.0).abs() < 1e-12);
+        let bad = FaultSpec::Bursts {
+            count: 1,
+            min_length: 5,
+            max_length: 2,
+            magnitude: M,
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "min_length");
+        let rate = FaultSpec::RandomRate {
+            rate: 1.5,
+            magnitude: M,
+        };
+        assert_eq!(rate.validate().unwrap_err().key, "rate");
     }
 }

@@ -10,8 +10,11 @@
 //!   `model_window_s` (candidates: polynomial, the given frequencies such as
 //!   the Schuler frequency, and a searched grid);
 //! - combined ("modified") trend: `w(τ) · trend + (1 − w(τ)) · model` with
-//!   `w(τ) = max(0, 1 − τ / blend_s)`, so it starts on the trend and ends on
-//!   the model (spec 20 result 4: identical at the end of long prediction);
+//!   the weight depending on the prediction length τ: `w = 1` up to T2,
+//!   falling linearly to 0 at T3, 0 after — so it is the trend where the
+//!   relay uses the trend, the model where the relay uses the model, and the
+//!   relay is continuous at T2 and T3 (spec 20 result 4: combined trend and
+//!   model identical at the end of long prediction);
 //! - relay: hold until T1, trend until T2, combined trend until T3, the model
 //!   after (T0 = the outage start).
 //!
@@ -50,6 +53,18 @@ pub struct RelaySchedule {
 }
 
 impl RelaySchedule {
+    /// Weight of the trend in the combined trend at outage age `age_s`:
+    /// 1 up to T2, linear to 0 at T3, 0 after.
+    pub fn trend_weight(&self, age_s: f64) -> f64 {
+        if age_s <= self.t2_s {
+            1.0
+        } else if age_s >= self.t3_s {
+            0.0
+        } else {
+            (self.t3_s - age_s) / (self.t3_s - self.t2_s)
+        }
+    }
+
     /// The predictor the relay uses at outage age `age_s`.
     pub fn choose(&self, age_s: f64) -> Predictor {
         if age_s <= self.t1_s {
@@ -72,8 +87,6 @@ pub struct BridgeConfig {
     pub trend_window_s: f64,
     /// History used by the self-organising model [s].
     pub model_window_s: f64,
-    /// Prediction length over which the combined trend moves from trend to model [s].
-    pub blend_s: f64,
     /// Use every n-th sample of the model window for the selection (speed;
     /// the last sample is always used). Default 1.
     #[serde(default = "one")]
@@ -96,7 +109,6 @@ pub struct OutageBridge {
     slope: f64,
     intercept: f64,
     model: GmdhModel,
-    blend_s: f64,
     relay: RelaySchedule,
 }
 
@@ -147,7 +159,6 @@ impl OutageBridge {
             slope,
             intercept,
             model,
-            blend_s: config.blend_s,
             relay: config.relay,
         })
     }
@@ -165,7 +176,7 @@ impl OutageBridge {
             Predictor::Trend => self.slope * t + self.intercept,
             Predictor::Gmdh => self.model.predict(t),
             Predictor::CombinedTrend => {
-                let w = (1.0 - age / self.blend_s).clamp(0.0, 1.0);
+                let w = self.relay.trend_weight(age);
                 w * (self.slope * t + self.intercept) + (1.0 - w) * self.model.predict(t)
             }
             Predictor::Relay => self.predict(self.relay.choose(age), t),
@@ -181,7 +192,6 @@ mod tests {
         BridgeConfig {
             trend_window_s: 50.0,
             model_window_s: 1000.0,
-            blend_s: 200.0,
             model_decimation: 1,
             relay: RelaySchedule {
                 t1_s: 10.0,
@@ -218,6 +228,16 @@ mod tests {
             b.predict(Predictor::CombinedTrend, 1300.0),
             b.predict(Predictor::Gmdh, 1300.0)
         );
+        // The relay is continuous where it hands over to and from the
+        // combined trend (T2, T3); only the hold → trend switch at T1 jumps.
+        for switch in [100.0, 300.0] {
+            let before = b.predict(Predictor::Relay, 999.0 + switch - 1e-6);
+            let after = b.predict(Predictor::Relay, 999.0 + switch + 1e-6);
+            assert!(
+                (before - after).abs() < 1e-4,
+                "T = {switch}: {before} vs {after}"
+            );
+        }
         // Relay: follows its schedule.
         for (age, p) in [
             (5.0, Predictor::Hold),

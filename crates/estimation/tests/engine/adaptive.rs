@@ -1,7 +1,8 @@
 //! Spec 20 policies on constructed cases.
 
 use aidnav_estimation::adaptive::{
-    AdaptiveGain, AnomalyDetector, DiagonalRule, Limiting, Rejection, innovation_feedback_q,
+    AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain, Limiting, Rejection,
+    innovation_feedback_q,
 };
 use aidnav_estimation::nalgebra::{Matrix1, Matrix1x2, Matrix2, Vector1, Vector2};
 use aidnav_estimation::{KalmanFilter, Outcome};
@@ -168,4 +169,36 @@ fn innovation_feedback_q_grows_when_the_true_noise_grows() {
         q_after > 5.0 * q_before,
         "adaptive Q {q_before} → {q_after}"
     );
+}
+
+#[test]
+fn eq9_update_limits_with_the_windowed_gain() {
+    // Window of 2: after one clean innovation of 3 the window is full on the
+    // next update. A 50σ outlier is then limited to √(γ S) (S = 2), and M̂
+    // holds 3² and the limited value² = 18: M̂ = 13.5 > H P Hᵀ = 1, so the
+    // gain is P Hᵀ / 13.5 rather than P Hᵀ / S.
+    let bound = (GAMMA * 2.0_f64).sqrt();
+    let mut policy = LimitedAdaptiveGain {
+        gain: AdaptiveGain::new(2, DiagonalRule::All).unwrap(),
+        detector: AnomalyDetector { gamma: GAMMA },
+    };
+    let r = Matrix1::new(1.0);
+    let mut first = filter();
+    let rec = first
+        .update_with(&Vector1::new(1.0 + 3.0), &H, &r, &mut policy)
+        .unwrap();
+    // Window not full yet: the ordinary gain.
+    assert_eq!(rec.outcome, Outcome::Accepted);
+    for sign in [1.0, -1.0] {
+        let mut p = policy.clone();
+        let mut kf = filter();
+        let rec = kf
+            .update_with(&Vector1::new(1.0 + sign * 100.0), &H, &r, &mut p)
+            .unwrap();
+        assert_eq!(rec.outcome, Outcome::Limited);
+        let m_hat = 0.5 * (9.0 + bound * bound);
+        assert!((rec.gain[0] - 1.0 / m_hat).abs() < 1e-12, "{}", rec.gain[0]);
+        assert!((kf.state()[0] - 1.0 - sign * bound / m_hat).abs() < 1e-12);
+        assert!((kf.state()[1] - 0.5 - sign * 0.2 * bound / m_hat).abs() < 1e-12);
+    }
 }

@@ -126,3 +126,88 @@ fn bad_input_is_an_error() {
             .contains("time 5")
     );
 }
+
+/// A linear trend under correlated (AR(1), 100 s) noise — the shape of a
+/// filter's error history before an outage. Returns (t, y, trend).
+fn trend_under_correlated_noise(seed: u64) -> (Vec<f64>, Vec<f64>, impl Fn(f64) -> f64) {
+    let mut g = rng(seed);
+    let a: f64 = (-5.0_f64 / 100.0).exp();
+    let mut ar = 0.0;
+    let t: Vec<f64> = (0..200).map(|k| 5.0 * k as f64).collect();
+    let trend = |t: f64| 0.3 + 0.002 * t;
+    let y: Vec<f64> = t
+        .iter()
+        .map(|&t| {
+            ar = a * ar + 0.3 * (1.0 - a * a).sqrt() * normal(&mut g);
+            trend(t) + ar
+        })
+        .collect();
+    (t, y, trend)
+}
+
+#[test]
+fn horizon_criterion_selects_models_that_extrapolate() {
+    // Correlated noise fools the alternating split (neighbouring samples
+    // agree), so regularity alone fits the wiggles with slow harmonics and
+    // high powers that extrapolate wildly; the balance of forecasts over the
+    // horizon sees that the early and late halves disagree beyond the record.
+    let two_pi = 2.0 * std::f64::consts::PI;
+    let base = GmdhConfig {
+        search: Some(FrequencyGrid {
+            min: two_pi / 5000.0,
+            max: two_pi / 50.0,
+            count: 20,
+        }),
+        max_units: 3,
+        ..GmdhConfig::default()
+    };
+    let horizon = GmdhConfig {
+        horizon_s: Some(1000.0),
+        ..base.clone()
+    };
+    let (mut plain_sq, mut horizon_sq) = (0.0, 0.0);
+    for seed in 1..=12 {
+        let (t, y, trend) = trend_under_correlated_noise(seed);
+        let plain = select(&t, &y, &base).unwrap().model;
+        let aware = select(&t, &y, &horizon).unwrap().model;
+        for k in 1..=100 {
+            let tf = 995.0 + 10.0 * k as f64;
+            plain_sq += (plain.predict(tf) - trend(tf)).powi(2);
+            horizon_sq += (aware.predict(tf) - trend(tf)).powi(2);
+        }
+    }
+    let (plain_rms, horizon_rms) = ((plain_sq / 1200.0).sqrt(), (horizon_sq / 1200.0).sqrt());
+    assert!(
+        horizon_rms < 0.5 * plain_rms,
+        "forecast RMS over 1000 s: with horizon {horizon_rms}, without {plain_rms}"
+    );
+}
+
+#[test]
+fn horizon_criterion_keeps_a_true_structure() {
+    // When the record holds the whole structure, both halves agree and the
+    // balance term is ≈ 0: the known trend + sinusoid is still found and
+    // extrapolates exactly.
+    let w = 2.0 * std::f64::consts::PI / 50.0;
+    let t: Vec<f64> = (0..200).map(|k| k as f64).collect();
+    let f = |t: f64| 0.5 + 0.01 * t + 2.0 * (w * t).sin();
+    let y: Vec<f64> = t.iter().map(|&t| f(t)).collect();
+    let config = GmdhConfig {
+        frequencies: vec![w],
+        horizon_s: Some(500.0),
+        ..GmdhConfig::default()
+    };
+    let sel = select(&t, &y, &config).unwrap();
+    assert!((sel.model.predict(600.0) - f(600.0)).abs() < 1e-6);
+    assert_eq!(sel.model.units.len(), 3, "{:?}", sel.model.units);
+}
+
+#[test]
+fn horizon_must_be_positive() {
+    let t: Vec<f64> = (0..50).map(f64::from).collect();
+    let config = GmdhConfig {
+        horizon_s: Some(0.0),
+        ..GmdhConfig::default()
+    };
+    assert!(select(&t, &t, &config).is_err());
+}

@@ -6,24 +6,42 @@
 //! Estimators (the `summary.json` keys):
 //! - `kf_known_clean`: Kalman filter, known statistics, *no* anomalies (the floor);
 //! - `kf_plain`: the same filter on the anomalous data;
-//! - `kf_wrong_stats`: wrong a-priori statistics (Q and R scaled), anomalous data;
+//! - `kf_wrong_stats`: wrong a-priori statistics — the paper's model taken at
+//!   its word (no process noise for the forcing, no equivalent tilt in the
+//!   prior), Q and R further scaled by the scenario — on the anomalous data;
 //! - `kf_reject`: known statistics + detector (eq. 5) + rejection (eq. 6);
 //! - `adaptive`: innovation-feedback adaptive filter (eq. 3) alone;
-//! - `adaptive_reject`: the same + detector + rejection;
-//! - `developed`: eq. 9 — innovation-feedback adaptive filter + detector + limiting
-//!   (eq. 8), with the prior covariance during anomalies predicted from the
-//!   mean feedback term of the last stable epochs;
+//! - `adaptive_gain`: eq. 3 with the sliding-window adaptive gain of eq. 4 (no
+//!   noise statistics in the gain), no detector;
+//! - `adaptive_clean`: eq. 3 alone on the fixes *without* anomalies (the
+//!   paper's "adaptive beats the KF" under model error, next to `kf_known_clean`);
+//! - `adaptive_reject`: eq. 3 + detector + rejection;
+//! - `developed`: the developed algorithm as spec 20 defines it — eq. 3 prior,
+//!   detector (eq. 5) and limiting (eq. 8) with the filter's gain, the prior
+//!   during anomalies predicted from the last stable epochs;
+//! - `developed_eq4`: eq. 9 as printed, with eq. 4's gain in place of the
+//!   filter's ([`LimitedAdaptiveGain`]);
 //! - `chi2_gate`, `huber`: modern baselines on the known-statistics filter.
 //!
-//! In both adaptive variants an anomalous innovation never feeds the process
-//! noise: the mean of the last `stable_window` feedback terms is used instead
-//! (the spec's "P predicted from the last stable window"), so the two differ
-//! only in rejecting vs limiting.
+//! "Known statistics" means what a 3-state filter can know of the truth
+//! ([`PlatformChannel::known_process_noise`],
+//! [`PlatformChannel::known_initial_covariance`]): the white-noise equivalent
+//! of the unmodelled forcing on δV and the constant bias as an unknown
+//! equivalent tilt. The adaptive filters need no Q; they start from the same prior.
+//!
+//! In the adaptive variants with a detector an anomalous innovation never
+//! feeds the process noise: the mean of the last `stable_window` feedback
+//! terms is used instead (the spec's "P predicted from the last stable
+//! window"), so `adaptive_reject` and `adaptive_limit` differ only in
+//! rejecting vs limiting.
 
-use aidnav_estimation::adaptive::{AnomalyDetector, Limiting, Rejection, innovation_feedback_q};
+use aidnav_estimation::adaptive::{
+    AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain, Limiting, Rejection,
+    innovation_feedback_q,
+};
 use aidnav_estimation::{AcceptAll, Chi2Gate, EstimationError, Huber, KalmanFilter};
 use aidnav_io::config::{Invalid, Validate, count_in_range, positive, probability};
-use aidnav_models::PlatformChannel;
+use aidnav_models::{PlatformChannel, PlatformTruth};
 use nalgebra::{Matrix1, Matrix3, Vector1, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -52,7 +70,7 @@ const fn row(name: &'static str, kind: Kind) -> Row {
 
 /// The estimators, in table order: the single source of their names, kinds,
 /// data and statistics.
-const ROWS: [Row; 9] = [
+const ROWS: [Row; 12] = [
     Row {
         clean_data: true,
         ..row("kf_known_clean", Kind::Plain)
@@ -64,8 +82,14 @@ const ROWS: [Row; 9] = [
     },
     row("kf_reject", Kind::Reject),
     row("adaptive", Kind::Adaptive),
+    Row {
+        clean_data: true,
+        ..row("adaptive_clean", Kind::Adaptive)
+    },
+    row("adaptive_gain", Kind::AdaptiveGain),
     row("adaptive_reject", Kind::AdaptiveReject),
     row("developed", Kind::Developed),
+    row("developed_eq4", Kind::DevelopedEq4),
     row("chi2_gate", Kind::Chi2),
     row("huber", Kind::Huber),
 ];
@@ -107,18 +131,48 @@ pub struct AnomaliesScenario {
     pub initial_velocity_sigma_mps: f64,
     /// Prior σ of the tilt [rad]. Default 1e-3.
     pub initial_tilt_sigma_rad: f64,
-    /// `kf_wrong_stats` believes Q × this. Default 100.
+    /// `kf_wrong_stats` believes the model's Q (no forcing noise) × this. Default 1.
     pub wrong_q_scale: f64,
-    /// `kf_wrong_stats` believes R × this. Default 0.1.
+    /// `kf_wrong_stats` believes R × this. Default 1.
     pub wrong_r_scale: f64,
     /// Anomaly level γ of eq. 5, > 0. Default 9.
     pub gamma: f64,
     /// Stable epochs averaged for the feedback term during anomalies, ≥ 1. Default 10.
     pub stable_window: usize,
+    /// Innovations n in eq. 4's empirical covariance M̂, ≥ 1. Default 10.
+    pub gain_window: usize,
     /// χ² gate probability. Default 0.999.
     pub chi2_probability: f64,
     /// Huber threshold k on √NIS. Default 1.345.
     pub huber_k: f64,
+    /// The single-outlier and burst runs drawn like the paper's Figs. 3–6.
+    pub illustration: Illustration,
+}
+
+/// The paper's illustrations (Figs. 3–6): one run with a single outlier and
+/// one with a burst, placed by hand after the filters have converged.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Illustration {
+    /// Epochs of each illustration run, 10 … 10⁶. Default 1500.
+    pub epochs: usize,
+    /// Epoch of the outlier / the burst's start. Default 1000.
+    pub at_epoch: usize,
+    /// Signed magnitude in units of the GNSS σ. Default 30.
+    pub sigmas: f64,
+    /// Burst length [epochs], ≥ 1. Default 20.
+    pub burst_length: usize,
+}
+
+impl Default for Illustration {
+    fn default() -> Self {
+        Self {
+            epochs: 1500,
+            at_epoch: 1000,
+            sigmas: 30.0,
+            burst_length: 20,
+        }
+    }
 }
 
 impl Default for AnomaliesScenario {
@@ -157,12 +211,14 @@ impl Default for AnomaliesScenario {
             ],
             initial_velocity_sigma_mps: 1.0,
             initial_tilt_sigma_rad: 1e-3,
-            wrong_q_scale: 100.0,
-            wrong_r_scale: 0.1,
+            wrong_q_scale: 1.0,
+            wrong_r_scale: 1.0,
             gamma: 9.0,
             stable_window: 10,
+            gain_window: 10,
             chi2_probability: 0.999,
             huber_k: 1.345,
+            illustration: Illustration::default(),
         }
     }
 }
@@ -181,40 +237,22 @@ impl Validate for AnomaliesScenario {
         positive("wrong_r_scale", self.wrong_r_scale)?;
         positive("gamma", self.gamma)?;
         count_in_range("stable_window", self.stable_window, 1, 10_000)?;
+        count_in_range("gain_window", self.gain_window, 1, 10_000)?;
         probability("chi2_probability", self.chi2_probability)?;
         positive("huber_k", self.huber_k)?;
+        let il = &self.illustration;
+        count_in_range("illustration.epochs", il.epochs, 10, 1_000_000)?;
+        count_in_range("illustration.at_epoch", il.at_epoch, 0, il.epochs - 1)?;
+        count_in_range("illustration.burst_length", il.burst_length, 1, il.epochs)?;
+        if !il.sigmas.is_finite() {
+            return Err(Invalid::new(
+                "illustration.sigmas",
+                il.sigmas,
+                "a finite number",
+            ));
+        }
         for f in &self.faults {
-            let m = match *f {
-                FaultSpec::SingleOutliers { magnitude, .. }
-                | FaultSpec::Bursts { magnitude, .. }
-                | FaultSpec::RandomRate { magnitude, .. }
-                | FaultSpec::AfterOutage { magnitude, .. } => magnitude,
-            };
-            if !(m.min >= 0.0 && m.max >= m.min && m.max.is_finite()) {
-                return Err(Invalid::new(
-                    "faults.magnitude",
-                    format!("{}..{}", m.min, m.max),
-                    "0 ≤ min ≤ max, finite",
-                ));
-            }
-            if let FaultSpec::RandomRate { rate, .. } = *f
-                && !(0.0..=1.0).contains(&rate)
-            {
-                return Err(Invalid::new("faults.rate", rate, "0 ≤ rate ≤ 1"));
-            }
-            if let FaultSpec::Bursts {
-                min_length,
-                max_length,
-                ..
-            } = *f
-                && min_length > max_length
-            {
-                return Err(Invalid::new(
-                    "faults.min_length",
-                    min_length,
-                    "min_length ≤ max_length",
-                ));
-            }
+            f.validate().map_err(|e| e.within("faults"))?;
         }
         Ok(())
     }
@@ -237,15 +275,19 @@ pub struct EstimatorScore {
     pub improvement_vs_kf_reject: f64,
 }
 
-/// One run kept for plotting: truth and estimates of δV per epoch.
-#[derive(Debug, Clone, PartialEq)]
+/// One run kept for plotting: truth and estimates of δV and tilt per epoch.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct ExampleRun {
-    /// True δV per epoch.
+    /// True δV per epoch [m/s].
     pub truth: Vec<f64>,
+    /// True tilt per epoch [rad].
+    pub tilt: Vec<f64>,
     /// Whether the fix at each epoch was anomalous.
     pub anomalous: Vec<bool>,
-    /// Estimates per estimator (order of [`ESTIMATORS`]).
+    /// δV estimates per estimator (order of [`ESTIMATORS`]).
     pub estimates: Vec<Vec<f64>>,
+    /// Tilt estimates per estimator (order of [`ESTIMATORS`]).
+    pub tilt_estimates: Vec<Vec<f64>>,
 }
 
 /// Result of the experiment.
@@ -258,6 +300,12 @@ pub struct AnomaliesResult {
     /// Run 0, for plots.
     #[serde(skip)]
     pub example: ExampleRun,
+    /// The single-outlier illustration run (Figs. 3–4).
+    #[serde(skip)]
+    pub outlier: ExampleRun,
+    /// The burst illustration run (Figs. 5–6).
+    #[serde(skip)]
+    pub burst: ExampleRun,
 }
 
 /// Streams: truth noise and fix noise (0), faults (1).
@@ -272,6 +320,8 @@ struct Estimator {
     /// Ring of the last stable feedback terms.
     stable_q: Vec<Matrix3<f64>>,
     next: usize,
+    /// Eq. 4's window with eq. 5's detector (used by the eq. 4 kinds).
+    limited_gain: LimitedAdaptiveGain<nalgebra::U1>,
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -280,8 +330,13 @@ enum Kind {
     Reject,
     /// Eq. 3 alone: every innovation feeds Q, every fix is accepted.
     Adaptive,
+    /// Eq. 3 + eq. 4, no detector.
+    AdaptiveGain,
     AdaptiveReject,
+    /// Eq. 3 + 5 + 8 (spec 20's developed algorithm).
     Developed,
+    /// Eq. 9 as printed (eq. 4's gain).
+    DevelopedEq4,
     Chi2,
     Huber,
 }
@@ -296,13 +351,18 @@ struct Setup {
 }
 
 impl Estimator {
-    fn new(kind: Kind, p0: Matrix3<f64>) -> Result<Self, EstimationError> {
+    fn new(kind: Kind, p0: Matrix3<f64>, sc: &AnomaliesScenario) -> Result<Self, EstimationError> {
         Ok(Self {
             kf: KalmanFilter::new(Vector3::zeros(), p0)?,
             kind,
             gain: nalgebra::Matrix3x1::zeros(),
             stable_q: Vec::new(),
             next: 0,
+            limited_gain: LimitedAdaptiveGain {
+                gain: AdaptiveGain::new(sc.gain_window, DiagonalRule::All)
+                    .unwrap_or_else(|| unreachable!("gain_window ≥ 1 is validated")),
+                detector: AnomalyDetector { gamma: sc.gamma },
+            },
         })
     }
 
@@ -317,17 +377,21 @@ impl Estimator {
         let detector = AnomalyDetector { gamma: sc.gamma };
         let adaptive = matches!(
             self.kind,
-            Kind::Adaptive | Kind::AdaptiveReject | Kind::Developed
+            Kind::Adaptive
+                | Kind::AdaptiveGain
+                | Kind::AdaptiveReject
+                | Kind::Developed
+                | Kind::DevelopedEq4
         );
+        let has_detector = !matches!(self.kind, Kind::Adaptive | Kind::AdaptiveGain);
         if !first {
             if adaptive {
                 self.kf.predict_state(&s.phi)?;
                 let q = match z {
                     Some(z) => {
                         let innov = self.kf.innovation(&Vector1::new(z), &s.h, &s.r)?;
-                        // The plain adaptive filter (eq. 3) has no detector.
-                        let anomalous = self.kind != Kind::Adaptive
-                            && detector.exceeds(&innov.residual, &innov.s);
+                        // Eqs. 3 and 3 + 4 alone have no detector.
+                        let anomalous = has_detector && detector.exceeds(&innov.residual, &innov.s);
                         if anomalous {
                             self.stable_mean()
                         } else {
@@ -346,8 +410,10 @@ impl Estimator {
         let Some(z) = z else { return Ok(()) };
         let zv = Vector1::new(z);
         let rec = match self.kind {
-            Kind::Plain => self.kf.update_with(&zv, &s.h, &s.r, &mut AcceptAll),
-            Kind::Adaptive => self.kf.update_with(&zv, &s.h, &s.r, &mut AcceptAll),
+            Kind::Plain | Kind::Adaptive => self.kf.update_with(&zv, &s.h, &s.r, &mut AcceptAll),
+            Kind::AdaptiveGain => self
+                .kf
+                .update_with(&zv, &s.h, &s.r, &mut self.limited_gain.gain),
             Kind::Reject | Kind::AdaptiveReject => {
                 self.kf
                     .update_with(&zv, &s.h, &s.r, &mut Rejection { detector })
@@ -355,6 +421,7 @@ impl Estimator {
             Kind::Developed => self
                 .kf
                 .update_with(&zv, &s.h, &s.r, &mut Limiting { detector }),
+            Kind::DevelopedEq4 => self.kf.update_with(&zv, &s.h, &s.r, &mut self.limited_gain),
             Kind::Chi2 => self.kf.update_with(
                 &zv,
                 &s.h,
@@ -395,75 +462,121 @@ struct RunOut {
     example: Option<ExampleRun>,
 }
 
-/// Run the experiment.
-pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, EstimationError> {
+/// The known-statistics and the wrong-statistics set-ups of a scenario.
+fn setups(sc: &AnomaliesScenario) -> (Setup, Setup) {
     let (h, r) = sc.platform.velocity_measurement();
     let setup = Setup {
         phi: sc.platform.transition(),
-        q: sc.platform.process_noise(),
+        q: sc.platform.known_process_noise(),
         h,
         r,
+        p0: sc
+            .platform
+            .known_initial_covariance(sc.initial_velocity_sigma_mps, sc.initial_tilt_sigma_rad),
+    };
+    let wrong = Setup {
+        q: sc.platform.process_noise() * sc.wrong_q_scale,
+        r: setup.r * sc.wrong_r_scale,
         p0: Matrix3::from_diagonal(&Vector3::new(
             sc.initial_velocity_sigma_mps.powi(2),
             sc.initial_tilt_sigma_rad.powi(2),
             sc.platform.drift_sigma_rad_s.powi(2),
         )),
-    };
-    let wrong = Setup {
-        q: setup.q * sc.wrong_q_scale,
-        r: setup.r * sc.wrong_r_scale,
         ..setup
     };
-    let forcing = sc.platform.bias_forcing();
+    (setup, wrong)
+}
+
+/// One run of every estimator over `epochs` epochs with the faults of `faults`.
+fn one_run(
+    sc: &AnomaliesScenario,
+    (setup, wrong): (&Setup, &Setup),
+    faults: &crate::faults::FaultPlan,
+    epochs: usize,
+    rng: &mut crate::rng::RunRng,
+    keep: bool,
+) -> Result<RunOut, EstimationError> {
     let sigma = sc.platform.gnss_velocity_sigma_mps;
-    let drift_step_sigma = setup.q[(2, 2)].sqrt();
+    let mut truth = initial_truth(
+        &sc.platform,
+        sc.initial_velocity_sigma_mps,
+        sc.initial_tilt_sigma_rad,
+        rng,
+    );
+    let mut est: Vec<Estimator> = ROWS
+        .iter()
+        .map(|row| {
+            let s = if row.wrong_statistics { wrong } else { setup };
+            Estimator::new(row.kind, s.p0, sc)
+        })
+        .collect::<Result<_, _>>()?;
+    let mut sq = vec![0.0; ESTIMATORS.len()];
+    let mut example = ExampleRun::default();
+    if keep {
+        example.estimates = vec![Vec::with_capacity(epochs); ESTIMATORS.len()];
+        example.tilt_estimates = vec![Vec::with_capacity(epochs); ESTIMATORS.len()];
+    }
+    for e in 0..epochs {
+        if e > 0 {
+            truth.step(standard_normal(rng), standard_normal(rng));
+        }
+        let x = truth.x;
+        let clean = x[0] + sigma * standard_normal(rng);
+        let faulty = clean + faults.error[e];
+        for (i, (es, row)) in est.iter_mut().zip(&ROWS).enumerate() {
+            let z = if row.clean_data { clean } else { faulty };
+            let s = if row.wrong_statistics { wrong } else { setup };
+            es.step(s, sc, Some(z), e == 0)
+                .map_err(|err| err.at_epoch(e))?;
+            sq[i] += (es.kf.state()[0] - x[0]).powi(2);
+            if keep {
+                example.estimates[i].push(es.kf.state()[0]);
+                example.tilt_estimates[i].push(es.kf.state()[1]);
+            }
+        }
+        if keep {
+            example.truth.push(x[0]);
+            example.tilt.push(x[1]);
+            example.anomalous.push(faults.is_anomalous(e));
+        }
+    }
+    Ok(RunOut {
+        sq,
+        anomalous_epochs: faults.error.iter().filter(|v| **v != 0.0).count(),
+        example: keep.then_some(example),
+    })
+}
+
+/// One run (run 0 of the scenario's seed) of every estimator with the given
+/// faults instead of the scenario's, over `epochs` epochs: the paper's
+/// illustrations (Figs. 3–6: a single outlier, a burst).
+pub fn illustrate(
+    sc: &AnomaliesScenario,
+    faults: &[FaultSpec],
+    epochs: usize,
+) -> Result<ExampleRun, EstimationError> {
+    let (setup, wrong) = setups(sc);
+    let mut fault_rng = channel_rng(sc.seed, 0, CHANNEL_FAULTS);
+    let plan = plan(
+        faults,
+        &[],
+        epochs,
+        sc.platform.gnss_velocity_sigma_mps,
+        &mut fault_rng,
+    );
+    let mut rng = crate::rng::run_rng(sc.seed, 0);
+    let out = one_run(sc, (&setup, &wrong), &plan, epochs, &mut rng, true)?;
+    Ok(out.example.unwrap_or_default())
+}
+
+/// Run the experiment.
+pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, EstimationError> {
+    let (setup, wrong) = setups(sc);
+    let sigma = sc.platform.gnss_velocity_sigma_mps;
     let per_run = mc.try_run(|k, rng| -> Result<RunOut, EstimationError> {
         let mut fault_rng = channel_rng(sc.seed, k as u64, CHANNEL_FAULTS);
         let faults = plan(&sc.faults, &[], sc.epochs, sigma, &mut fault_rng);
-        let mut x = Vector3::new(
-            sc.initial_velocity_sigma_mps * standard_normal(rng),
-            sc.initial_tilt_sigma_rad * standard_normal(rng),
-            sc.platform.drift_sigma_rad_s * standard_normal(rng),
-        );
-        let mut est: Vec<Estimator> = ROWS
-            .iter()
-            .map(|row| Estimator::new(row.kind, setup.p0))
-            .collect::<Result<_, _>>()?;
-        let mut sq = vec![0.0; ESTIMATORS.len()];
-        let keep = k == 0;
-        let mut example = ExampleRun {
-            truth: Vec::new(),
-            anomalous: Vec::new(),
-            estimates: vec![Vec::new(); ESTIMATORS.len()],
-        };
-        for e in 0..sc.epochs {
-            if e > 0 {
-                x = setup.phi * x
-                    + forcing
-                    + Vector3::new(0.0, 0.0, drift_step_sigma * standard_normal(rng));
-            }
-            let clean = x[0] + sigma * standard_normal(rng);
-            let faulty = clean + faults.error[e];
-            for (i, (es, row)) in est.iter_mut().zip(&ROWS).enumerate() {
-                let z = if row.clean_data { clean } else { faulty };
-                let s = if row.wrong_statistics { &wrong } else { &setup };
-                es.step(s, sc, Some(z), e == 0)
-                    .map_err(|err| err.at_epoch(e))?;
-                sq[i] += (es.kf.state()[0] - x[0]).powi(2);
-                if keep {
-                    example.estimates[i].push(es.kf.state()[0]);
-                }
-            }
-            if keep {
-                example.truth.push(x[0]);
-                example.anomalous.push(faults.is_anomalous(e));
-            }
-        }
-        Ok(RunOut {
-            sq,
-            anomalous_epochs: faults.error.iter().filter(|v| **v != 0.0).count(),
-            example: keep.then_some(example),
-        })
+        one_run(sc, (&setup, &wrong), &faults, sc.epochs, rng, k == 0)
     })?;
     let n = sc.epochs as f64;
     let total = per_run.len() as f64 * n;
@@ -492,16 +605,36 @@ pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, E
     let example = per_run
         .into_iter()
         .find_map(|r| r.example)
-        .unwrap_or(ExampleRun {
-            truth: Vec::new(),
-            anomalous: Vec::new(),
-            estimates: Vec::new(),
-        });
+        .unwrap_or_default();
+    let il = sc.illustration;
+    let fixed = |length| FaultSpec::Fixed {
+        start: il.at_epoch,
+        length,
+        sigmas: il.sigmas,
+    };
     Ok(AnomaliesResult {
         scores,
         anomaly_fraction,
         example,
+        outlier: illustrate(sc, &[fixed(1)], il.epochs)?,
+        burst: illustrate(sc, &[fixed(il.burst_length)], il.epochs)?,
     })
+}
+
+/// The truth at epoch 0: δV, tilt and drift drawn from their priors, b(0)
+/// from its stationary law (four draws from `rng`, in that order).
+pub(crate) fn initial_truth(
+    platform: &PlatformChannel,
+    velocity_sigma: f64,
+    tilt_sigma: f64,
+    rng: &mut crate::rng::RunRng,
+) -> PlatformTruth {
+    let x0 = Vector3::new(
+        velocity_sigma * standard_normal(rng),
+        tilt_sigma * standard_normal(rng),
+        platform.drift_sigma_rad_s * standard_normal(rng),
+    );
+    PlatformTruth::new(platform, x0, standard_normal(rng))
 }
 
 /// Linear-interpolated percentile of sorted values.
@@ -534,18 +667,25 @@ mod tests {
         );
         // Anomalies hurt the plain filter badly.
         assert!(rms("kf_plain") > 5.0 * rms("kf_known_clean"));
-        // Limiting (the developed algorithm) beats both swallowing and
-        // rejecting. Rejection locks out in some runs: the unmodelled bias B
-        // drives δV away from a filter with no process noise on it, every
-        // later fix then looks anomalous and is rejected (its median run is
-        // fine, its RMS is not). This is measured, not assumed.
+        // Spec 20's ordering "developed ≤ adaptive ≤ KF", as far as it holds
+        // here (measured, not assumed; see the issue-3 closing note):
+        // - developed (eq. 3 + 5 + 8) beats every KF and adaptive variant on
+        //   the anomalous data;
         assert!(rms("developed") < rms("kf_plain"));
         assert!(rms("developed") < rms("kf_reject"));
         assert!(rms("developed") < rms("adaptive"));
-        let reject = r.scores.iter().find(|s| s.name == "kf_reject").unwrap();
-        assert!(
-            reject.p10_mps < 2.0 * rms("kf_known_clean"),
-            "rejection works in its good runs"
-        );
+        assert!(rms("developed") < rms("adaptive_reject"));
+        // - adaptive ≤ KF holds where the paper's argument is, model error
+        //   without anomalies: eq. 3 follows the unmodelled b(t) better than
+        //   the best 3-state KF;
+        assert!(rms("adaptive_clean") < rms("kf_known_clean"));
+        // - but not under anomalies: eq. 3 without a detector turns every
+        //   anomalous innovation into process noise.
+        assert!(rms("adaptive") > rms("kf_plain"));
+        // Rejection works in its good runs and locks out in others (the
+        // filter's P stays small while the truth walks out of the gate).
+        let score = |name: &str| r.scores.iter().find(|s| s.name == name).unwrap();
+        assert!(score("kf_reject").p10_mps < score("kf_plain").p10_mps);
+        assert!(score("kf_reject").p90_mps > 1.5 * score("kf_reject").p10_mps);
     }
 }

@@ -6,7 +6,7 @@ pub mod anomalies;
 pub mod consistency;
 pub mod outages;
 
-use aidnav_io::config::{Invalid, positive};
+use aidnav_io::config::{Invalid, non_negative, positive};
 use aidnav_models::PlatformChannel;
 
 /// Range checks of a `[platform]` table, shared by the spec-20 scenarios.
@@ -15,6 +15,10 @@ pub(crate) fn validate_platform(p: &PlatformChannel) -> Result<(), Invalid> {
     positive("beta_per_s", p.beta_per_s).map_err(|e| e.within("platform"))?;
     positive("drift_sigma_rad_s", p.drift_sigma_rad_s).map_err(|e| e.within("platform"))?;
     positive("gnss_velocity_sigma_mps", p.gnss_velocity_sigma_mps)
+        .map_err(|e| e.within("platform"))?;
+    non_negative("accel_bias_variation_m_s2", p.accel_bias_variation_m_s2)
+        .map_err(|e| e.within("platform"))?;
+    positive("accel_bias_correlation_s", p.accel_bias_correlation_s)
         .map_err(|e| e.within("platform"))?;
     if !p.accel_bias_m_s2.is_finite() {
         return Err(Invalid::new(

@@ -4,9 +4,11 @@
 //! and a long outage of the same runs:
 //! `improvement = 1 − RMS(δV − δV̂_pred) / RMS(δV)` over the outage.
 //!
-//! Before the outage a Kalman filter with known statistics (the truth also
-//! carries the unmodelled accelerometer bias B) estimates δV from GNSS
-//! velocity; its estimates are the recorded history the predictors use.
+//! Before the outage a Kalman filter with known statistics estimates δV from
+//! GNSS velocity; its estimates are the recorded history the predictors use.
+//! The truth carries the accelerometer error B + b(t) that the filter's model
+//! does not contain (see [`aidnav_models::platform`]): the a-priori model is
+//! exact only up to b(t), which is what limits it on long outages.
 //! The a-priori model predictor propagates the filter's full state with its
 //! own Φ; the others come from [`aidnav_supervisors::outage`].
 
@@ -17,7 +19,7 @@ use aidnav_io::config::{Invalid, Validate, count_in_range, positive};
 use aidnav_models::PlatformChannel;
 use aidnav_models::platform::PLATFORM_G_M_S2;
 use aidnav_supervisors::outage::{BridgeConfig, OutageBridge, Predictor, RelaySchedule};
-use nalgebra::{Matrix3, Vector1, Vector3};
+use nalgebra::{Vector1, Vector3};
 use serde::{Deserialize, Serialize};
 
 use aidnav_estimation::adaptive::{AnomalyDetector, Limiting};
@@ -28,7 +30,7 @@ use aidnav_supervisors::efficiency::{
 /// Innovations averaged by the adaptive σ_KOI (eq. 15's M[θ²]).
 const ADAPTIVE_VARIANCE_WINDOW: usize = 10;
 
-use crate::experiments::anomalies::percentile;
+use crate::experiments::anomalies::{initial_truth, percentile};
 use crate::faults::{FaultSpec, Outage, SigmaRange, plan};
 use crate::rng::channel_rng;
 
@@ -95,7 +97,6 @@ impl Default for OutagesScenario {
             bridge: BridgeConfig {
                 trend_window_s: 120.0,
                 model_window_s: 2400.0,
-                blend_s: 1500.0,
                 model_decimation: 5,
                 relay: RelaySchedule {
                     t1_s: 10.0,
@@ -111,6 +112,9 @@ impl Default for OutagesScenario {
                     }),
                     split: Split::Alternating,
                     max_units: 3,
+                    // Selected for the longest outage the bridge is designed
+                    // to cover (the relay's T4), not for the record it fits.
+                    horizon_s: Some(3000.0),
                     ..GmdhConfig::default()
                 },
             },
@@ -174,8 +178,10 @@ impl Validate for OutagesScenario {
                 "0 ≤ t1_s ≤ t2_s ≤ t3_s",
             ));
         }
-        positive("blend_s", self.bridge.blend_s).map_err(|e| e.within("bridge"))?;
         positive("recovery_s", self.recovery_s)?;
+        for f in &self.recovery_faults {
+            f.validate().map_err(|e| e.within("recovery_faults"))?;
+        }
         positive("efficiency_sigma_gnss_mps", self.efficiency_sigma_gnss_mps)?;
         positive("recovery_gamma", self.recovery_gamma)?;
         Ok(())
@@ -191,6 +197,10 @@ pub struct PredictorScore {
     pub rms_mps: f64,
     /// 1 − RMS / RMS(uncorrected INS).
     pub improvement: f64,
+    /// 1 − RMS / RMS(hold): against an INS corrected up to the outage start
+    /// and free after it (a closed-loop INS reset at the outage start), the
+    /// other reading of the paper's "autonomous INS".
+    pub improvement_vs_reset: f64,
     /// 10th percentile of the per-run improvement.
     pub improvement_p10: f64,
     /// 90th percentile of the per-run improvement.
@@ -237,6 +247,13 @@ pub struct EfficiencyScores {
     pub rms_selected_adaptive_mps: f64,
     /// Fraction of recovery epochs on which that selection chose INS + filter.
     pub fraction_integrated_adaptive: f64,
+    /// As `rms_selected_mps`, with σ_KOI = √P⁻, the filter's σ *before* it
+    /// fuses the epoch's fix. (With the posterior P and R = σ_GNSS², K_eff > 1
+    /// at every fused epoch: P⁺ = P⁻R / (P⁻ + R) < R, so that selection
+    /// can only ever choose INS + filter.)
+    pub rms_selected_predicted_mps: f64,
+    /// Fraction of recovery epochs on which that selection chose INS + filter.
+    pub fraction_integrated_predicted: f64,
 }
 
 /// Run 0's K_eff from the outage start to the end of recovery.
@@ -246,6 +263,14 @@ pub struct EfficiencyExample {
     pub age_s: Vec<f64>,
     /// K_eff = σ_GNSS / σ_KOI.
     pub k_eff: Vec<f64>,
+    /// Time since the outage started, recovery epochs only [s].
+    pub recovery_age_s: Vec<f64>,
+    /// GNSS velocity error at each recovery epoch [m/s].
+    pub gnss_error: Vec<f64>,
+    /// INS + filter error (estimate − truth) at each recovery epoch [m/s].
+    pub integrated_error: Vec<f64>,
+    /// Error of the source chosen by K_eff with σ_KOI = √P⁻ [m/s].
+    pub selected_error: Vec<f64>,
 }
 
 /// Result of the experiment.
@@ -280,10 +305,11 @@ pub enum OutagesError {
 struct RunOut {
     // [short|long][uncorrected, predictors…] sums of squares
     sq: [Vec<f64>; 2],
-    // recovery: [gnss, integrated, selected by P, selected by adaptive variance]
-    // sums of squares, and epochs on integrated for both selections
-    recovery_sq: [f64; 4],
-    recovery_integrated: [usize; 2],
+    // recovery: [gnss, integrated, selected by P, selected by adaptive
+    // variance, selected by P⁻] sums of squares, and epochs on integrated
+    // for the three selections
+    recovery_sq: [f64; 5],
+    recovery_integrated: [usize; 3],
     example: Option<OutageExample>,
     efficiency_example: Option<EfficiencyExample>,
 }
@@ -299,30 +325,27 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
         sigma_gnss: sc.efficiency_sigma_gnss_mps,
     };
     let phi = sc.platform.transition();
-    let q = sc.platform.process_noise();
+    let q = sc.platform.known_process_noise();
     let (h, r) = sc.platform.velocity_measurement();
-    let forcing = sc.platform.bias_forcing();
-    let drift_step_sigma = q[(2, 2)].sqrt();
     let sigma = sc.platform.gnss_velocity_sigma_mps;
-    let p0 = Matrix3::from_diagonal(&Vector3::new(
-        sc.initial_velocity_sigma_mps.powi(2),
-        sc.initial_tilt_sigma_rad.powi(2),
-        sc.platform.drift_sigma_rad_s.powi(2),
-    ));
+    let p0 = sc
+        .platform
+        .known_initial_covariance(sc.initial_velocity_sigma_mps, sc.initial_tilt_sigma_rad);
     let per_run = mc.try_run(|k, rng| -> Result<RunOut, OutagesError> {
-        let mut x = Vector3::new(
-            sc.initial_velocity_sigma_mps * standard_normal(rng),
-            sc.initial_tilt_sigma_rad * standard_normal(rng),
-            sc.platform.drift_sigma_rad_s * standard_normal(rng),
+        let mut truth = initial_truth(
+            &sc.platform,
+            sc.initial_velocity_sigma_mps,
+            sc.initial_tilt_sigma_rad,
+            rng,
         );
+        let mut x = truth.x;
         let mut kf = KalmanFilter::new(Vector3::zeros(), p0)?;
         let mut times = Vec::with_capacity(start);
         let mut history = Vec::with_capacity(start);
         for e in 0..start {
             if e > 0 {
-                x = phi * x
-                    + forcing
-                    + Vector3::new(0.0, 0.0, drift_step_sigma * standard_normal(rng));
+                truth.step(standard_normal(rng), standard_normal(rng));
+                x = truth.x;
                 kf.predict(&phi, &q).map_err(|err| err.at_epoch(e))?;
             }
             let z = Vector1::new(x[0] + sigma * standard_normal(rng));
@@ -351,7 +374,8 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             Predictor::Relay,
         ];
         for i in 1..=long {
-            x = phi * x + forcing + Vector3::new(0.0, 0.0, drift_step_sigma * standard_normal(rng));
+            truth.step(standard_normal(rng), standard_normal(rng));
+            x = truth.x;
             apriori
                 .predict(&phi, &q)
                 .map_err(|err| err.at_epoch(start + i))?;
@@ -394,8 +418,8 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             sigma,
             &mut fault_rng,
         );
-        let mut recovery_sq = [0.0; 4];
-        let mut recovery_integrated = [0; 2];
+        let mut recovery_sq = [0.0; 5];
+        let mut recovery_integrated = [0; 3];
         let mut adaptive_variance = AdaptiveScalarVariance::new(
             phi[(0, 0)],
             r[(0, 0)],
@@ -411,12 +435,14 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             },
         };
         for i in 0..recovery {
-            x = phi * x + forcing + Vector3::new(0.0, 0.0, drift_step_sigma * standard_normal(rng));
+            truth.step(standard_normal(rng), standard_normal(rng));
+            x = truth.x;
             apriori
                 .predict(&phi, &q)
                 .map_err(|err| err.at_epoch(start + long + i))?;
             let gnss_error = sigma * standard_normal(rng) + faults.error[i];
             let z = Vector1::new(x[0] + gnss_error);
+            let (source_predicted, _) = criterion.select(apriori.covariance()[(0, 0)].sqrt());
             let rec = apriori
                 .update_with(&z, &h, &r, &mut policy)
                 .map_err(|err| err.at_epoch(start + long + i))?;
@@ -432,15 +458,26 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
                 Source::Gnss => gnss_error,
                 Source::Integrated => integrated_error,
             };
+            let selected_predicted_error = match source_predicted {
+                Source::Gnss => gnss_error,
+                Source::Integrated => integrated_error,
+            };
             recovery_integrated[0] += usize::from(source == Source::Integrated);
             recovery_integrated[1] += usize::from(source_adaptive == Source::Integrated);
+            recovery_integrated[2] += usize::from(source_predicted == Source::Integrated);
+            recovery_sq[4] += selected_predicted_error * selected_predicted_error;
             recovery_sq[0] += gnss_error * gnss_error;
             recovery_sq[1] += integrated_error * integrated_error;
             recovery_sq[2] += selected_error * selected_error;
             recovery_sq[3] += selected_adaptive_error * selected_adaptive_error;
             if keep {
-                eff_example.age_s.push((long + i + 1) as f64 * dt);
+                let age = (long + i + 1) as f64 * dt;
+                eff_example.age_s.push(age);
                 eff_example.k_eff.push(k_eff);
+                eff_example.recovery_age_s.push(age);
+                eff_example.gnss_error.push(gnss_error);
+                eff_example.integrated_error.push(integrated_error);
+                eff_example.selected_error.push(selected_predicted_error);
             }
         }
         Ok(RunOut {
@@ -455,9 +492,15 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
         let total_uncorrected: f64 = per_run.iter().map(|r| r.sq[o][0]).sum();
         let n = (per_run.len() * len) as f64;
         let unc = (total_uncorrected / n).sqrt();
+        let rms: Vec<f64> = (0..PREDICTORS.len())
+            .map(|j| (per_run.iter().map(|r| r.sq[o][j + 1]).sum::<f64>() / n).sqrt())
+            .collect();
+        let hold = rms[PREDICTORS
+            .iter()
+            .position(|p| *p == "hold")
+            .unwrap_or_else(|| unreachable!("hold is a predictor"))];
         let predictors = (0..PREDICTORS.len())
             .map(|j| {
-                let rms = (per_run.iter().map(|r| r.sq[o][j + 1]).sum::<f64>() / n).sqrt();
                 let mut per: Vec<f64> = per_run
                     .iter()
                     .map(|r| 1.0 - (r.sq[o][j + 1] / r.sq[o][0]).sqrt())
@@ -465,8 +508,9 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
                 per.sort_by(f64::total_cmp);
                 PredictorScore {
                     name: PREDICTORS[j].to_string(),
-                    rms_mps: rms,
-                    improvement: 1.0 - rms / unc,
+                    rms_mps: rms[j],
+                    improvement: 1.0 - rms[j] / unc,
+                    improvement_vs_reset: 1.0 - rms[j] / hold,
                     improvement_p10: percentile(&per, 0.1),
                     improvement_p90: percentile(&per, 0.9),
                 }
@@ -480,6 +524,13 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
     };
     let n_rec = (per_run.len() * recovery) as f64;
     let rec = |i: usize| (per_run.iter().map(|r| r.recovery_sq[i]).sum::<f64>() / n_rec).sqrt();
+    let fraction = |i: usize| {
+        per_run
+            .iter()
+            .map(|r| r.recovery_integrated[i] as f64)
+            .sum::<f64>()
+            / n_rec
+    };
     let result = OutagesResult {
         short: score(0, short),
         long: score(1, long),
@@ -488,17 +539,11 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             rms_always_gnss_mps: rec(0),
             rms_always_integrated_mps: rec(1),
             rms_selected_mps: rec(2),
-            fraction_integrated: per_run
-                .iter()
-                .map(|r| r.recovery_integrated[0] as f64)
-                .sum::<f64>()
-                / n_rec,
+            fraction_integrated: fraction(0),
             rms_selected_adaptive_mps: rec(3),
-            fraction_integrated_adaptive: per_run
-                .iter()
-                .map(|r| r.recovery_integrated[1] as f64)
-                .sum::<f64>()
-                / n_rec,
+            fraction_integrated_adaptive: fraction(1),
+            rms_selected_predicted_mps: rec(4),
+            fraction_integrated_predicted: fraction(2),
         },
         example: per_run
             .iter()
