@@ -17,7 +17,9 @@ const DRAWN: [&str; 3] = ["kf_plain", "kf_reject", "developed"];
 #[derive(Clone, Copy)]
 enum State {
     Velocity,
-    Tilt,
+    /// The tilt; the constant accelerometer bias is absorbed by the filter
+    /// as this equivalent tilt B/g [rad], drawn as a second truth curve.
+    Tilt(f64),
 }
 
 /// Truth, the `DRAWN` estimates and the anomalous epochs of `run` over the
@@ -32,7 +34,7 @@ fn estimate_chart(
 ) -> LineChart {
     let (truth, estimates, scale, y_label) = match state {
         State::Velocity => (&run.truth, &run.estimates, 1.0, "δV [m/s]"),
-        State::Tilt => (&run.tilt, &run.tilt_estimates, 1e3, "tilt φ [mrad]"),
+        State::Tilt(_) => (&run.tilt, &run.tilt_estimates, 1e3, "tilt φ [mrad]"),
     };
     let to = to.min(truth.len());
     let trace = |v: &[f64]| -> Vec<(f64, f64)> {
@@ -44,6 +46,16 @@ fn estimate_chart(
         style: LineStyle::Solid,
         color: TRUTH_COLOR,
     }];
+    if let State::Tilt(offset) = state {
+        series.push(Series {
+            label: "1′ — φ − B/g (the tilt a 3-state filter can estimate)".into(),
+            points: (from..to)
+                .map(|k| (k as f64 * dt, scale * (truth[k] - offset)))
+                .collect(),
+            style: LineStyle::Dashed,
+            color: TRUTH_COLOR,
+        });
+    }
     for (c, name) in DRAWN.iter().enumerate() {
         if let Some(i) = ESTIMATORS.iter().position(|e| e == name) {
             series.push(Series {
@@ -77,8 +89,10 @@ pub(crate) fn anomaly_figures(
     result: &AnomaliesResult,
     at_epoch: usize,
     dt: f64,
+    equivalent_tilt_rad: f64,
     out: &Path,
 ) -> Result<Vec<&'static str>, IoError> {
+    let tilt = State::Tilt(equivalent_tilt_rad);
     // Around the hand-placed fault: a little before, long enough after to
     // see the tilt estimate recover.
     let (from, to) = (at_epoch.saturating_sub(100), at_epoch + 400);
@@ -95,7 +109,7 @@ pub(crate) fn anomaly_figures(
         (
             "fig04_outlier_tilt.svg",
             &result.outlier,
-            State::Tilt,
+            tilt,
             from,
             to,
             "Fig. 4: platform tilt and its estimates, single outlier",
@@ -111,7 +125,7 @@ pub(crate) fn anomaly_figures(
         (
             "fig06_burst_tilt.svg",
             &result.burst,
-            State::Tilt,
+            tilt,
             from,
             to,
             "Fig. 6: platform tilt and its estimates, burst of anomalies",
@@ -127,7 +141,7 @@ pub(crate) fn anomaly_figures(
         (
             "fig08_random_tilt.svg",
             &result.example,
-            State::Tilt,
+            tilt,
             0,
             full,
             "Fig. 8: platform tilt and its estimates, random anomalies (run 0)",

@@ -365,7 +365,13 @@ pub fn anomalies(
         .iter()
         .map(|s| (s.name.clone(), serde_json::json!(s.rms_mps)))
         .collect();
-    crate::figures::anomaly_figures(&result, scenario.illustration.at_epoch, dt, out)?;
+    crate::figures::anomaly_figures(
+        &result,
+        scenario.illustration.at_epoch,
+        dt,
+        scenario.platform.equivalent_tilt_rad(),
+        out,
+    )?;
     summary.insert("rms", rms);
     summary.insert("scores", &result.scores);
     summary.insert("anomaly_fraction", result.anomaly_fraction);

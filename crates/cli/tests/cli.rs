@@ -250,7 +250,17 @@ fn reproduce_anomalies_writes_the_rms_keys_other_tools_read() {
         );
     }
     assert_eq!(summary["seed"], 5);
-    assert!(dir.path().join("anomalies_example.svg").is_file());
+    for figure in [
+        "anomalies_example.svg",
+        "fig03_outlier_velocity.svg",
+        "fig04_outlier_tilt.svg",
+        "fig05_burst_velocity.svg",
+        "fig06_burst_tilt.svg",
+        "fig07_random_velocity.svg",
+        "fig08_random_tilt.svg",
+    ] {
+        assert!(dir.path().join(figure).is_file(), "{figure}");
+    }
 }
 
 #[test]
@@ -287,7 +297,18 @@ fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
             );
         }
     }
-    assert!(dir.path().join("outage_predictors.svg").is_file());
+    for figure in [
+        "outage_predictors.svg",
+        "efficiency.svg",
+        "fig10_recovery_errors.svg",
+    ] {
+        assert!(dir.path().join(figure).is_file(), "{figure}");
+    }
+    assert!(
+        summary["short"]["predictors"][0]["improvement_vs_reset"]
+            .as_f64()
+            .is_some_and(f64::is_finite)
+    );
 }
 
 #[test]
