@@ -13,6 +13,7 @@ use aidnav_io::writers::{FilterCsvWriter, Summary, write_smoothed, write_table};
 use aidnav_sim::MonteCarlo;
 use aidnav_sim::experiments::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
 use aidnav_sim::experiments::consistency::{ConsistencyResult, ConsistencyScenario};
+use aidnav_sim::experiments::group::{GroupResult, GroupScenario};
 use aidnav_sim::experiments::outages::{OutagesResult, OutagesScenario, PREDICTORS};
 use serde::Serialize;
 
@@ -482,6 +483,90 @@ pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult
                 "uncorrected_rms_mps": scores.uncorrected_rms_mps,
                 "improvement": improvement,
                 "predictors": scores.predictors,
+            }),
+        );
+    }
+    summary.write(out)?;
+    Ok(result)
+}
+
+/// Run the spec-30 group experiment and write `group.csv` (per epoch and
+/// case: filter σ and Monte Carlo RMS of position), `group_errors.svg` (like
+/// the paper's Fig. 6) and `summary.json` (an object per case `single`,
+/// `group_low`, `group_high`) into `out`.
+pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<GroupResult> {
+    let mc = campaign(scenario.runs, scenario.seed, "group", quiet);
+    let result = aidnav_sim::experiments::group::run(scenario, &mc).map_err(|source| {
+        JobError::Estimation {
+            context: "group experiment".into(),
+            source,
+        }
+    })?;
+    aidnav_io::writers::ensure_dir(out)?;
+    let dt = scenario.single.dt_s;
+    let mut header = vec!["time [s]".to_string()];
+    for c in &result.cases {
+        header.push(format!("{}_sigma [m]", c.name));
+        header.push(format!("{}_rms [m]", c.name));
+    }
+    let header_ref: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_table(
+        &out.join("group.csv"),
+        &header_ref,
+        (0..scenario.epochs).map(|e| {
+            let mut row = vec![e as f64 * dt];
+            for c in &result.cases {
+                row.push(c.sigma_by_epoch[e]);
+                row.push(c.rms_by_epoch[e]);
+            }
+            row
+        }),
+    )?;
+    let mut series = Vec::new();
+    for (i, c) in result.cases.iter().enumerate() {
+        let case_dt = scenario.cases()[i].dt_s;
+        let trace = |v: &[f64]| -> Vec<(f64, f64)> {
+            v.iter()
+                .enumerate()
+                .map(|(e, &y)| (e as f64 * case_dt, y))
+                .collect()
+        };
+        series.push(Series {
+            label: format!("{}: Monte Carlo RMS", c.name),
+            points: trace(&c.rms_by_epoch),
+            style: LineStyle::Solid,
+            color: i,
+        });
+        series.push(Series {
+            label: format!("{}: filter σ", c.name),
+            points: trace(&c.sigma_by_epoch),
+            style: LineStyle::Dashed,
+            color: i,
+        });
+    }
+    LineChart {
+        title: format!(
+            "Position error per member, one axis, {} runs (paper Fig. 6)",
+            scenario.runs
+        ),
+        x_label: "time [s]".into(),
+        y_label: "position error [m]".into(),
+        series,
+        log_y: false,
+    }
+    .write_svg(&out.join("group_errors.svg"))?;
+    let mut summary = Summary::new("reproduce group", VERSION, Some(scenario.seed), scenario);
+    for c in &result.cases {
+        summary.insert(
+            &c.name,
+            serde_json::json!({
+                "members": c.members,
+                "position_sigma_m": c.position_sigma_m,
+                "position_rms_m": c.position_rms_m,
+                "velocity_sigma_mps": c.velocity_sigma_mps,
+                "velocity_rms_mps": c.velocity_rms_mps,
+                "steady_position_sigma_m": c.steady_position_sigma_m,
+                "steady_velocity_sigma_mps": c.steady_velocity_sigma_mps,
             }),
         );
     }

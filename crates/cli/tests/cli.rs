@@ -314,7 +314,7 @@ fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
 #[test]
 fn print_scenario_round_trips_through_the_loader() {
     let dir = tempfile::tempdir().unwrap();
-    for exp in ["consistency", "anomalies", "outages"] {
+    for exp in ["consistency", "anomalies", "outages", "group"] {
         let out = aidnav(&["reproduce", exp, "--print-scenario"]);
         assert!(out.status.success());
         let path = dir.path().join(format!("{exp}.toml"));
@@ -335,4 +335,40 @@ fn print_scenario_round_trips_through_the_loader() {
             String::from_utf8_lossy(&run.stderr)
         );
     }
+}
+
+#[test]
+fn reproduce_group_writes_the_case_keys_other_tools_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = aidnav(&[
+        "reproduce",
+        "group",
+        "--runs",
+        "20",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary = read_summary(dir.path());
+    for case in ["single", "group_low", "group_high"] {
+        for key in [
+            "position_sigma_m",
+            "position_rms_m",
+            "velocity_sigma_mps",
+            "velocity_rms_mps",
+        ] {
+            assert!(
+                summary[case][key]
+                    .as_f64()
+                    .is_some_and(|v| v.is_finite() && v > 0.0),
+                "{case}.{key}"
+            );
+        }
+    }
+    assert!(dir.path().join("group_errors.svg").is_file());
+    assert!(dir.path().join("group.csv").is_file());
 }

@@ -4,6 +4,7 @@
 
 pub mod anomalies;
 pub mod consistency;
+pub mod group;
 pub mod outages;
 
 use aidnav_io::config::{Invalid, non_negative, positive};
@@ -55,5 +56,6 @@ macro_rules! monte_carlo_scenario {
 monte_carlo_scenario!(
     anomalies::AnomaliesScenario,
     consistency::ConsistencyScenario,
+    group::GroupScenario,
     outages::OutagesScenario
 );
