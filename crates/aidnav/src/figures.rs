@@ -157,8 +157,10 @@ pub(crate) fn anomaly_figures(
 /// and the source chosen by K_eff (σ_KOI = √P⁻).
 pub(crate) fn recovery_figure(ex: &EfficiencyExample, out: &Path) -> Result<&'static str, IoError> {
     let name = "fig10_recovery_errors.svg";
+    // The recovery epochs are the last ones of `age_s`.
+    let recovery_age = &ex.age_s[ex.age_s.len().saturating_sub(ex.gnss_error.len())..];
     let trace = |v: &[f64]| -> Vec<(f64, f64)> {
-        ex.recovery_age_s
+        recovery_age
             .iter()
             .copied()
             .zip(v.iter().copied())

@@ -20,6 +20,26 @@ fn failure(args: &[&str]) -> String {
     err
 }
 
+/// Run a command expected to succeed and return its standard output.
+fn success(args: &[&str]) -> String {
+    let out = aidnav(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// `aidnav reproduce EXPERIMENT ARGS… --out OUT`, expected to succeed; its
+/// standard output.
+fn reproduce(experiment: &str, args: &[&str], out: &Path) -> String {
+    let mut all = vec!["reproduce", experiment];
+    all.extend_from_slice(args);
+    all.extend(["--out", out.to_str().unwrap()]);
+    success(&all)
+}
+
 fn filter_failure(model: &Path, z: &Path, out: &Path) -> String {
     failure(&[
         "filter",
@@ -64,7 +84,7 @@ fn column(csv_text: &str, name: &str) -> Vec<f64> {
 fn filter_reproduces_the_hand_checked_example() {
     let dir = tempfile::tempdir().unwrap();
     let ex = repo().join("examples/01-scalar-filter");
-    let out = aidnav(&[
+    success(&[
         "filter",
         "--model",
         ex.join("model.toml").to_str().unwrap(),
@@ -74,11 +94,6 @@ fn filter_reproduces_the_hand_checked_example() {
         dir.path().to_str().unwrap(),
         "--smooth",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     // The values derived by hand in model.toml.
     let est = std::fs::read_to_string(dir.path().join("estimates.csv")).unwrap();
     let x = column(&est, "level");
@@ -146,22 +161,8 @@ fn scenario_range_errors_name_the_key_and_range() {
 #[test]
 fn reproduce_writes_table_plot_and_summary_with_seed_and_scenario() {
     let dir = tempfile::tempdir().unwrap();
-    let out = aidnav(&[
-        "reproduce",
-        "consistency",
-        "--runs",
-        "20",
-        "--seed",
-        "99",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let args = ["--runs", "20", "--seed", "99"];
+    let stdout = reproduce("consistency", &args, dir.path());
     assert!(
         stdout.contains("tuned") && stdout.contains("q_too_small") && stdout.contains("seed 99"),
         "{stdout}"
@@ -176,16 +177,7 @@ fn reproduce_writes_table_plot_and_summary_with_seed_and_scenario() {
     assert_eq!(summary["variants"].as_array().unwrap().len(), 3);
     // Same seed, same numbers.
     let again = tempfile::tempdir().unwrap();
-    aidnav(&[
-        "reproduce",
-        "consistency",
-        "--runs",
-        "20",
-        "--seed",
-        "99",
-        "--out",
-        again.path().to_str().unwrap(),
-    ]);
+    reproduce("consistency", &args, again.path());
     assert_eq!(
         std::fs::read_to_string(dir.path().join("consistency.csv")).unwrap(),
         std::fs::read_to_string(again.path().join("consistency.csv")).unwrap()
@@ -217,21 +209,7 @@ fn help_explains_every_subcommand() {
 #[test]
 fn reproduce_anomalies_writes_the_rms_keys_other_tools_read() {
     let dir = tempfile::tempdir().unwrap();
-    let out = aidnav(&[
-        "reproduce",
-        "anomalies",
-        "--runs",
-        "3",
-        "--seed",
-        "5",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    reproduce("anomalies", &["--runs", "3", "--seed", "5"], dir.path());
     let summary = read_summary(dir.path());
     for key in [
         "kf_known_clean",
@@ -266,19 +244,7 @@ fn reproduce_anomalies_writes_the_rms_keys_other_tools_read() {
 #[test]
 fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
     let dir = tempfile::tempdir().unwrap();
-    let out = aidnav(&[
-        "reproduce",
-        "outages",
-        "--runs",
-        "2",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    reproduce("outages", &["--runs", "2"], dir.path());
     let summary = read_summary(dir.path());
     for case in ["short", "long"] {
         for key in [
@@ -315,24 +281,13 @@ fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
 fn print_scenario_round_trips_through_the_loader() {
     let dir = tempfile::tempdir().unwrap();
     for exp in ["consistency", "anomalies", "outages", "group"] {
-        let out = aidnav(&["reproduce", exp, "--print-scenario"]);
-        assert!(out.status.success());
+        let text = success(&["reproduce", exp, "--print-scenario"]);
         let path = dir.path().join(format!("{exp}.toml"));
-        std::fs::write(&path, &out.stdout).unwrap();
-        let run = aidnav(&[
-            "reproduce",
+        std::fs::write(&path, text).unwrap();
+        reproduce(
             exp,
-            "--scenario",
-            path.to_str().unwrap(),
-            "--runs",
-            "1",
-            "--out",
-            dir.path().join(exp).to_str().unwrap(),
-        ]);
-        assert!(
-            run.status.success(),
-            "{exp}: {}",
-            String::from_utf8_lossy(&run.stderr)
+            &["--scenario", path.to_str().unwrap(), "--runs", "1"],
+            &dir.path().join(exp),
         );
     }
 }
@@ -340,19 +295,7 @@ fn print_scenario_round_trips_through_the_loader() {
 #[test]
 fn reproduce_group_writes_the_case_keys_other_tools_read() {
     let dir = tempfile::tempdir().unwrap();
-    let out = aidnav(&[
-        "reproduce",
-        "group",
-        "--runs",
-        "20",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    reproduce("group", &["--runs", "20"], dir.path());
     let summary = read_summary(dir.path());
     for case in ["single", "group_low", "group_high"] {
         for key in [

@@ -52,6 +52,16 @@ impl AnomalyDetector {
     {
         (self.gamma * view.s.trace()).sqrt()
     }
+
+    /// Eq. 8: for an anomalous innovation, the innovation clipped to the
+    /// gate radius with its direction kept; None when it is not anomalous.
+    pub fn limit<M: Dim>(&self, view: &InnovationView<'_, M>) -> Option<OVector<f64, M>>
+    where
+        DefaultAllocator: Allocator<M> + Allocator<M, M>,
+    {
+        self.is_anomalous(view)
+            .then(|| view.residual * (self.bound(view) / view.residual.norm()))
+    }
 }
 
 /// Spec 20 eq. 6: reject anomalous measurements (K = 0).
@@ -86,11 +96,9 @@ where
     DefaultAllocator: Allocator<M> + Allocator<M, M>,
 {
     fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M> {
-        if self.detector.is_anomalous(view) {
-            let scale = self.detector.bound(view) / view.residual.norm();
-            Decision::ReplaceResidual(view.residual * scale)
-        } else {
-            Decision::Accept
+        match self.detector.limit(view) {
+            Some(limited) => Decision::ReplaceResidual(limited),
+            None => Decision::Accept,
         }
     }
 }
@@ -213,13 +221,12 @@ where
     DefaultAllocator: Allocator<M> + Allocator<M, M>,
 {
     fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M> {
-        if !self.detector.is_anomalous(view) {
+        let Some(residual) = self.detector.limit(view) else {
             return match self.gain.observe(view.residual, view.hph) {
                 Some(c) => Decision::GainCovariance(c),
                 None => Decision::Accept,
             };
-        }
-        let residual = view.residual * (self.detector.bound(view) / view.residual.norm());
+        };
         match self.gain.observe(&residual, view.hph) {
             Some(covariance) => Decision::LimitWithGainCovariance {
                 residual,

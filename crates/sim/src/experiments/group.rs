@@ -172,6 +172,18 @@ struct RunOut {
     velocity_sq: Vec<f64>,
 }
 
+/// Offsets of a member's position and velocity in its (R, V) block.
+const POSITION: usize = 0;
+const VELOCITY: usize = 1;
+
+/// Mean over the members of √P of the state at `offset` in each member's block.
+fn mean_member_sigma(p: &DMatrix<f64>, members: usize, offset: usize) -> f64 {
+    (0..members)
+        .map(|l| p[(2 * l + offset, 2 * l + offset)].sqrt())
+        .sum::<f64>()
+        / members as f64
+}
+
 fn run_case(
     name: &str,
     g: &AxisGroup,
@@ -207,14 +219,8 @@ fn run_case(
             .update(&z, &h, &r)
             .map_err(|err| err.at_epoch(e))?;
         let p = sigma_filter.covariance();
-        let mean = |offset: usize| {
-            (0..g.members)
-                .map(|l| p[(2 * l + offset, 2 * l + offset)].sqrt())
-                .sum::<f64>()
-                / g.members as f64
-        };
-        sigma_by_epoch.push(mean(0));
-        velocity_sigma_by_epoch.push(mean(1));
+        sigma_by_epoch.push(mean_member_sigma(p, g.members, POSITION));
+        velocity_sigma_by_epoch.push(mean_member_sigma(p, g.members, VELOCITY));
     }
     let per_run = mc.try_run(|_, rng| -> Result<RunOut, EstimationError> {
         let mut x = DVector::from_fn(n, |i, _| p0_sigma[i] * standard_normal(rng));
@@ -257,12 +263,6 @@ fn run_case(
     let mean_over_settled =
         |v: &[f64]| settled.iter().map(|&e| v[e]).sum::<f64>() / settled.len() as f64;
     let ss = steady_state_covariance(&phi, &h, &q, &r)?;
-    let steady = |offset: usize| {
-        (0..g.members)
-            .map(|l| ss.filtered[(2 * l + offset, 2 * l + offset)].sqrt())
-            .sum::<f64>()
-            / g.members as f64
-    };
     let rms_by_epoch = (0..sc.epochs)
         .map(|e| {
             (per_run.iter().map(|r| r.position_sq[e]).sum::<f64>()
@@ -277,8 +277,8 @@ fn run_case(
         position_rms_m: rms(|r| &r.position_sq),
         velocity_sigma_mps: mean_over_settled(&velocity_sigma_by_epoch),
         velocity_rms_mps: rms(|r| &r.velocity_sq),
-        steady_position_sigma_m: steady(0),
-        steady_velocity_sigma_mps: steady(1),
+        steady_position_sigma_m: mean_member_sigma(&ss.filtered, g.members, POSITION),
+        steady_velocity_sigma_mps: mean_member_sigma(&ss.filtered, g.members, VELOCITY),
         sigma_by_epoch,
         rms_by_epoch,
     })

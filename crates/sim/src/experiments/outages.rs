@@ -263,9 +263,8 @@ pub struct EfficiencyExample {
     pub age_s: Vec<f64>,
     /// K_eff = σ_GNSS / σ_KOI.
     pub k_eff: Vec<f64>,
-    /// Time since the outage started, recovery epochs only [s].
-    pub recovery_age_s: Vec<f64>,
-    /// GNSS velocity error at each recovery epoch [m/s].
+    /// GNSS velocity error at each recovery epoch (the last
+    /// `gnss_error.len()` entries of `age_s`) [m/s].
     pub gnss_error: Vec<f64>,
     /// INS + filter error (estimate − truth) at each recovery epoch [m/s].
     pub integrated_error: Vec<f64>,
@@ -305,9 +304,9 @@ pub enum OutagesError {
 struct RunOut {
     // [short|long][uncorrected, predictors…] sums of squares
     sq: [Vec<f64>; 2],
-    // recovery: [gnss, integrated, selected by P, selected by adaptive
+    // recovery: [gnss, integrated, selected by P⁺, selected by adaptive
     // variance, selected by P⁻] sums of squares, and epochs on integrated
-    // for the three selections
+    // for the three selections (same order)
     recovery_sq: [f64; 5],
     recovery_integrated: [usize; 3],
     example: Option<OutageExample>,
@@ -338,17 +337,15 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             sc.initial_tilt_sigma_rad,
             rng,
         );
-        let mut x = truth.x;
         let mut kf = KalmanFilter::new(Vector3::zeros(), p0)?;
         let mut times = Vec::with_capacity(start);
         let mut history = Vec::with_capacity(start);
         for e in 0..start {
             if e > 0 {
                 truth.step(standard_normal(rng), standard_normal(rng));
-                x = truth.x;
                 kf.predict(&phi, &q).map_err(|err| err.at_epoch(e))?;
             }
-            let z = Vector1::new(x[0] + sigma * standard_normal(rng));
+            let z = Vector1::new(truth.x[0] + sigma * standard_normal(rng));
             kf.update(&z, &h, &r).map_err(|err| err.at_epoch(e))?;
             times.push(e as f64 * dt);
             history.push(kf.state()[0]);
@@ -375,11 +372,11 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
         ];
         for i in 1..=long {
             truth.step(standard_normal(rng), standard_normal(rng));
-            x = truth.x;
             apriori
                 .predict(&phi, &q)
                 .map_err(|err| err.at_epoch(start + i))?;
             let t = t_start + i as f64 * dt;
+            let dv = truth.x[0];
             let mut preds = [0.0; PREDICTORS.len()];
             preds[0] = apriori.state()[0];
             for (j, kind) in kinds.iter().enumerate() {
@@ -387,15 +384,15 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
             }
             for (o, len) in [short, long].into_iter().enumerate() {
                 if i <= len {
-                    sq[o][0] += x[0] * x[0];
+                    sq[o][0] += dv * dv;
                     for (j, p) in preds.iter().enumerate() {
-                        sq[o][j + 1] += (x[0] - p).powi(2);
+                        sq[o][j + 1] += (dv - p).powi(2);
                     }
                 }
             }
             if keep {
                 example.age_s.push(i as f64 * dt);
-                example.truth.push(x[0]);
+                example.truth.push(dv);
                 for (j, p) in preds.iter().enumerate() {
                     example.predictions[j].push(*p);
                 }
@@ -436,48 +433,39 @@ pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, Outag
         };
         for i in 0..recovery {
             truth.step(standard_normal(rng), standard_normal(rng));
-            x = truth.x;
             apriori
                 .predict(&phi, &q)
                 .map_err(|err| err.at_epoch(start + long + i))?;
             let gnss_error = sigma * standard_normal(rng) + faults.error[i];
-            let z = Vector1::new(x[0] + gnss_error);
+            let z = Vector1::new(truth.x[0] + gnss_error);
             let (source_predicted, _) = criterion.select(apriori.covariance()[(0, 0)].sqrt());
             let rec = apriori
                 .update_with(&z, &h, &r, &mut policy)
                 .map_err(|err| err.at_epoch(start + long + i))?;
             adaptive_variance.step(rec.residual[0]);
-            let integrated_error = apriori.state()[0] - x[0];
+            let integrated_error = apriori.state()[0] - truth.x[0];
             let (source, k_eff) = criterion.select(apriori.covariance()[(0, 0)].sqrt());
-            let selected_error = match source {
-                Source::Gnss => gnss_error,
-                Source::Integrated => integrated_error,
-            };
             let (source_adaptive, _) = criterion.select(adaptive_variance.variance().sqrt());
-            let selected_adaptive_error = match source_adaptive {
+            // Selections in the order of `recovery_integrated`; their errors
+            // go to `recovery_sq[2..]`.
+            let selections = [source, source_adaptive, source_predicted];
+            let error_of = |s: Source| match s {
                 Source::Gnss => gnss_error,
                 Source::Integrated => integrated_error,
             };
-            let selected_predicted_error = match source_predicted {
-                Source::Gnss => gnss_error,
-                Source::Integrated => integrated_error,
-            };
-            recovery_integrated[0] += usize::from(source == Source::Integrated);
-            recovery_integrated[1] += usize::from(source_adaptive == Source::Integrated);
-            recovery_integrated[2] += usize::from(source_predicted == Source::Integrated);
-            recovery_sq[4] += selected_predicted_error * selected_predicted_error;
             recovery_sq[0] += gnss_error * gnss_error;
             recovery_sq[1] += integrated_error * integrated_error;
-            recovery_sq[2] += selected_error * selected_error;
-            recovery_sq[3] += selected_adaptive_error * selected_adaptive_error;
+            for (j, s) in selections.into_iter().enumerate() {
+                recovery_sq[2 + j] += error_of(s).powi(2);
+                recovery_integrated[j] += usize::from(s == Source::Integrated);
+            }
             if keep {
                 let age = (long + i + 1) as f64 * dt;
                 eff_example.age_s.push(age);
                 eff_example.k_eff.push(k_eff);
-                eff_example.recovery_age_s.push(age);
                 eff_example.gnss_error.push(gnss_error);
                 eff_example.integrated_error.push(integrated_error);
-                eff_example.selected_error.push(selected_predicted_error);
+                eff_example.selected_error.push(error_of(source_predicted));
             }
         }
         Ok(RunOut {
