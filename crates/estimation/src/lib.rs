@@ -14,6 +14,8 @@
 //! - sequential scalar update for diagonal R ([`KalmanFilter::update_sequential`]).
 //! - information form and the Fisher / Cramér–Rao recursion ([`InformationFilter`],
 //!   [`FisherInformation`]).
+//! - information-form update for many sparse observations on a dense
+//!   covariance, with blocked factorisations ([`SubspaceUpdate`], [`blocked`]).
 //! - Rauch–Tung–Striebel smoother over a stored forward pass ([`rts_smooth`]).
 //! - NIS / NEES with χ² bounds ([`consistency`]).
 //! - steady-state covariance from the discrete algebraic Riccati equation
@@ -38,6 +40,7 @@
 //! ```
 
 pub mod adaptive;
+pub mod blocked;
 mod check;
 pub mod consistency;
 mod dense;
@@ -50,6 +53,7 @@ pub mod observer;
 pub mod policy;
 pub mod riccati;
 pub mod smoother;
+pub mod subspace;
 
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
 pub use error::{EstimationError, Matrix, Result, Step};
@@ -65,7 +69,12 @@ pub use policy::{
 };
 pub use riccati::{SteadyState, steady_state_covariance};
 pub use smoother::{ForwardEpoch, SmoothedEpoch, rts_smooth};
+pub use subspace::{SparseInformation, SubspaceUpdate};
 
 /// The linear-algebra crate the engine is written in, re-exported so users
 /// build matrices of the very same version.
 pub use nalgebra;
+
+// Linked for its "threading" feature only: nalgebra's large products then use
+// every core (see the workspace manifest).
+use matrixmultiply as _;

@@ -10,6 +10,7 @@
 pub mod constant_velocity;
 pub mod gauss_markov;
 pub mod group_axis;
+pub mod group_scale;
 pub mod platform;
 
 pub use constant_velocity::ConstantVelocity;

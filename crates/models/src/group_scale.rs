@@ -1,0 +1,292 @@
+//! Spec 30 at scale: one axis of a group of hundreds to thousands of
+//! vehicles, the paper's constant-velocity model with a dense covariance,
+//! updated in information form ([`aidnav_estimation::SubspaceUpdate`]) from
+//! sparse observations — own position (and velocity) fixes, and relative
+//! positions to a few neighbours ([`k_nearest`], [`within_range`]).
+//!
+//! The state is ordered `[R¹ … R^M, V¹ … V^M]` (positions first) so the
+//! observed block is contiguous; [`crate::AxisGroup`] keeps the paper's
+//! interleaved order for the small reproduction.
+//!
+//! ```
+//! use aidnav_models::group_scale::GroupAxisFilter;
+//! let mut f = GroupAxisFilter::new(3, 1.0, 1.0, false, &[0.0; 3], &[0.0; 3], 10.0, 5.0).unwrap();
+//! f.predict();
+//! f.observe_own_position(0, 2.0, 10.0).unwrap();
+//! f.observe_relative(0, 1, -50.0, 0.5).unwrap(); // R¹ − R² = −50
+//! f.update().unwrap();
+//! assert!(f.position_sigma(1) < 10.0); // member 2 gained from member 1's fix
+//! ```
+
+use aidnav_estimation::{EstimationError, SparseInformation, SubspaceUpdate};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// One axis of an M-member group: dense covariance, information-form update.
+#[derive(Debug, Clone)]
+pub struct GroupAxisFilter {
+    members: usize,
+    dt_s: f64,
+    velocity_variance: f64,
+    x: DVector<f64>,
+    p: DMatrix<f64>,
+    info: SparseInformation,
+    update: SubspaceUpdate,
+}
+
+impl GroupAxisFilter {
+    /// A filter for `members` vehicles with step `dt_s`, acceleration
+    /// disturbance `accel_sigma_m_s2` (Q = (a_R T)² on each velocity),
+    /// initial positions/velocities and their σ. `observe_velocity` makes the
+    /// velocities part of the observed block (own velocity fixes allowed).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        members: usize,
+        dt_s: f64,
+        accel_sigma_m_s2: f64,
+        observe_velocity: bool,
+        positions: &[f64],
+        velocities: &[f64],
+        position_sigma_m: f64,
+        velocity_sigma_mps: f64,
+    ) -> Result<Self, EstimationError> {
+        let n = 2 * members;
+        if positions.len() != members || velocities.len() != members {
+            return Err(EstimationError::DimensionMismatch {
+                step: aidnav_estimation::Step::Initialise,
+                matrix: aidnav_estimation::Matrix::X,
+                rows: positions.len().max(velocities.len()),
+                cols: 1,
+                expected_rows: members,
+                expected_cols: 1,
+            });
+        }
+        let x = DVector::from_iterator(n, positions.iter().chain(velocities).copied());
+        let p = DMatrix::from_diagonal(&DVector::from_fn(n, |i, _| {
+            if i < members {
+                position_sigma_m.powi(2)
+            } else {
+                velocity_sigma_mps.powi(2)
+            }
+        }));
+        let block = if observe_velocity { n } else { members };
+        Ok(Self {
+            members,
+            dt_s,
+            velocity_variance: (accel_sigma_m_s2 * dt_s).powi(2),
+            x,
+            p,
+            info: SparseInformation::new(block),
+            update: SubspaceUpdate::new(n, block),
+        })
+    }
+
+    /// Number of members.
+    pub fn members(&self) -> usize {
+        self.members
+    }
+
+    /// Estimated position of member l.
+    pub fn position(&self, l: usize) -> f64 {
+        self.x[l]
+    }
+
+    /// Estimated velocity of member l.
+    pub fn velocity(&self, l: usize) -> f64 {
+        self.x[self.members + l]
+    }
+
+    /// σ of member l's position.
+    pub fn position_sigma(&self, l: usize) -> f64 {
+        self.p[(l, l)].sqrt()
+    }
+
+    /// σ of member l's velocity.
+    pub fn velocity_sigma(&self, l: usize) -> f64 {
+        let i = self.members + l;
+        self.p[(i, i)].sqrt()
+    }
+
+    /// The state covariance, ordered `[R¹ … R^M, V¹ … V^M]`.
+    pub fn covariance(&self) -> &DMatrix<f64> {
+        &self.p
+    }
+
+    /// Time update `R += V T`, `P = Φ P Φᵀ + Q`, using Φ's block structure
+    /// (O(M²) instead of a dense triple product).
+    pub fn predict(&mut self) {
+        let (m, t) = (self.members, self.dt_s);
+        let (xr, xv) = self.x.as_mut_slice().split_at_mut(m);
+        for (r, v) in xr.iter_mut().zip(xv.iter()) {
+            *r += v * t;
+        }
+        let p = &mut self.p;
+        // P_RR += T (P_RV + P_VR) + T² P_VV; P_RV += T P_VV; P_VV += Q.
+        for j in 0..m {
+            for i in 0..m {
+                let rv = p[(i, m + j)];
+                let vr = p[(m + i, j)];
+                let vv = p[(m + i, m + j)];
+                p[(i, j)] += t * (rv + vr) + t * t * vv;
+                p[(i, m + j)] = rv + t * vv;
+                p[(m + i, j)] = vr + t * vv;
+            }
+        }
+        for l in 0..m {
+            p[(m + l, m + l)] += self.velocity_variance;
+        }
+    }
+
+    /// Own position fix of member l.
+    pub fn observe_own_position(
+        &mut self,
+        l: usize,
+        z: f64,
+        sigma: f64,
+    ) -> Result<(), EstimationError> {
+        self.info.add_scalar(&[(l, 1.0)], sigma * sigma, z)
+    }
+
+    /// Own velocity fix of member l (only with `observe_velocity`).
+    pub fn observe_own_velocity(
+        &mut self,
+        l: usize,
+        z: f64,
+        sigma: f64,
+    ) -> Result<(), EstimationError> {
+        self.info
+            .add_scalar(&[(self.members + l, 1.0)], sigma * sigma, z)
+    }
+
+    /// Relative observation `z = R^l − R^k + n`, σ(n) = `sigma`.
+    pub fn observe_relative(
+        &mut self,
+        l: usize,
+        k: usize,
+        z: f64,
+        sigma: f64,
+    ) -> Result<(), EstimationError> {
+        self.info
+            .add_scalar(&[(l, 1.0), (k, -1.0)], sigma * sigma, z)
+    }
+
+    /// Apply every observation added since the last update.
+    pub fn update(&mut self) -> Result<(), EstimationError> {
+        let result = self.update.apply(&mut self.x, &mut self.p, &self.info);
+        self.info.clear();
+        result
+    }
+}
+
+/// For each member, the indices of its `k` nearest other members
+/// (fewer if the group is smaller), nearest first.
+pub fn k_nearest(positions: &[Vector3<f64>], k: usize) -> Vec<Vec<usize>> {
+    let mut order: Vec<(f64, usize)> = Vec::with_capacity(positions.len());
+    positions
+        .iter()
+        .enumerate()
+        .map(|(l, pl)| {
+            order.clear();
+            order.extend(
+                positions
+                    .iter()
+                    .enumerate()
+                    .filter(|&(j, _)| j != l)
+                    .map(|(j, pj)| ((pj - pl).norm_squared(), j)),
+            );
+            let k = k.min(order.len());
+            if k > 0 && k < order.len() {
+                order.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
+            }
+            order.truncate(k);
+            order.sort_by(|a, b| a.0.total_cmp(&b.0));
+            order.iter().map(|&(_, j)| j).collect()
+        })
+        .collect()
+}
+
+/// For each member, the indices of the other members within `range_m`.
+pub fn within_range(positions: &[Vector3<f64>], range_m: f64) -> Vec<Vec<usize>> {
+    let r2 = range_m * range_m;
+    positions
+        .iter()
+        .enumerate()
+        .map(|(l, pl)| {
+            positions
+                .iter()
+                .enumerate()
+                .filter(|&(j, pj)| j != l && (pj - pl).norm_squared() <= r2)
+                .map(|(j, _)| j)
+                .collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::AxisGroup;
+    use aidnav_estimation::KalmanFilter;
+
+    /// The sparse filter with every ordered pair observed equals the paper's
+    /// dense model run through the engine's Joseph-form filter.
+    #[test]
+    fn matches_dense_paper_model() {
+        let model = AxisGroup {
+            members: 4,
+            relative_sigma_m: Some(0.5),
+            ..AxisGroup::default()
+        };
+        let m = model.members;
+        let mut sparse =
+            GroupAxisFilter::new(m, 1.0, 1.0, false, &[0.0; 4], &[0.0; 4], 10.0, 10.0).unwrap();
+        // Interleaved (paper) order for the dense filter.
+        let p0 = DMatrix::from_diagonal_element(2 * m, 2 * m, 100.0);
+        let mut dense = KalmanFilter::new(DVector::zeros(2 * m), p0).unwrap();
+        let (h, r) = model.measurement();
+        let pairs = model.relative_pairs();
+        for epoch in 0..15 {
+            let truth: Vec<f64> = (0..m).map(|l| 10.0 * l as f64 + epoch as f64).collect();
+            let own: Vec<f64> = truth
+                .iter()
+                .enumerate()
+                .map(|(l, t)| t + (l as f64 - 1.5))
+                .collect();
+            let mut z = DVector::zeros(h.nrows());
+            for l in 0..m {
+                z[l] = own[l];
+                sparse.observe_own_position(l, own[l], 10.0).unwrap();
+            }
+            for (i, &(l, k)) in pairs.iter().enumerate() {
+                let zr = truth[l] - truth[k] + 0.1 * (i as f64 - 5.0);
+                z[m + i] = zr;
+                sparse.observe_relative(l, k, zr, 0.5).unwrap();
+            }
+            dense
+                .predict(&model.transition(), &model.process_noise())
+                .unwrap();
+            sparse.predict();
+            dense.update(&z, &h, &r).unwrap();
+            sparse.update().unwrap();
+            for l in 0..m {
+                let (pd, vd) = (dense.state()[2 * l], dense.state()[2 * l + 1]);
+                assert!((pd - sparse.position(l)).abs() < 1e-9, "epoch {epoch}");
+                assert!((vd - sparse.velocity(l)).abs() < 1e-9);
+                let sd = dense.covariance()[(2 * l, 2 * l)].sqrt();
+                assert!((sd - sparse.position_sigma(l)).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn neighbours_are_nearest_first() {
+        let p: Vec<Vector3<f64>> = (0..6)
+            .map(|i| Vector3::new(i as f64 * i as f64, 0.0, 0.0))
+            .collect();
+        let nn = k_nearest(&p, 2);
+        assert_eq!(nn[0], vec![1, 2]);
+        assert_eq!(nn[3], vec![2, 4]);
+        assert_eq!(k_nearest(&p[..2], 5)[0], vec![1]);
+        let wr = within_range(&p, 4.5);
+        assert_eq!(wr[1], vec![0, 2]);
+    }
+}
