@@ -13,6 +13,7 @@ use aidnav_io::writers::{FilterCsvWriter, Summary, write_smoothed, write_table};
 use aidnav_sim::MonteCarlo;
 use aidnav_sim::experiments::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
 use aidnav_sim::experiments::consistency::{ConsistencyResult, ConsistencyScenario};
+use aidnav_sim::experiments::formation::{FormationResult, FormationScenario, SOLUTIONS};
 use aidnav_sim::experiments::group::{GroupResult, GroupScenario};
 use aidnav_sim::experiments::outages::{OutagesResult, OutagesScenario, PREDICTORS};
 use serde::Serialize;
@@ -570,6 +571,100 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
             }),
         );
     }
+    summary.write(out)?;
+    Ok(result)
+}
+
+/// Run the spec-30 formation pipeline (stage-1 INS/GNSS per member, stage-2
+/// group fusion in the paper's and the EKF form) and write `formation.csv`
+/// (per epoch and member: RMS over runs of the 3-D position error of each
+/// solution), `formation_errors.svg` (each GNSS-denied member alone and in
+/// the group, and the mean of the others) and `summary.json` (list `members`)
+/// into `out`.
+pub fn formation(
+    scenario: &FormationScenario,
+    command: &str,
+    out: &Path,
+    quiet: bool,
+) -> JobResult<FormationResult> {
+    let mc = campaign(scenario.runs, scenario.seed, "formation", quiet);
+    let result = aidnav_sim::experiments::formation::run(scenario, &mc).map_err(|source| {
+        JobError::Estimation {
+            context: "formation flight".into(),
+            source,
+        }
+    })?;
+    aidnav_io::writers::ensure_dir(out)?;
+    let mut header = vec!["time [s]".to_string(), "member".to_string()];
+    header.extend(SOLUTIONS.iter().map(|s| format!("{s}_position_error [m]")));
+    let header_ref: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_table(
+        &out.join("formation.csv"),
+        &header_ref,
+        result.time_s.iter().enumerate().flat_map(|(k, &t)| {
+            result.error_by_epoch[k]
+                .iter()
+                .enumerate()
+                .map(move |(l, e)| vec![t, l as f64, e[0], e[1], e[2]])
+        }),
+    )?;
+    let labels = ["GNSS/INS alone", "paper fusion", "EKF fusion"];
+    let mut series = Vec::new();
+    let trace = |pick: &dyn Fn(&[[f64; 3]], usize) -> f64, s: usize| -> Vec<(f64, f64)> {
+        result
+            .time_s
+            .iter()
+            .zip(&result.error_by_epoch)
+            .map(|(&t, e)| (t, pick(e, s)))
+            .collect()
+    };
+    let denied: Vec<usize> = result
+        .members
+        .iter()
+        .filter(|m| m.denied)
+        .map(|m| m.member)
+        .collect();
+    for &l in &denied {
+        for (s, label) in labels.iter().enumerate() {
+            series.push(Series {
+                label: format!("member {l} (GNSS denied): {label}"),
+                points: trace(&|e, s| e[l][s], s),
+                style: LineStyle::Solid,
+                color: s,
+            });
+        }
+    }
+    let others: Vec<usize> = (0..scenario.members)
+        .filter(|l| !denied.contains(l))
+        .collect();
+    if !others.is_empty() {
+        for (s, label) in labels.iter().enumerate() {
+            series.push(Series {
+                label: format!("other members (mean): {label}"),
+                points: trace(
+                    &|e, s| others.iter().map(|&l| e[l][s]).sum::<f64>() / others.len() as f64,
+                    s,
+                ),
+                style: LineStyle::Dashed,
+                color: s,
+            });
+        }
+    }
+    LineChart {
+        title: format!(
+            "Formation of {}: 3-D position error, RMS over {} runs",
+            scenario.members, scenario.runs
+        ),
+        x_label: "time [s]".into(),
+        y_label: "position error [m]".into(),
+        series,
+        log_y: true,
+    }
+    .write_svg(&out.join("formation_errors.svg"))?;
+    let mut summary = Summary::new(command, VERSION, Some(scenario.seed), scenario);
+    summary.insert("solutions", SOLUTIONS);
+    summary.insert("members", &result.members);
+    summary.insert("relative_measurements_per_epoch", result.relative_per_epoch);
     summary.write(out)?;
     Ok(result)
 }

@@ -189,7 +189,13 @@ fn help_explains_every_subcommand() {
     let out = aidnav(&["--help"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains("filter") && text.contains("reproduce"),
+        text.contains("filter") && text.contains("reproduce") && text.contains("run"),
+        "{text}"
+    );
+    let out = aidnav(&["run", "--help"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("[formation]") && text.contains("denial"),
         "{text}"
     );
     let out = aidnav(&["filter", "--help"]);
@@ -280,7 +286,7 @@ fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
 #[test]
 fn print_scenario_round_trips_through_the_loader() {
     let dir = tempfile::tempdir().unwrap();
-    for exp in ["consistency", "anomalies", "outages", "group"] {
+    for exp in ["consistency", "anomalies", "outages", "group", "formation"] {
         let text = success(&["reproduce", exp, "--print-scenario"]);
         let path = dir.path().join(format!("{exp}.toml"));
         std::fs::write(&path, text).unwrap();
@@ -314,4 +320,67 @@ fn reproduce_group_writes_the_case_keys_other_tools_read() {
     }
     assert!(dir.path().join("group_errors.svg").is_file());
     assert!(dir.path().join("group.csv").is_file());
+}
+
+#[test]
+fn run_formation_example_prints_members_and_bounds_the_denied_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = repo().join("examples/formation.toml");
+    let stdout = success(&[
+        "run",
+        example.to_str().unwrap(),
+        "--runs",
+        "2",
+        "--quiet",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("GNSS/INS alone") && stdout.contains("EKF fusion"),
+        "{stdout}"
+    );
+    for f in ["formation.csv", "formation_errors.svg", "summary.json"] {
+        assert!(dir.path().join(f).is_file(), "{f} missing");
+    }
+    let summary = read_summary(dir.path());
+    assert_eq!(summary["scenario"]["runs"], 2);
+    let members = summary["members"].as_array().unwrap();
+    assert_eq!(members.len(), 5);
+    for m in members {
+        let rms: Vec<f64> = m["position_rms_m"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        // Paper fusion and EKF beat the member's own GNSS/INS solution.
+        assert!(rms[1] < rms[0] && rms[2] < rms[0], "{m}");
+        if m["denied"] == true {
+            let max = &m["denial_max_error_m"];
+            assert!(max[0].as_f64().unwrap() > 50.0, "{m}");
+            assert!(max[1].as_f64().unwrap() < 15.0, "{m}");
+            assert!(max[2].as_f64().unwrap() < 15.0, "{m}");
+        }
+    }
+}
+
+#[test]
+fn run_names_file_line_and_key_of_a_bad_formation() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("f.toml");
+    std::fs::write(&f, "[formation]\nmembers = 0\n").unwrap();
+    let err = failure(&["run", f.to_str().unwrap()]);
+    assert!(
+        err.contains("f.toml:2: formation.members: 0 is out of range"),
+        "{err}"
+    );
+    std::fs::write(&f, "[formation]\nmembers = 3\n[[formation.denial]]\nmembers = [3]\nstart_s = 1.0\nend_s = 2.0\n").unwrap();
+    let err = failure(&["run", f.to_str().unwrap()]);
+    assert!(err.contains("formation.denial[0].members"), "{err}");
+    std::fs::write(&f, "[formaton]\n").unwrap();
+    let err = failure(&["run", f.to_str().unwrap()]);
+    assert!(
+        err.contains("f.toml:1") && err.contains("formaton"),
+        "{err}"
+    );
 }

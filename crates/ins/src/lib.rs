@@ -1,9 +1,13 @@
 //! # aidnav-ins — inertial navigation
 //!
 //! Instrument error models used both to corrupt simulated sensor outputs and
-//! to correct real ones. The strapdown mechanizations (launch frame of spec
-//! 10, NED/WGS-84 of spec 40) arrive with their issues.
+//! to correct real ones, and the strapdown mechanizations: the local-level
+//! flat-Earth one of spec 30's formation simulation ([`local_level`]) with its
+//! loosely coupled GNSS filter ([`loosely_coupled`]); the
+//! launch frame of spec 10 and NED/WGS-84 of spec 40 arrive with their issues.
 
 pub mod instrument;
+pub mod local_level;
+pub mod loosely_coupled;
 
 pub use instrument::AxisError;

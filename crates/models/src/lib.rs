@@ -11,7 +11,9 @@ pub mod constant_velocity;
 pub mod gauss_markov;
 pub mod group_axis;
 pub mod group_scale;
+pub mod local_ins;
 pub mod platform;
+pub mod relative_sensor;
 
 pub use constant_velocity::ConstantVelocity;
 pub use gauss_markov::GaussMarkov;

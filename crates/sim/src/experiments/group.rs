@@ -108,6 +108,14 @@ impl Validate for GroupScenario {
         }
         for (key, g) in CASES.iter().zip(self.cases()) {
             validate_group(key, g)?;
+            // One time axis for the per-epoch table and plot.
+            if g.dt_s != self.single.dt_s {
+                return Err(Invalid::new(
+                    format!("{key}.dt_s"),
+                    g.dt_s,
+                    format!("the same step as single.dt_s ({})", self.single.dt_s),
+                ));
+            }
             if self.settle_s >= (self.epochs - 1) as f64 * g.dt_s {
                 return Err(Invalid::new(
                     "settle_s",

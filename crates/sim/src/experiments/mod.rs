@@ -4,6 +4,7 @@
 
 pub mod anomalies;
 pub mod consistency;
+pub mod formation;
 pub mod group;
 pub mod outages;
 
@@ -56,6 +57,7 @@ macro_rules! monte_carlo_scenario {
 monte_carlo_scenario!(
     anomalies::AnomaliesScenario,
     consistency::ConsistencyScenario,
+    formation::FormationScenario,
     group::GroupScenario,
     outages::OutagesScenario
 );
