@@ -369,15 +369,19 @@ fn print_formation(s: &FormationScenario, r: &FormationResult, out: &Path) {
             )
         );
     }
-    let mean = |k: usize| {
-        r.members.iter().map(|m| m.position_rms_m[k]).sum::<f64>() / r.members.len() as f64
-    };
-    println!(
-        "mean over members: alone {:.3}, paper {:.3}, EKF {:.3} m",
-        mean(0),
-        mean(1),
-        mean(2)
-    );
+    let kept: Vec<_> = r.members.iter().filter(|m| !m.denied).collect();
+    if !kept.is_empty() {
+        let mean =
+            |k: usize| kept.iter().map(|m| m.position_rms_m[k]).sum::<f64>() / kept.len() as f64;
+        println!(
+            "mean over the members that keep GNSS: alone {:.3}, paper {:.3}, EKF {:.3} m (gain {:.2}× / {:.2}×)",
+            mean(0),
+            mean(1),
+            mean(2),
+            mean(0) / mean(1),
+            mean(0) / mean(2)
+        );
+    }
     for m in r.members.iter().filter(|m| m.denied) {
         if let (Some(max), Some(end)) = (m.denial_max_error_m, m.denial_end_error_m) {
             println!(

@@ -27,14 +27,15 @@
 //! Conventions: rotations are passive-free "From → To" direction cosine
 //! operators (`v_to = R * v_from`), stored as unit quaternions (Hamilton
 //! convention, nalgebra's). The Earth-frame conversions (WGS-84
-//! geodetic/ECEF/NED) and the launch frame's gravity arrive with the issues
-//! that use them.
+//! geodetic/ECEF/NED) arrive with spec 40; the launch frame of spec 10, its
+//! orientation matrix D and central gravity are in [`launch`].
 //!
 //! ## Limitations
 //! Only the frame markers below exist so far; time-varying frames (NED moving
 //! with the vehicle) are not distinguished by epoch in the type.
 
 pub mod constants;
+pub mod launch;
 mod typed;
 
 pub use typed::{Body, Ecef, Launch, Ned, Rotation, Vec3};

@@ -8,6 +8,7 @@
 //! spec 30's axis-decoupled group model is here.
 
 pub mod constant_velocity;
+pub mod extended_state;
 pub mod gauss_markov;
 pub mod group_axis;
 pub mod group_scale;

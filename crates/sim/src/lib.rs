@@ -21,6 +21,7 @@ pub mod faults;
 pub mod linear;
 pub mod monte_carlo;
 pub mod rng;
+pub mod trajectory;
 
 pub use monte_carlo::{MonteCarlo, Progress};
 pub use rng::{RunRng, run_rng};
