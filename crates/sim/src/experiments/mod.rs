@@ -4,6 +4,7 @@
 
 pub mod anomalies;
 pub mod consistency;
+pub mod extended_state;
 pub mod formation;
 pub mod group;
 pub mod outages;
@@ -57,6 +58,7 @@ macro_rules! monte_carlo_scenario {
 monte_carlo_scenario!(
     anomalies::AnomaliesScenario,
     consistency::ConsistencyScenario,
+    extended_state::ExtendedStateScenario,
     formation::FormationScenario,
     group::GroupScenario,
     outages::OutagesScenario
