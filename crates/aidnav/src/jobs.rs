@@ -13,6 +13,7 @@ use aidnav_io::writers::{FilterCsvWriter, Summary, write_smoothed, write_table};
 use aidnav_sim::MonteCarlo;
 use aidnav_sim::experiments::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
 use aidnav_sim::experiments::consistency::{ConsistencyResult, ConsistencyScenario};
+use aidnav_sim::experiments::extended_state::{ExtendedStateResult, ExtendedStateScenario};
 use aidnav_sim::experiments::formation::{FormationResult, FormationScenario, SOLUTIONS};
 use aidnav_sim::experiments::group::{GroupResult, GroupScenario};
 use aidnav_sim::experiments::outages::{OutagesResult, OutagesScenario, PREDICTORS};
@@ -35,6 +36,9 @@ pub enum JobError {
         /// The engine's error.
         source: EstimationError,
     },
+    /// The extended-state experiment (guidance solution or filter).
+    #[error("extended-state experiment: {0}")]
+    ExtendedState(#[from] aidnav_sim::experiments::extended_state::ExtendedStateError),
     /// The outages experiment (its filter or its model selection).
     #[error("outages experiment: {0}")]
     Outages(#[from] aidnav_sim::experiments::outages::OutagesError),
@@ -665,6 +669,62 @@ pub fn formation(
     summary.insert("solutions", SOLUTIONS);
     summary.insert("members", &result.members);
     summary.insert("relative_measurements_per_epoch", result.relative_per_epoch);
+    summary.write(out)?;
+    Ok(result)
+}
+
+/// Run the spec-10 extended-state experiment and write `extended_state.csv`
+/// (one row per trajectory × threshold), the figures `fig1_accel_bias_error.svg`,
+/// `fig1_scale_factor_error.svg`, `fig2_delta.svg`, `fig3_position_error.svg`,
+/// `switch_sweep.svg`, and `summary.json` (list `cases`) into `out`.
+pub fn extended_state(
+    scenario: &ExtendedStateScenario,
+    out: &Path,
+    quiet: bool,
+) -> JobResult<ExtendedStateResult> {
+    let mc = campaign(scenario.runs, scenario.seed, "extended-state", quiet);
+    let result = aidnav_sim::experiments::extended_state::run(scenario, &mc)?;
+    aidnav_io::writers::ensure_dir(out)?;
+    write_table(
+        &out.join("extended_state.csv"),
+        &[
+            "t_b [s]",
+            "course [deg]",
+            "delta_threshold",
+            "switch_time [s]",
+            "error_free_ins [m]",
+            "error_outputs_only [m]",
+            "error_proposed [m]",
+            "error_oracle [m]",
+            "ratio_median",
+            "ratio_p10",
+            "ratio_p90",
+        ],
+        result.cases.iter().map(|c| {
+            vec![
+                c.t_b_s,
+                c.course_deg,
+                c.delta_threshold,
+                c.switch_time_s,
+                c.error_free_ins_m,
+                c.error_outputs_only_m,
+                c.error_proposed_m,
+                c.error_oracle_m,
+                c.ratio_median,
+                c.ratio_p10,
+                c.ratio_p90,
+            ]
+        }),
+    )?;
+    crate::figures::extended_state_figures(scenario, &result, out)?;
+    let mut summary = Summary::new(
+        "reproduce extended-state",
+        VERSION,
+        Some(scenario.seed),
+        scenario,
+    );
+    summary.insert("cases", &result.cases);
+    summary.insert("sweep", &result.sweep);
     summary.write(out)?;
     Ok(result)
 }

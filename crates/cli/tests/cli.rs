@@ -286,7 +286,14 @@ fn reproduce_outages_writes_the_improvement_keys_other_tools_read() {
 #[test]
 fn print_scenario_round_trips_through_the_loader() {
     let dir = tempfile::tempdir().unwrap();
-    for exp in ["consistency", "anomalies", "outages", "group", "formation"] {
+    for exp in [
+        "consistency",
+        "anomalies",
+        "outages",
+        "group",
+        "formation",
+        "extended-state",
+    ] {
         let text = success(&["reproduce", exp, "--print-scenario"]);
         let path = dir.path().join(format!("{exp}.toml"));
         std::fs::write(&path, text).unwrap();
@@ -383,4 +390,51 @@ fn run_names_file_line_and_key_of_a_bad_formation() {
         err.contains("f.toml:1") && err.contains("formaton"),
         "{err}"
     );
+}
+
+#[test]
+fn reproduce_extended_state_writes_the_case_keys_other_tools_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("s.toml");
+    std::fs::write(&scenario, "runs = 2\nsweep_runs = 2\nsweep_step_s = 60.0\n").unwrap();
+    let out = dir.path().join("out");
+    let stdout = reproduce(
+        "extended-state",
+        &["--scenario", scenario.to_str().unwrap(), "--quiet"],
+        &out,
+    );
+    assert!(
+        stdout.contains("2–5") && stdout.contains("4–10"),
+        "{stdout}"
+    );
+    let summary = read_summary(&out);
+    let cases = summary["cases"].as_array().unwrap();
+    assert_eq!(cases.len(), 18);
+    for c in cases {
+        for key in [
+            "t_b_s",
+            "course_deg",
+            "delta_threshold",
+            "switch_time_s",
+            "error_free_ins_m",
+            "error_outputs_only_m",
+            "error_proposed_m",
+            "error_oracle_m",
+            "ratio_median",
+            "ratio_p10",
+            "ratio_p90",
+        ] {
+            assert!(c[key].as_f64().is_some_and(f64::is_finite), "{key} in {c}");
+        }
+    }
+    for f in [
+        "extended_state.csv",
+        "fig1_accel_bias_error.svg",
+        "fig1_scale_factor_error.svg",
+        "fig2_delta.svg",
+        "fig3_position_error.svg",
+        "switch_sweep.svg",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
 }
