@@ -66,15 +66,22 @@ struct RunArgs {
     /// Scenario file (TOML) with a `[formation]` table.
     #[arg(value_name = "SCENARIO.toml")]
     scenario: PathBuf,
-    /// Number of Monte Carlo runs (overrides the file).
-    #[arg(long, value_name = "N")]
-    runs: Option<usize>,
-    /// Master seed (overrides the file).
-    #[arg(long, value_name = "SEED")]
-    seed: Option<u64>,
+    #[command(flatten)]
+    mc: MonteCarloOverrides,
     /// Output directory [default: results/<scenario file stem>].
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+}
+
+/// Options every Monte Carlo command shares.
+#[derive(Debug, Args)]
+struct MonteCarloOverrides {
+    /// Number of Monte Carlo runs (overrides the scenario).
+    #[arg(long, value_name = "N")]
+    runs: Option<usize>,
+    /// Master seed (overrides the scenario).
+    #[arg(long, value_name = "SEED")]
+    seed: Option<u64>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -128,21 +135,14 @@ struct ReproduceArgs {
     /// Scenario file (TOML) overriding the defaults; see --print-scenario.
     #[arg(long, value_name = "SCENARIO.toml")]
     scenario: Option<PathBuf>,
-    /// Number of Monte Carlo runs (overrides the scenario).
-    #[arg(long, value_name = "N")]
-    runs: Option<usize>,
-    /// Master seed (overrides the scenario).
-    #[arg(long, value_name = "SEED")]
-    seed: Option<u64>,
+    #[command(flatten)]
+    mc: MonteCarloOverrides,
     /// Output directory [default: results/<experiment>].
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Print the default scenario as TOML and exit.
     #[arg(long)]
     print_scenario: bool,
-    /// No progress bar.
-    #[arg(long)]
-    quiet: bool,
 }
 
 fn main() -> ExitCode {
@@ -213,10 +213,10 @@ where
         let runs = s.runs_mut();
         *runs = (*runs).min(QUICK_RUNS);
     }
-    if let Some(r) = a.runs {
+    if let Some(r) = a.mc.runs {
         *s.runs_mut() = r;
     }
-    if let Some(seed) = a.seed {
+    if let Some(seed) = a.mc.seed {
         *s.seed_mut() = seed;
     }
     s.validate().map_err(|inv| {
@@ -280,34 +280,34 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
         match e {
             Experiment::Consistency => {
                 let (s, out) = scenario_and_out::<ConsistencyScenario>(&a, &root, "consistency")?;
-                let r = jobs::consistency(&s, &out, a.quiet).context("consistency demo")?;
+                let r = jobs::consistency(&s, &out, a.mc.quiet).context("consistency demo")?;
                 print_consistency(&s, &r, &out);
             }
             Experiment::ExtendedState => {
                 let (s, out) =
                     scenario_and_out::<ExtendedStateScenario>(&a, &root, "extended_state")?;
-                let r =
-                    jobs::extended_state(&s, &out, a.quiet).context("extended-state experiment")?;
+                let r = jobs::extended_state(&s, &out, a.mc.quiet)
+                    .context("extended-state experiment")?;
                 print_extended_state(&s, &r, &out);
             }
             Experiment::Anomalies => {
                 let (s, out) = scenario_and_out::<AnomaliesScenario>(&a, &root, "anomalies")?;
-                let r = jobs::anomalies(&s, &out, a.quiet).context("anomalies experiment")?;
+                let r = jobs::anomalies(&s, &out, a.mc.quiet).context("anomalies experiment")?;
                 print_anomalies(&s, &r, &out);
             }
             Experiment::Outages => {
                 let (s, out) = scenario_and_out::<OutagesScenario>(&a, &root, "outages")?;
-                let r = jobs::outages(&s, &out, a.quiet).context("outages experiment")?;
+                let r = jobs::outages(&s, &out, a.mc.quiet).context("outages experiment")?;
                 print_outages(&s, &r, &out);
             }
             Experiment::Group => {
                 let (s, out) = scenario_and_out::<GroupScenario>(&a, &root, "group")?;
-                let r = jobs::group(&s, &out, a.quiet).context("group experiment")?;
+                let r = jobs::group(&s, &out, a.mc.quiet).context("group experiment")?;
                 print_group(&s, &r, &out);
             }
             Experiment::Formation => {
                 let (s, out) = scenario_and_out::<FormationScenario>(&a, &root, "formation")?;
-                let r = jobs::formation(&s, "reproduce formation", &out, a.quiet)
+                let r = jobs::formation(&s, "reproduce formation", &out, a.mc.quiet)
                     .context("formation flight")?;
                 print_formation(&s, &r, &out);
             }
@@ -320,10 +320,10 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
 fn run_scenario(a: RunArgs) -> Result<()> {
     let mut file = load_toml::<FormationFile>(&a.scenario)?.0;
     let s = &mut file.formation;
-    if let Some(r) = a.runs {
+    if let Some(r) = a.mc.runs {
         s.runs = r;
     }
-    if let Some(seed) = a.seed {
+    if let Some(seed) = a.mc.seed {
         s.seed = seed;
     }
     aidnav::io::Validate::validate(&file).map_err(|inv| {
@@ -341,7 +341,7 @@ fn run_scenario(a: RunArgs) -> Result<()> {
     let out = a.out.unwrap_or_else(|| Path::new("results").join(stem));
     let command = format!("run {}", a.scenario.display());
     let r =
-        jobs::formation(&file.formation, &command, &out, a.quiet).context("formation flight")?;
+        jobs::formation(&file.formation, &command, &out, a.mc.quiet).context("formation flight")?;
     print_formation(&file.formation, &r, &out);
     Ok(())
 }

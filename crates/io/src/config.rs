@@ -65,6 +65,15 @@ pub fn positive(key: &str, value: f64) -> std::result::Result<(), Invalid> {
     }
 }
 
+/// [`positive`] for every (key, value) of a table; the error's key is
+/// prefixed with the table's dotted name (e.g. `"model.imu"`).
+pub fn all_positive(table: &str, pairs: &[(&str, f64)]) -> std::result::Result<(), Invalid> {
+    for &(key, value) in pairs {
+        positive(key, value).map_err(|e| e.within(table))?;
+    }
+    Ok(())
+}
+
 /// Error unless `value ≥ 0` (and finite).
 pub fn non_negative(key: &str, value: f64) -> std::result::Result<(), Invalid> {
     if value.is_finite() && value >= 0.0 {

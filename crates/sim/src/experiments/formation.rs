@@ -32,7 +32,9 @@
 use aidnav_estimation::{DynKalmanFilter, EstimationError};
 use aidnav_ins::local_level::{LocalLevelState, ideal_imu};
 use aidnav_ins::loosely_coupled::LooselyCoupled;
-use aidnav_io::config::{Invalid, Validate, count_in_range, in_range, non_negative, positive};
+use aidnav_io::config::{
+    Invalid, Validate, all_positive, count_in_range, in_range, non_negative, positive,
+};
 use aidnav_models::GaussMarkov;
 use aidnav_models::group_scale::GroupAxisFilter;
 use aidnav_models::local_ins::{LocalInsModel, Matrix6};
@@ -217,50 +219,53 @@ impl Validate for FormationScenario {
         positive("spacing_m", self.spacing_m)?;
         positive("group_accel_sigma_m_s2", self.group_accel_sigma_m_s2)?;
         let i = &self.initial;
-        for (k, v) in [
-            ("position_sigma_m", i.position_sigma_m),
-            ("velocity_sigma_mps", i.velocity_sigma_mps),
-            ("tilt_sigma_rad", i.tilt_sigma_rad),
-            ("heading_sigma_rad", i.heading_sigma_rad),
-        ] {
-            positive(k, v).map_err(|e| e.within("initial"))?;
-        }
+        all_positive(
+            "initial",
+            &[
+                ("position_sigma_m", i.position_sigma_m),
+                ("velocity_sigma_mps", i.velocity_sigma_mps),
+                ("tilt_sigma_rad", i.tilt_sigma_rad),
+                ("heading_sigma_rad", i.heading_sigma_rad),
+            ],
+        )?;
         let imu = &self.model.imu;
+        all_positive(
+            "model.imu",
+            &[
+                ("accel_bias_sigma_m_s2", imu.accel_bias_sigma_m_s2),
+                ("accel_bias_correlation_s", imu.accel_bias_correlation_s),
+                ("gyro_bias_sigma_rad_s", imu.gyro_bias_sigma_rad_s),
+                ("gyro_bias_correlation_s", imu.gyro_bias_correlation_s),
+                ("velocity_random_walk", imu.velocity_random_walk),
+                ("angle_random_walk", imu.angle_random_walk),
+            ],
+        )?;
         let gnss = &self.model.gnss;
-        let within = |e: Invalid, t: &str| e.within(t).within("model");
-        for (k, v) in [
-            ("accel_bias_sigma_m_s2", imu.accel_bias_sigma_m_s2),
-            ("accel_bias_correlation_s", imu.accel_bias_correlation_s),
-            ("gyro_bias_sigma_rad_s", imu.gyro_bias_sigma_rad_s),
-            ("gyro_bias_correlation_s", imu.gyro_bias_correlation_s),
-            ("velocity_random_walk", imu.velocity_random_walk),
-            ("angle_random_walk", imu.angle_random_walk),
-        ] {
-            positive(k, v).map_err(|e| within(e, "imu"))?;
-        }
-        for (k, v) in [
-            (
-                "position_horizontal_sigma_m",
-                gnss.position_horizontal_sigma_m,
-            ),
-            ("position_vertical_sigma_m", gnss.position_vertical_sigma_m),
-            ("position_correlation_s", gnss.position_correlation_s),
-            ("position_white_sigma_m", gnss.position_white_sigma_m),
-            ("velocity_sigma_mps", gnss.velocity_sigma_mps),
-            ("velocity_correlation_s", gnss.velocity_correlation_s),
-            ("velocity_white_sigma_mps", gnss.velocity_white_sigma_mps),
-        ] {
-            positive(k, v).map_err(|e| within(e, "gnss"))?;
-        }
+        all_positive(
+            "model.gnss",
+            &[
+                (
+                    "position_horizontal_sigma_m",
+                    gnss.position_horizontal_sigma_m,
+                ),
+                ("position_vertical_sigma_m", gnss.position_vertical_sigma_m),
+                ("position_correlation_s", gnss.position_correlation_s),
+                ("position_white_sigma_m", gnss.position_white_sigma_m),
+                ("velocity_sigma_mps", gnss.velocity_sigma_mps),
+                ("velocity_correlation_s", gnss.velocity_correlation_s),
+                ("velocity_white_sigma_mps", gnss.velocity_white_sigma_mps),
+            ],
+        )?;
         let s = &self.sensor;
-        for (k, v) in [
-            ("range_sigma_m", s.range_sigma_m),
-            ("bearing_sigma_rad", s.bearing_sigma_rad),
-            ("elevation_sigma_rad", s.elevation_sigma_rad),
-            ("range_limit_m", s.range_limit_m),
-        ] {
-            positive(k, v).map_err(|e| e.within("sensor"))?;
-        }
+        all_positive(
+            "sensor",
+            &[
+                ("range_sigma_m", s.range_sigma_m),
+                ("bearing_sigma_rad", s.bearing_sigma_rad),
+                ("elevation_sigma_rad", s.elevation_sigma_rad),
+                ("range_limit_m", s.range_limit_m),
+            ],
+        )?;
         for (i, d) in self.denial.iter().enumerate() {
             let key = format!("denial[{i}]");
             if let Some(&m) = d.members.iter().find(|&&m| m >= self.members) {
