@@ -27,7 +27,8 @@
 //! Conventions: rotations are passive-free "From → To" direction cosine
 //! operators (`v_to = R * v_from`), stored as unit quaternions (Hamilton
 //! convention, nalgebra's). The Earth-frame conversions (WGS-84
-//! geodetic/ECEF/NED) arrive with spec 40; the launch frame of spec 10, its
+//! geodetic/ECEF/NED, radii, normal gravity, Earth and transport rate) are in
+//! [`earth`]; the launch frame of spec 10, its
 //! orientation matrix D and central gravity are in [`launch`].
 //!
 //! ## Limitations
@@ -35,6 +36,7 @@
 //! with the vehicle) are not distinguished by epoch in the type.
 
 pub mod constants;
+pub mod earth;
 pub mod launch;
 mod typed;
 
