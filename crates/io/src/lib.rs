@@ -7,12 +7,14 @@
 //! - [`measurements`]: the measurement CSV of `aidnav filter` (empty cell = missing).
 //! - [`writers`]: CSV observers for filter runs, `summary.json`.
 //! - [`plot`]: SVG line charts.
+//! - [`rtklib`]: RTKLIB `.pos` solutions and the raw IMU CSV with its `.tag` time tags.
 
 pub mod config;
 pub mod error;
 pub mod measurements;
 pub mod model_file;
 pub mod plot;
+pub mod rtklib;
 pub mod writers;
 
 pub use config::{Invalid, Validate, load_toml, parse_toml};
