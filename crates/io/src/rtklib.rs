@@ -233,8 +233,10 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                 }
             }
         }
-        if let Some(prev) = fixes.last() {
-            if time_s <= prev.time_s {
+        if let Some(prev) = fixes.last()
+            && time_s <= prev.time_s
+        {
+            {
                 return Err(data_error(
                     path,
                     line,
@@ -394,8 +396,10 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
                 ),
             ));
         }
-        if let Some(&(prev_line, _, prev_tick)) = raw.last() {
-            if v[6] <= prev_tick {
+        if let Some(&(prev_line, _, prev_tick)) = raw.last()
+            && v[6] <= prev_tick
+        {
+            {
                 return Err(data_error(
                     csv_path,
                     line,
