@@ -13,6 +13,7 @@ pub mod gauss_markov;
 pub mod group_axis;
 pub mod group_scale;
 pub mod local_ins;
+pub mod ned_ins;
 pub mod platform;
 pub mod relative_sensor;
 

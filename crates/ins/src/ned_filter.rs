@@ -1,0 +1,246 @@
+//! Spec 40's loosely coupled GNSS/INS filter: the WGS-84 NED mechanization
+//! ([`crate::ned`]), the 21-state error model
+//! ([`aidnav_models::ned_ins`]), GNSS position and velocity updates with the
+//! antenna lever arm, closed-loop feedback into the INS and into the
+//! instrument corrections (`ω = (ω̃ − b_g) / (1 + s_g)`, likewise f), and
+//! any measurement policy of the engine on each update.
+
+use aidnav_estimation::{
+    AcceptAll, EstimationError, FixedKalmanFilter, MeasurementPolicy, UpdateRecord,
+    nalgebra::{Const, U3},
+};
+use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
+use aidnav_models::ned_ins::{
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, STATES,
+    VELOCITY, Vector21,
+};
+use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
+
+use crate::ned::{ImuIncrement, NedMechanization, NedState};
+
+/// The instrument corrections in use.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct InstrumentEstimate {
+    /// Gyro bias [rad/s].
+    pub gyro_bias: Vector3<f64>,
+    /// Accelerometer bias [m/s²].
+    pub accel_bias: Vector3<f64>,
+    /// Gyro scale factor.
+    pub gyro_scale: Vector3<f64>,
+    /// Accelerometer scale factor.
+    pub accel_scale: Vector3<f64>,
+}
+
+impl InstrumentEstimate {
+    /// Correct raw increments.
+    pub fn correct(&self, raw: &ImuIncrement) -> ImuIncrement {
+        let one = Vector3::repeat(1.0);
+        ImuIncrement {
+            dt_s: raw.dt_s,
+            delta_angle: (raw.delta_angle - self.gyro_bias * raw.dt_s)
+                .component_div(&(one + self.gyro_scale)),
+            delta_velocity: (raw.delta_velocity - self.accel_bias * raw.dt_s)
+                .component_div(&(one + self.accel_scale)),
+        }
+    }
+}
+
+/// Record of one GNSS update.
+pub type GnssUpdate = UpdateRecord<Const<STATES>, U3>;
+
+/// The filter.
+#[derive(Debug, Clone)]
+pub struct NedFilter {
+    model: NedErrorModel,
+    ins: NedMechanization,
+    kf: FixedKalmanFilter<STATES>,
+    instruments: InstrumentEstimate,
+    lever_arm: Vector3<f64>,
+    rate: Vector3<f64>,
+}
+
+impl NedFilter {
+    /// Start at `state` with the prior σ of every error state and the
+    /// antenna lever arm (body frame, from the IMU to the antenna).
+    pub fn new(
+        model: NedErrorModel,
+        state: NedState,
+        prior_sigmas: &Vector21,
+        lever_arm: Vector3<f64>,
+    ) -> Result<Self, EstimationError> {
+        let p0 = SMatrix::<f64, STATES, STATES>::from_diagonal(&prior_sigmas.map(|s| s * s));
+        Ok(Self {
+            model,
+            ins: NedMechanization::new(state),
+            kf: FixedKalmanFilter::new(Vector21::zeros(), p0)?,
+            instruments: InstrumentEstimate::default(),
+            lever_arm,
+            rate: Vector3::zeros(),
+        })
+    }
+
+    /// The navigation state (IMU).
+    pub fn state(&self) -> &NedState {
+        self.ins.state()
+    }
+
+    /// The instrument corrections.
+    pub fn instruments(&self) -> &InstrumentEstimate {
+        &self.instruments
+    }
+
+    /// σ of every error state.
+    pub fn sigmas(&self) -> Vector21 {
+        self.kf.covariance().diagonal().map(f64::sqrt)
+    }
+
+    /// The antenna position and velocity implied by the INS.
+    pub fn antenna(&self) -> (Geodetic, Vector3<f64>) {
+        let s = self.ins.state();
+        let c = s.attitude.to_rotation_matrix().into_inner();
+        let arm = c * self.lever_arm;
+        (
+            s.position.offset_by(&arm),
+            s.velocity + c * self.rate.cross(&self.lever_arm),
+        )
+    }
+
+    /// Mechanize one raw increment and propagate the covariance.
+    pub fn propagate(&mut self, raw: &ImuIncrement) -> Result<(), EstimationError> {
+        let imu = self.instruments.correct(raw);
+        if !(imu.dt_s > 0.0) {
+            return Ok(());
+        }
+        self.ins.update(&imu);
+        let s = self.ins.state();
+        self.rate = imu.delta_angle / imu.dt_s;
+        let c = s.attitude.to_rotation_matrix().into_inner();
+        let f = self.model.continuous(
+            &c,
+            &(imu.delta_velocity / imu.dt_s),
+            &self.rate,
+            &earth_rate_ned(s.position.latitude_rad),
+            &transport_rate_ned(&s.position, &s.velocity),
+            s.position.latitude_rad,
+        );
+        let (phi, q) = self.model.discrete(&f, imu.dt_s);
+        self.kf.predict(&phi, &q)
+    }
+
+    /// GNSS antenna position fix with σ (north, east, down) under a policy.
+    pub fn update_position_with<P: MeasurementPolicy<U3> + ?Sized>(
+        &mut self,
+        fix: &Geodetic,
+        sigma_ned: &Vector3<f64>,
+        policy: &mut P,
+    ) -> Result<GnssUpdate, EstimationError> {
+        let s = *self.ins.state();
+        let c = s.attitude.to_rotation_matrix().into_inner();
+        let (antenna, _) = self.antenna();
+        let z = fix.ned_to(&antenna);
+        let h = NedErrorModel::position_measurement(&(c * self.lever_arm));
+        let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
+        let rec = self.kf.update_with(&z, &h, &r, policy)?;
+        self.feedback()?;
+        Ok(rec)
+    }
+
+    /// GNSS antenna position fix, accepted.
+    pub fn update_position(
+        &mut self,
+        fix: &Geodetic,
+        sigma_ned: &Vector3<f64>,
+    ) -> Result<GnssUpdate, EstimationError> {
+        self.update_position_with(fix, sigma_ned, &mut AcceptAll)
+    }
+
+    /// GNSS antenna velocity fix (NED) with σ.
+    pub fn update_velocity_with<P: MeasurementPolicy<U3> + ?Sized>(
+        &mut self,
+        velocity_ned: &Vector3<f64>,
+        sigma_ned: &Vector3<f64>,
+        policy: &mut P,
+    ) -> Result<GnssUpdate, EstimationError> {
+        let c = self.ins.state().attitude.to_rotation_matrix().into_inner();
+        let (_, v_ant) = self.antenna();
+        let z = v_ant - velocity_ned;
+        let h = NedErrorModel::velocity_measurement(&(c * self.rate.cross(&self.lever_arm)));
+        let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
+        let rec = self.kf.update_with(&z, &h, &r, policy)?;
+        self.feedback()?;
+        Ok(rec)
+    }
+
+    /// Move every error estimate into the INS and the instrument corrections.
+    fn feedback(&mut self) -> Result<(), EstimationError> {
+        let x = *self.kf.state();
+        let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
+        let s = *self.ins.state();
+        self.ins.set_state(NedState {
+            position: s.position.offset_by(&-v3(POSITION)),
+            velocity: s.velocity - v3(VELOCITY),
+            attitude: UnitQuaternion::from_scaled_axis(v3(ATTITUDE)) * s.attitude,
+        });
+        self.instruments.gyro_bias += v3(GYRO_BIAS);
+        self.instruments.accel_bias += v3(ACCEL_BIAS);
+        self.instruments.gyro_scale += v3(GYRO_SCALE);
+        self.instruments.accel_scale += v3(ACCEL_SCALE);
+        self.kf.set_state(Vector21::zeros())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aidnav_models::ned_ins::ImuNoise;
+
+    /// A static INS with biased gyros and accelerometers, fed exact
+    /// position and zero velocity: it stays put, levels itself, and finds the
+    /// vertical accelerometer bias.
+    #[test]
+    fn static_alignment_finds_the_vertical_accelerometer_bias() {
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.7,
+                longitude_rad: -1.8,
+                height_m: 1600.0,
+            },
+            velocity: Vector3::zeros(),
+            attitude: UnitQuaternion::from_euler_angles(0.01, -0.02, 0.5),
+        };
+        let model = NedErrorModel {
+            noise: ImuNoise::default(),
+        };
+        let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
+        let mut sig = Vector21::zeros();
+        for i in 0..3 {
+            sig[POSITION + i] = 1.0;
+            sig[VELOCITY + i] = 0.1;
+            sig[ATTITUDE + i] = if i == 2 { 0.1 } else { 0.01 };
+            sig[GYRO_BIAS + i] = sg;
+            sig[ACCEL_BIAS + i] = sa;
+            sig[GYRO_SCALE + i] = kg;
+            sig[ACCEL_SCALE + i] = ka;
+        }
+        let mut f = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
+        let mut imu = NedMechanization::stationary_increment(&start, 0.01);
+        imu.delta_velocity.z += 0.01 * 0.01; // 0.01 m/s² bias on body z
+        for k in 0..30_000 {
+            f.propagate(&imu).unwrap();
+            if k % 25 == 24 {
+                f.update_position(&start.position, &Vector3::repeat(0.02))
+                    .unwrap();
+                f.update_velocity_with(&Vector3::zeros(), &Vector3::repeat(0.01), &mut AcceptAll)
+                    .unwrap();
+            }
+        }
+        let drift = start.position.ned_to(&f.state().position).norm();
+        assert!(drift < 0.05, "{drift}");
+        // Static, bias and scale factor on z are one thing: b_z + s_z f_z
+        // (f_z ≈ −g) is what is observable, and it is found.
+        let i = f.instruments();
+        let f_z = imu.delta_velocity.z / 0.01;
+        let effective = i.accel_bias.z + i.accel_scale.z * f_z;
+        assert!((effective - 0.01).abs() < 2e-4, "{effective} from {i:?}");
+    }
+}
