@@ -108,7 +108,7 @@ impl NedFilter {
     /// Mechanize one raw increment and propagate the covariance.
     pub fn propagate(&mut self, raw: &ImuIncrement) -> Result<(), EstimationError> {
         let imu = self.instruments.correct(raw);
-        if !(imu.dt_s > 0.0) {
+        if imu.dt_s.is_nan() || imu.dt_s <= 0.0 {
             return Ok(());
         }
         self.ins.update(&imu);
