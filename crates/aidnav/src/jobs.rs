@@ -728,3 +728,265 @@ pub fn extended_state(
     summary.write(out)?;
     Ok(result)
 }
+
+/// What `aidnav process` measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct ProcessReport {
+    /// IMU samples used.
+    pub imu_samples: usize,
+    /// GNSS epochs.
+    pub gnss_epochs: usize,
+    /// RMS 3-D antenna error over RTK-fixed epochs, all GNSS used [m].
+    pub tracking_rms_m: f64,
+    /// Updates by outcome in the clean run.
+    pub outcomes: Vec<(String, usize)>,
+    /// Outage scores (filter coasting).
+    pub outages: Vec<crate::process::OutageScore>,
+    /// Outage scores of the free INS (raw IMU, no instrument correction).
+    pub outages_free_ins: Vec<crate::process::OutageScore>,
+    /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
+    pub anomalies: Vec<(f64, crate::process::PolicyName, f64)>,
+    /// Reader warnings.
+    pub warnings: Vec<String>,
+    /// Wall time [s]: reading, one filter pass, scoring.
+    pub timing_s: [f64; 3],
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Run `aidnav process CONFIG.toml`: read the log named in the
+/// configuration (`data_dir` replaces its `data.dir`), filter it, write
+/// `solution.csv` (per GNSS epoch: antenna position, NED velocity, attitude,
+/// σ, NIS, update outcome), `trajectory.svg`, `outage_drift.svg` and
+/// `summary.json`; with `score`, also the outage and anomaly tables.
+pub fn process(
+    config: &Path,
+    data_dir: Option<&Path>,
+    out: &Path,
+    score: bool,
+) -> JobResult<ProcessReport> {
+    use crate::process::{
+        PolicyName, RunPlan, inject_outliers, load_inputs, outage_windows, run_filter,
+        score_windows, tracking_rms,
+    };
+    use rayon::prelude::*;
+    use std::time::Instant;
+    let (mut cfg, _) = aidnav_io::load_toml::<crate::process::ProcessConfig>(config)?;
+    if let Some(d) = data_dir {
+        cfg.data.dir = d.to_path_buf();
+    }
+    let base = config.parent().unwrap_or(Path::new("."));
+    let t_read = Instant::now();
+    let inputs = load_inputs(&cfg, base).map_err(process_error)?;
+    let read_s = t_read.elapsed().as_secs_f64();
+    let t_run = Instant::now();
+    let clean = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
+        .map_err(process_error)?;
+    let run_s = t_run.elapsed().as_secs_f64();
+    aidnav_io::writers::ensure_dir(out)?;
+    let mut files = Vec::new();
+    let solution = out.join("solution.csv");
+    write_table(
+        &solution,
+        &[
+            "time [s GPST since 1970]",
+            "latitude [deg]",
+            "longitude [deg]",
+            "height [m]",
+            "vn [m/s]",
+            "ve [m/s]",
+            "vd [m/s]",
+            "roll [deg]",
+            "pitch [deg]",
+            "yaw [deg]",
+            "sigma_n [m]",
+            "sigma_e [m]",
+            "sigma_d [m]",
+            "nis",
+            "outcome (1 accepted, 2 limited, 3 rejected, 0 none)",
+        ],
+        clean.iter().map(|e| {
+            let (r, p, y) = e.attitude.euler_angles();
+            vec![
+                inputs.gnss[e.index].time_s,
+                e.antenna.latitude_rad.to_degrees(),
+                e.antenna.longitude_rad.to_degrees(),
+                e.antenna.height_m,
+                e.velocity.x,
+                e.velocity.y,
+                e.velocity.z,
+                r.to_degrees(),
+                p.to_degrees(),
+                y.to_degrees(),
+                e.sigma.x,
+                e.sigma.y,
+                e.sigma.z,
+                e.nis,
+                match e.outcome {
+                    Some(Outcome::Accepted) => 1.0,
+                    Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
+                    Some(Outcome::Rejected) => 3.0,
+                    _ => 0.0,
+                },
+            ]
+        }),
+    )?;
+    files.push(solution);
+    let mut outcomes: Vec<(String, usize)> = Vec::new();
+    for e in &clean {
+        let key = e
+            .outcome
+            .map_or("withheld".to_string(), |o| format!("{o:?}").to_lowercase());
+        match outcomes.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, n)) => *n += 1,
+            None => outcomes.push((key, 1)),
+        }
+    }
+    let origin = inputs.gnss[0].position;
+    let ne = |g: &aidnav_frames::earth::Geodetic| {
+        let d = origin.ned_to(g);
+        (d.y, d.x)
+    };
+    LineChart {
+        title: "Trajectory: GNSS fixes and the filter's antenna position".into(),
+        x_label: "east [m]".into(),
+        y_label: "north [m]".into(),
+        series: vec![
+            Series {
+                label: "GNSS (RTK)".into(),
+                points: inputs.gnss.iter().map(|g| ne(&g.position)).collect(),
+                style: LineStyle::Points,
+                color: TRUTH_COLOR,
+            },
+            Series {
+                label: "aidnav".into(),
+                points: clean.iter().map(|e| ne(&e.antenna)).collect(),
+                style: LineStyle::Solid,
+                color: 0,
+            },
+        ],
+        log_y: false,
+    }
+    .write_svg(&out.join("trajectory.svg"))?;
+    files.push(out.join("trajectory.svg"));
+    let t_score = Instant::now();
+    let (mut outages, mut outages_free, mut anomalies) = (Vec::new(), Vec::new(), Vec::new());
+    if score {
+        let first = inputs.imu[0].time_s;
+        let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
+        let plans: Vec<(f64, bool)> = cfg
+            .score
+            .outages_s
+            .iter()
+            .flat_map(|&l| [(l, false), (l, true)])
+            .collect();
+        let scored: Vec<(
+            f64,
+            bool,
+            crate::process::OutageScore,
+            Vec<crate::process::Epoch>,
+        )> = plans
+            .par_iter()
+            .map(|&(l, free)| {
+                let windows = outage_windows(&cfg.score, first, last, l);
+                let plan = RunPlan {
+                    windows: windows.clone(),
+                    free_ins_in_windows: free,
+                    ..RunPlan::default()
+                };
+                let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept)?;
+                Ok((
+                    l,
+                    free,
+                    score_windows(&inputs.gnss, &epochs, &windows, l),
+                    epochs,
+                ))
+            })
+            .collect::<Result<_, crate::process::ProcessError>>()
+            .map_err(process_error)?;
+        let mut drift_series = Vec::new();
+        for (i, (l, free, s, epochs)) in scored.into_iter().enumerate() {
+            if !free {
+                drift_series.push(Series {
+                    label: format!("{l:.0} s outages"),
+                    points: epochs
+                        .iter()
+                        .map(|e| {
+                            let g = &inputs.gnss[e.index];
+                            (
+                                g.time_s - first,
+                                g.position.ned_to(&e.antenna).norm().max(1e-3),
+                            )
+                        })
+                        .collect(),
+                    style: LineStyle::Solid,
+                    color: i / 2,
+                });
+                outages.push(s);
+            } else {
+                outages_free.push(s);
+            }
+        }
+        LineChart {
+            title: "3-D antenna error with simulated GNSS outages (filter coasting)".into(),
+            x_label: "time since the first IMU sample [s]".into(),
+            y_label: "3-D error [m]".into(),
+            series: drift_series,
+            log_y: true,
+        }
+        .write_svg(&out.join("outage_drift.svg"))?;
+        files.push(out.join("outage_drift.svg"));
+        let policies = [PolicyName::Accept, PolicyName::Chi2Gate, PolicyName::Huber];
+        let mut cases: Vec<(f64, PolicyName)> = policies.iter().map(|&p| (0.0, p)).collect();
+        for &f in &cfg.score.outlier_fractions {
+            cases.extend(policies.iter().map(|&p| (f, p)));
+        }
+        anomalies = cases
+            .par_iter()
+            .map(|&(f, p)| {
+                let plan = RunPlan {
+                    outliers: inject_outliers(
+                        inputs.gnss.len(),
+                        f,
+                        cfg.score.outlier_m,
+                        cfg.score.seed,
+                    ),
+                    ..RunPlan::default()
+                };
+                let epochs = run_filter(&cfg, &inputs, &plan, p)?;
+                Ok((f, p, tracking_rms(&inputs.gnss, &epochs)))
+            })
+            .collect::<Result<_, crate::process::ProcessError>>()
+            .map_err(process_error)?;
+    }
+    let score_s = t_score.elapsed().as_secs_f64();
+    let report = ProcessReport {
+        imu_samples: inputs.imu.len(),
+        gnss_epochs: inputs.gnss.len(),
+        tracking_rms_m: tracking_rms(&inputs.gnss, &clean),
+        outcomes,
+        outages,
+        outages_free_ins: outages_free,
+        anomalies,
+        warnings: inputs.warnings.clone(),
+        timing_s: [read_s, run_s, score_s],
+        files: files.clone(),
+    };
+    let mut summary = Summary::new("process", VERSION, Some(cfg.score.seed), &cfg);
+    summary.insert("result", &report);
+    let path = summary.write(out)?;
+    let mut report = report;
+    report.files.push(path);
+    Ok(report)
+}
+
+fn process_error(e: crate::process::ProcessError) -> JobError {
+    match e {
+        crate::process::ProcessError::Io(io) => JobError::Io(io),
+        crate::process::ProcessError::Estimation(source) => JobError::Estimation {
+            context: "GNSS/INS filter".into(),
+            source,
+        },
+        crate::process::ProcessError::Data(m) => JobError::Refused(m),
+    }
+}

@@ -2,6 +2,7 @@
 
 mod figures;
 pub mod jobs;
+pub mod process;
 
 pub use aidnav_estimation as estimation;
 pub use aidnav_frames as frames;

@@ -89,6 +89,19 @@ impl NedFilter {
         &self.instruments
     }
 
+    /// Start the gyro-bias correction at a value (e.g. measured at rest).
+    pub fn set_gyro_bias(&mut self, bias: Vector3<f64>) {
+        self.instruments.gyro_bias = bias;
+    }
+
+    /// Mechanize one raw increment *without* the instrument corrections and
+    /// without touching the covariance: the free INS of an outage score.
+    pub fn coast_uncorrected(&mut self, raw: &ImuIncrement) {
+        if raw.dt_s > 0.0 {
+            self.ins.update(raw);
+        }
+    }
+
     /// σ of every error state.
     pub fn sigmas(&self) -> Vector21 {
         self.kf.covariance().diagonal().map(f64::sqrt)

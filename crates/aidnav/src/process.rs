@@ -1,0 +1,671 @@
+//! Spec 40: process a recorded IMU + GNSS log end to end with the NED
+//! filter ([`aidnav_ins::ned_filter`]) and score it with simulated GNSS
+//! outages and injected anomalies.
+//!
+//! Pipeline: read (RTKLIB `.pos`, raw IMU CSV + `.tag`), shift the IMU time
+//! by `imu.time_offset_s`, rotate sensor → body (`imu.mounting_deg`, Groves'
+//! Euler_to_CTM convention as the data set's upstream uses), smooth with a
+//! zero-phase centred moving average (`imu.smoothing_s`, offline), initialise
+//! (levelling and gyro bias over the first `initial.static_s` seconds at
+//! rest, heading from the first GNSS course above `initial.heading_speed_mps`
+//! — the car is assumed to drive straight off), then filter: IMU increments
+//! by the trapezoid rule, split at every GNSS epoch so each update is made
+//! at the fix's own time.
+
+use std::path::{Path, PathBuf};
+
+use aidnav_estimation::{
+    AcceptAll, Chi2Gate, EstimationError, Huber, MeasurementPolicy, Outcome, nalgebra::U3,
+};
+use aidnav_frames::earth::{Geodetic, earth_rate_ned};
+use aidnav_ins::ned::{ImuIncrement, NedState};
+use aidnav_ins::ned_filter::NedFilter;
+use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_range, non_negative};
+use aidnav_io::rtklib::{GnssFix, ImuSample, read_pos, read_tagged_imu};
+use aidnav_models::ned_ins::{
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, VELOCITY,
+    Vector21,
+};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// Where the data are.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataFiles {
+    /// Directory of the files (relative: to the configuration file).
+    pub dir: PathBuf,
+    /// Raw IMU CSV (g, deg/s, tick ms).
+    pub imu: PathBuf,
+    /// Its RTKLIB time-tag file.
+    pub imu_tags: PathBuf,
+    /// RTKLIB `.pos` solution.
+    pub gnss: PathBuf,
+}
+
+/// IMU handling.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImuConfig {
+    /// Added to the IMU time [s] (logging delay). Default −0.125.
+    pub time_offset_s: f64,
+    /// Sensor → body rotation as (roll, pitch, yaw) [deg], Groves'
+    /// Euler_to_CTM: `f_body = C(roll, pitch, yaw) f_sensor`. Default the
+    /// data set's [180, −6.79, 185.35].
+    pub mounting_deg: [f64; 3],
+    /// Zero-phase moving-average window [s] (0: none). Default 0.1
+    /// (the data set's gyros carry a strong vibration line).
+    pub smoothing_s: f64,
+    /// Noise terms of the filter model.
+    pub noise: aidnav_models::ned_ins::ImuNoise,
+}
+
+impl Default for ImuConfig {
+    fn default() -> Self {
+        Self {
+            time_offset_s: -0.125,
+            mounting_deg: [180.0, -6.79, 185.35],
+            smoothing_s: 0.1,
+            noise: aidnav_models::ned_ins::ImuNoise::default(),
+        }
+    }
+}
+
+/// Initialisation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InitialConfig {
+    /// Static period at the start used for levelling and gyro bias [s]. Default 5.
+    pub static_s: f64,
+    /// GNSS speed above which the course gives the heading [m/s]. Default 2.
+    pub heading_speed_mps: f64,
+    /// Prior σ of the heading [deg]. Default 5.
+    pub heading_sigma_deg: f64,
+    /// Prior σ of roll and pitch [deg]. Default 0.5.
+    pub tilt_sigma_deg: f64,
+}
+
+impl Default for InitialConfig {
+    fn default() -> Self {
+        Self {
+            static_s: 5.0,
+            heading_speed_mps: 2.0,
+            heading_sigma_deg: 5.0,
+            tilt_sigma_deg: 0.5,
+        }
+    }
+}
+
+/// GNSS use.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GnssConfig {
+    /// Lever arm IMU → antenna in the body frame (forward, right, down) [m].
+    /// Default the data set's [0, −0.05, 0].
+    pub lever_arm_m: [f64; 3],
+    /// Use the velocity columns. Default true.
+    pub use_velocity: bool,
+    /// Floor on the position σ from the file [m]. Default 0.01.
+    pub min_position_sigma_m: f64,
+    /// Floor on the velocity σ [m/s]. Default 0.02.
+    pub min_velocity_sigma_mps: f64,
+}
+
+impl Default for GnssConfig {
+    fn default() -> Self {
+        Self {
+            lever_arm_m: [0.0, -0.05, 0.0],
+            use_velocity: true,
+            min_position_sigma_m: 0.01,
+            min_velocity_sigma_mps: 0.02,
+        }
+    }
+}
+
+/// Outage scoring (spec 40's default schedule).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ScoreConfig {
+    /// Outage lengths L [s]. Default [10, 30, 60].
+    pub outages_s: Vec<f64>,
+    /// First window starts this long after the first IMU sample [s]. Default 60.
+    pub lead_s: f64,
+    /// GNSS between windows [s]. Default 30.
+    pub gap_s: f64,
+    /// Fractions of epochs given an outlier. Default [0.1, 0.3].
+    pub outlier_fractions: Vec<f64>,
+    /// Outlier size range [m]. Default [5, 50].
+    pub outlier_m: [f64; 2],
+    /// Seed of the injected outliers. Default 20261123.
+    pub seed: u64,
+}
+
+impl Default for ScoreConfig {
+    fn default() -> Self {
+        Self {
+            outages_s: vec![10.0, 30.0, 60.0],
+            lead_s: 60.0,
+            gap_s: 30.0,
+            outlier_fractions: vec![0.1, 0.3],
+            outlier_m: [5.0, 50.0],
+            seed: 20261123,
+        }
+    }
+}
+
+/// The configuration file of `aidnav process`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProcessConfig {
+    /// Input files.
+    pub data: DataFiles,
+    /// IMU handling.
+    #[serde(default)]
+    pub imu: ImuConfig,
+    /// Initialisation.
+    #[serde(default)]
+    pub initial: InitialConfig,
+    /// GNSS use.
+    #[serde(default)]
+    pub gnss: GnssConfig,
+    /// Scoring.
+    #[serde(default)]
+    pub score: ScoreConfig,
+}
+
+impl Validate for ProcessConfig {
+    fn validate(&self) -> Result<(), Invalid> {
+        in_range("time_offset_s", self.imu.time_offset_s, -10.0, 10.0)
+            .map_err(|e| e.within("imu"))?;
+        in_range("smoothing_s", self.imu.smoothing_s, 0.0, 5.0).map_err(|e| e.within("imu"))?;
+        let n = &self.imu.noise;
+        all_positive(
+            "imu.noise",
+            &[
+                ("arw_deg_per_sqrt_h", n.arw_deg_per_sqrt_h),
+                ("vrw_mps_per_sqrt_h", n.vrw_mps_per_sqrt_h),
+                ("gyro_bias_deg_per_h", n.gyro_bias_deg_per_h),
+                ("accel_bias_mg", n.accel_bias_mg),
+                ("gyro_scale_ppm", n.gyro_scale_ppm),
+                ("accel_scale_ppm", n.accel_scale_ppm),
+                ("correlation_s", n.correlation_s),
+            ],
+        )?;
+        all_positive(
+            "initial",
+            &[
+                ("static_s", self.initial.static_s),
+                ("heading_speed_mps", self.initial.heading_speed_mps),
+                ("heading_sigma_deg", self.initial.heading_sigma_deg),
+                ("tilt_sigma_deg", self.initial.tilt_sigma_deg),
+            ],
+        )?;
+        all_positive(
+            "gnss",
+            &[
+                ("min_position_sigma_m", self.gnss.min_position_sigma_m),
+                ("min_velocity_sigma_mps", self.gnss.min_velocity_sigma_mps),
+            ],
+        )?;
+        count_in_range("outages_s", self.score.outages_s.len(), 0, 10)
+            .map_err(|e| e.within("score"))?;
+        for l in &self.score.outages_s {
+            in_range("outages_s", *l, 1.0, 3600.0).map_err(|e| e.within("score"))?;
+        }
+        non_negative("lead_s", self.score.lead_s).map_err(|e| e.within("score"))?;
+        non_negative("gap_s", self.score.gap_s).map_err(|e| e.within("score"))?;
+        for f in &self.score.outlier_fractions {
+            in_range("outlier_fractions", *f, 0.0, 1.0).map_err(|e| e.within("score"))?;
+        }
+        let [lo, hi] = self.score.outlier_m;
+        if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
+            return Err(Invalid::new(
+                "score.outlier_m",
+                format!("[{lo}, {hi}]"),
+                "0 ≤ low ≤ high",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Anything processing can fail with.
+#[derive(Debug, thiserror::Error)]
+pub enum ProcessError {
+    /// Reading the inputs.
+    #[error(transparent)]
+    Io(#[from] aidnav_io::IoError),
+    /// The filter.
+    #[error("filter: {0}")]
+    Estimation(#[from] EstimationError),
+    /// The data do not allow processing.
+    #[error("{0}")]
+    Data(String),
+}
+
+/// IMU samples (body frame) and GNSS fixes ready for the filter.
+#[derive(Debug, Clone)]
+pub struct Inputs {
+    /// Body-frame IMU samples, SI.
+    pub imu: Vec<ImuSample>,
+    /// GNSS fixes.
+    pub gnss: Vec<GnssFix>,
+    /// Reader warnings.
+    pub warnings: Vec<String>,
+}
+
+/// Groves' Euler_to_CTM: the coordinate transformation for (roll, pitch, yaw).
+pub fn euler_to_ctm(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
+    let (sr, cr) = roll.sin_cos();
+    let (sp, cp) = pitch.sin_cos();
+    let (sy, cy) = yaw.sin_cos();
+    Matrix3::new(
+        cp * cy,
+        cp * sy,
+        -sp,
+        -cr * sy + sr * sp * cy,
+        cr * cy + sr * sp * sy,
+        sr * cp,
+        sr * sy + cr * sp * cy,
+        -sr * cy + cr * sp * sy,
+        cr * cp,
+    )
+}
+
+/// Read, time-shift, rotate to the body frame and smooth.
+pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
+    let dir = if cfg.data.dir.is_absolute() {
+        cfg.data.dir.clone()
+    } else {
+        base.join(&cfg.data.dir)
+    };
+    let (mut imu, mut warnings) =
+        read_tagged_imu(&dir.join(&cfg.data.imu), &dir.join(&cfg.data.imu_tags))?;
+    let (gnss, w) = read_pos(&dir.join(&cfg.data.gnss))?;
+    warnings.extend(w);
+    let [r, p, y] = cfg.imu.mounting_deg.map(f64::to_radians);
+    let c = euler_to_ctm(r, p, y);
+    for s in &mut imu {
+        s.time_s += cfg.imu.time_offset_s;
+        s.specific_force = c * s.specific_force;
+        s.angular_rate = c * s.angular_rate;
+    }
+    if cfg.imu.smoothing_s > 0.0 && imu.len() > 2 {
+        let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
+        let half = ((cfg.imu.smoothing_s / dt) / 2.0).round() as usize;
+        if half > 0 {
+            imu = smooth(&imu, half);
+        }
+    }
+    Ok(Inputs {
+        imu,
+        gnss,
+        warnings,
+    })
+}
+
+/// Centred moving average over 2·half + 1 samples (shrinking at the ends).
+fn smooth(imu: &[ImuSample], half: usize) -> Vec<ImuSample> {
+    let n = imu.len();
+    let mut out = imu.to_vec();
+    let mut sum_f = Vector3::zeros();
+    let mut sum_w = Vector3::zeros();
+    // Prefix sums keep it O(n).
+    let mut pf = Vec::with_capacity(n + 1);
+    let mut pw = Vec::with_capacity(n + 1);
+    pf.push(sum_f);
+    pw.push(sum_w);
+    for s in imu {
+        sum_f += s.specific_force;
+        sum_w += s.angular_rate;
+        pf.push(sum_f);
+        pw.push(sum_w);
+    }
+    for (k, o) in out.iter_mut().enumerate() {
+        let lo = k.saturating_sub(half);
+        let hi = (k + half + 1).min(n);
+        let m = (hi - lo) as f64;
+        o.specific_force = (pf[hi] - pf[lo]) / m;
+        o.angular_rate = (pw[hi] - pw[lo]) / m;
+    }
+    out
+}
+
+/// The initial state and the starting gyro bias.
+fn initialise(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+) -> Result<(NedState, Vector3<f64>, usize), ProcessError> {
+    let imu = &inputs.imu;
+    let first_fix = &inputs.gnss[0];
+    let start = imu
+        .iter()
+        .position(|s| s.time_s >= first_fix.time_s)
+        .ok_or_else(|| ProcessError::Data("no IMU sample after the first GNSS epoch".into()))?;
+    let t0 = imu[start].time_s;
+    let window: Vec<&ImuSample> = imu[start..]
+        .iter()
+        .take_while(|s| s.time_s < t0 + cfg.initial.static_s)
+        .collect();
+    if window.len() < 10 {
+        return Err(ProcessError::Data(
+            "static window holds fewer than 10 IMU samples".into(),
+        ));
+    }
+    let f = window
+        .iter()
+        .map(|s| s.specific_force)
+        .sum::<Vector3<f64>>()
+        / window.len() as f64;
+    let w = window.iter().map(|s| s.angular_rate).sum::<Vector3<f64>>() / window.len() as f64;
+    let roll = (-f.y).atan2(-f.z);
+    let pitch = f.x.atan2(f.y.hypot(f.z));
+    let moving = inputs
+        .gnss
+        .iter()
+        .find(|g| {
+            g.velocity_ned
+                .is_some_and(|v| v.xy().norm() > cfg.initial.heading_speed_mps)
+        })
+        .ok_or_else(|| {
+            ProcessError::Data(
+                "the GNSS speed never exceeds initial.heading_speed_mps: no heading".into(),
+            )
+        })?;
+    let v = moving.velocity_ned.expect("checked");
+    let yaw = v.y.atan2(v.x);
+    let attitude = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+    // Antenna fix → IMU position.
+    let fix = inputs
+        .gnss
+        .iter()
+        .rev()
+        .find(|g| g.time_s <= t0)
+        .unwrap_or(first_fix);
+    let arm = attitude * Vector3::from(cfg.gnss.lever_arm_m);
+    let position = fix.position.offset_by(&-arm);
+    let gyro_bias = w - attitude.inverse() * earth_rate_ned(position.latitude_rad);
+    Ok((
+        NedState {
+            position,
+            velocity: Vector3::zeros(),
+            attitude,
+        },
+        gyro_bias,
+        start,
+    ))
+}
+
+/// Which epochs a run withholds and how it corrupts the others.
+#[derive(Debug, Clone, Default)]
+pub struct RunPlan {
+    /// Withheld intervals [start, end) (GPST s).
+    pub windows: Vec<(f64, f64)>,
+    /// Outlier added to the position of epoch i (NED, m), by GNSS index.
+    pub outliers: Vec<Option<Vector3<f64>>>,
+    /// Inside the windows, mechanize the raw IMU without instrument
+    /// corrections (the free INS) instead of letting the filter coast.
+    pub free_ins_in_windows: bool,
+}
+
+/// Measurement policy of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PolicyName {
+    /// Accept every fix (what KF-GINS does).
+    Accept,
+    /// χ² gate at 0.999.
+    Chi2Gate,
+    /// Huber re-weighting, k = 1.345.
+    Huber,
+}
+
+impl PolicyName {
+    fn policy(self) -> Box<dyn MeasurementPolicy<U3>> {
+        match self {
+            PolicyName::Accept => Box::new(AcceptAll),
+            PolicyName::Chi2Gate => Box::new(Chi2Gate { probability: 0.999 }),
+            PolicyName::Huber => Box::new(Huber { k: 1.345 }),
+        }
+    }
+}
+
+/// One epoch of a run's output.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Epoch {
+    /// GNSS index.
+    pub index: usize,
+    /// Antenna position after the epoch (updated or not).
+    pub antenna: Geodetic,
+    /// NED velocity.
+    pub velocity: Vector3<f64>,
+    /// Attitude.
+    pub attitude: UnitQuaternion<f64>,
+    /// σ of the position error (N, E, D).
+    pub sigma: Vector3<f64>,
+    /// Position NIS of the update (NaN when withheld).
+    pub nis: f64,
+    /// What the update did (None: withheld).
+    pub outcome: Option<Outcome>,
+}
+
+/// Run the filter over the whole log under a plan and a policy.
+pub fn run_filter(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    plan: &RunPlan,
+    policy: PolicyName,
+) -> Result<Vec<Epoch>, ProcessError> {
+    let (state, gyro_bias, start) = initialise(cfg, inputs)?;
+    let model = NedErrorModel {
+        noise: cfg.imu.noise,
+    };
+    let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
+    let mut sig = Vector21::zeros();
+    let tilt = cfg.initial.tilt_sigma_deg.to_radians();
+    for i in 0..3 {
+        sig[POSITION + i] = 0.1;
+        sig[VELOCITY + i] = 0.05;
+        sig[ATTITUDE + i] = if i == 2 {
+            cfg.initial.heading_sigma_deg.to_radians()
+        } else {
+            tilt
+        };
+        sig[GYRO_BIAS + i] = sg;
+        sig[ACCEL_BIAS + i] = sa;
+        sig[GYRO_SCALE + i] = kg;
+        sig[ACCEL_SCALE + i] = ka;
+    }
+    let lever = Vector3::from(cfg.gnss.lever_arm_m);
+    let mut filter = NedFilter::new(model, state, &sig, lever)?;
+    filter.set_gyro_bias(gyro_bias);
+    let mut position_policy = policy.policy();
+    let mut velocity_policy = policy.policy();
+    let imu = &inputs.imu;
+    let gnss = &inputs.gnss;
+    let mut next = gnss
+        .iter()
+        .position(|g| g.time_s > imu[start].time_s)
+        .unwrap_or(gnss.len());
+    let mut epochs = Vec::with_capacity(gnss.len());
+    let withheld = |t: f64| plan.windows.iter().any(|&(a, b)| t >= a && t < b);
+    for k in start + 1..imu.len() {
+        let (a, b) = (&imu[k - 1], &imu[k]);
+        let mut t = a.time_s;
+        let (mut w0, mut f0) = (a.angular_rate, a.specific_force);
+        let dt_total = b.time_s - a.time_s;
+        loop {
+            let split = next < gnss.len() && gnss[next].time_s <= b.time_s;
+            let t_end = if split { gnss[next].time_s } else { b.time_s };
+            let frac = (t_end - a.time_s) / dt_total;
+            let w1 = a.angular_rate + (b.angular_rate - a.angular_rate) * frac;
+            let f1 = a.specific_force + (b.specific_force - a.specific_force) * frac;
+            let dt = t_end - t;
+            if dt > 0.0 {
+                let inc = ImuIncrement {
+                    dt_s: dt,
+                    delta_angle: (w0 + w1) * (0.5 * dt),
+                    delta_velocity: (f0 + f1) * (0.5 * dt),
+                };
+                if plan.free_ins_in_windows && withheld(t_end) {
+                    filter.coast_uncorrected(&inc);
+                } else {
+                    filter.propagate(&inc)?;
+                }
+            }
+            t = t_end;
+            w0 = w1;
+            f0 = f1;
+            if !split {
+                break;
+            }
+            let g = &gnss[next];
+            let (mut nis, mut outcome) = (f64::NAN, None);
+            if !withheld(g.time_s) {
+                let mut fix = g.position;
+                if let Some(Some(o)) = plan.outliers.get(next) {
+                    fix = fix.offset_by(o);
+                }
+                let s = g.position_sigma_neu;
+                let sigma =
+                    Vector3::new(s.x, s.y, s.z).map(|v| v.max(cfg.gnss.min_position_sigma_m));
+                let rec = filter.update_position_with(&fix, &sigma, position_policy.as_mut())?;
+                nis = rec.nis;
+                outcome = Some(rec.outcome);
+                if cfg.gnss.use_velocity
+                    && let (Some(v), Some(sv)) = (g.velocity_ned, g.velocity_sigma_neu)
+                {
+                    let sv = sv.map(|x| x.max(cfg.gnss.min_velocity_sigma_mps));
+                    filter.update_velocity_with(&v, &sv, velocity_policy.as_mut())?;
+                }
+            }
+            let (antenna, _) = filter.antenna();
+            let s = filter.sigmas();
+            let st = filter.state();
+            epochs.push(Epoch {
+                index: next,
+                antenna,
+                velocity: st.velocity,
+                attitude: st.attitude,
+                sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
+                nis,
+                outcome,
+            });
+            next += 1;
+        }
+    }
+    Ok(epochs)
+}
+
+/// The default outage schedule for length L.
+pub fn outage_windows(
+    cfg: &ScoreConfig,
+    first_imu_s: f64,
+    last_gnss_s: f64,
+    length_s: f64,
+) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    for k in 0.. {
+        let a = first_imu_s + cfg.lead_s + k as f64 * (length_s + cfg.gap_s);
+        let b = a + length_s;
+        if b >= last_gnss_s {
+            break;
+        }
+        out.push((a, b));
+    }
+    out
+}
+
+/// Per outage length: RMS over windows of the maximum drift.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutageScore {
+    /// L [s].
+    pub outage_s: f64,
+    /// Windows scored.
+    pub windows: usize,
+    /// RMS over windows of the max horizontal drift [m].
+    pub horizontal_m: f64,
+    /// … vertical [m].
+    pub vertical_m: f64,
+    /// … 3-D [m].
+    pub three_d_m: f64,
+}
+
+/// Score a run's epochs inside windows against the withheld RTK-fixed fixes.
+pub fn score_windows(
+    gnss: &[GnssFix],
+    epochs: &[Epoch],
+    windows: &[(f64, f64)],
+    length_s: f64,
+) -> OutageScore {
+    let mut maxima: Vec<[f64; 3]> = Vec::new();
+    for &(a, b) in windows {
+        let mut m = [0.0f64; 3];
+        let mut any = false;
+        for e in epochs {
+            let g = &gnss[e.index];
+            if g.time_s < a || g.time_s >= b || g.quality != 1 {
+                continue;
+            }
+            let d = g.position.ned_to(&e.antenna);
+            m[0] = m[0].max(d.xy().norm());
+            m[1] = m[1].max(d.z.abs());
+            m[2] = m[2].max(d.norm());
+            any = true;
+        }
+        if any {
+            maxima.push(m);
+        }
+    }
+    let rms = |i: usize| {
+        (maxima.iter().map(|m| m[i] * m[i]).sum::<f64>() / maxima.len().max(1) as f64).sqrt()
+    };
+    OutageScore {
+        outage_s: length_s,
+        windows: maxima.len(),
+        horizontal_m: rms(0),
+        vertical_m: rms(1),
+        three_d_m: rms(2),
+    }
+}
+
+/// RMS 3-D error over all RTK-fixed epochs against the clean fixes.
+pub fn tracking_rms(gnss: &[GnssFix], epochs: &[Epoch]) -> f64 {
+    let (sum, n) =
+        epochs
+            .iter()
+            .filter(|e| gnss[e.index].quality == 1)
+            .fold((0.0, 0usize), |(s, n), e| {
+                (
+                    s + gnss[e.index].position.ned_to(&e.antenna).norm_squared(),
+                    n + 1,
+                )
+            });
+    (sum / n.max(1) as f64).sqrt()
+}
+
+/// Outliers for a fraction of the epochs (seeded).
+pub fn inject_outliers(
+    n: usize,
+    fraction: f64,
+    range_m: [f64; 2],
+    seed: u64,
+) -> Vec<Option<Vector3<f64>>> {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            if rng.random_bool(fraction) {
+                let size = rng.random_range(range_m[0]..=range_m[1]);
+                let dir = Vector3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                Some(dir.normalize() * size)
+            } else {
+                None
+            }
+        })
+        .collect()
+}
