@@ -936,7 +936,12 @@ pub fn process(
         }
         .write_svg(&out.join("outage_drift.svg"))?;
         files.push(out.join("outage_drift.svg"));
-        let policies = [PolicyName::Accept, PolicyName::Chi2Gate, PolicyName::Huber];
+        let policies = [
+            PolicyName::Accept,
+            PolicyName::Chi2Gate,
+            PolicyName::RecoveringGate,
+            PolicyName::Huber,
+        ];
         let mut cases: Vec<(f64, PolicyName)> = policies.iter().map(|&p| (0.0, p)).collect();
         for &f in &cfg.score.outlier_fractions {
             cases.extend(policies.iter().map(|&p| (f, p)));

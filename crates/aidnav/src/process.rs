@@ -15,7 +15,8 @@
 use std::path::{Path, PathBuf};
 
 use aidnav_estimation::{
-    AcceptAll, Chi2Gate, EstimationError, Huber, MeasurementPolicy, Outcome, nalgebra::U3,
+    AcceptAll, Chi2Gate, EstimationError, Huber, MeasurementPolicy, Outcome, RecoveringChi2Gate,
+    nalgebra::U3,
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned};
 use aidnav_ins::ned::{ImuIncrement, NedState};
@@ -414,8 +415,10 @@ pub struct RunPlan {
 pub enum PolicyName {
     /// Accept every fix (what KF-GINS does).
     Accept,
-    /// χ² gate at 0.999.
+    /// χ² gate at 0.999 (a plain gate locks out on this drive).
     Chi2Gate,
+    /// χ² gate at 0.999 that accepts again after 20 rejections in a row (5 s).
+    RecoveringGate,
     /// Huber re-weighting, k = 1.345.
     Huber,
 }
@@ -425,6 +428,7 @@ impl PolicyName {
         match self {
             PolicyName::Accept => Box::new(AcceptAll),
             PolicyName::Chi2Gate => Box::new(Chi2Gate { probability: 0.999 }),
+            PolicyName::RecoveringGate => Box::new(RecoveringChi2Gate::new(0.999, 20)),
             PolicyName::Huber => Box::new(Huber { k: 1.345 }),
         }
     }

@@ -151,6 +151,59 @@ where
     }
 }
 
+/// A χ² gate that cannot lock out: after `max_rejections` consecutive
+/// rejections the next measurement is accepted whatever its NIS. A plain
+/// gate on an overconfident filter rejects every fix once it has drifted
+/// (the lock-out seen in spec 20 and on the recorded drive); a fault longer
+/// than `max_rejections` epochs is then left to a supervisor.
+///
+/// ```
+/// use aidnav_estimation::{KalmanFilter, RecoveringChi2Gate, Outcome, nalgebra::{Matrix1, Vector1}};
+/// let mut kf = KalmanFilter::new(Vector1::new(0.0), Matrix1::new(1.0)).unwrap();
+/// let mut gate = RecoveringChi2Gate::new(0.999, 2);
+/// let h = Matrix1::new(1.0);
+/// let r = Matrix1::new(1.0);
+/// let outcomes: Vec<Outcome> = (0..3)
+///     .map(|_| kf.update_with(&Vector1::new(100.0), &h, &r, &mut gate).unwrap().outcome)
+///     .collect();
+/// assert_eq!(outcomes, [Outcome::Rejected, Outcome::Rejected, Outcome::Accepted]);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RecoveringChi2Gate {
+    /// Probability of the χ² quantile used as the gate.
+    pub probability: f64,
+    /// Consecutive rejections after which the next measurement is accepted.
+    pub max_rejections: usize,
+    rejected: usize,
+}
+
+impl RecoveringChi2Gate {
+    /// A gate at `probability` accepting after `max_rejections` rejections in a row.
+    pub fn new(probability: f64, max_rejections: usize) -> Self {
+        Self {
+            probability,
+            max_rejections,
+            rejected: 0,
+        }
+    }
+}
+
+impl<M: Dim> MeasurementPolicy<M> for RecoveringChi2Gate
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M> {
+        let dof = view.residual.len();
+        if view.nis > chi2_quantile(dof, self.probability) && self.rejected < self.max_rejections {
+            self.rejected += 1;
+            Decision::Reject
+        } else {
+            self.rejected = 0;
+            Decision::Accept
+        }
+    }
+}
+
 /// Huber-type robust update on the normalised innovation: with
 /// e = √NIS, the measurement keeps full weight while e ≤ k and is down-weighted
 /// by w = k / e beyond (R inflated by 1/w), so its influence grows only

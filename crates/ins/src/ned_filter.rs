@@ -11,8 +11,8 @@ use aidnav_estimation::{
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
 use aidnav_models::ned_ins::{
-    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, STATES,
-    VELOCITY, Vector21,
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, Matrix21, NedErrorModel, POSITION,
+    STATES, VELOCITY, Vector21,
 };
 use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 
@@ -57,6 +57,9 @@ pub struct NedFilter {
     instruments: InstrumentEstimate,
     lever_arm: Vector3<f64>,
     rate: Vector3<f64>,
+    pending_f: Matrix21,
+    pending_dt: f64,
+    covariance_interval_s: f64,
 }
 
 impl NedFilter {
@@ -76,6 +79,9 @@ impl NedFilter {
             instruments: InstrumentEstimate::default(),
             lever_arm,
             rate: Vector3::zeros(),
+            pending_f: Matrix21::zeros(),
+            pending_dt: 0.0,
+            covariance_interval_s: 0.05,
         })
     }
 
@@ -102,7 +108,7 @@ impl NedFilter {
         }
     }
 
-    /// σ of every error state.
+    /// σ of every error state (as of the last covariance propagation).
     pub fn sigmas(&self) -> Vector21 {
         self.kf.covariance().diagonal().map(f64::sqrt)
     }
@@ -136,8 +142,31 @@ impl NedFilter {
             &transport_rate_ned(&s.position, &s.velocity),
             s.position.latitude_rad,
         );
-        let (phi, q) = self.model.discrete(&f, imu.dt_s);
+        // The covariance follows at a lower rate: F Δt summed over the
+        // interval (the error dynamics change slowly against 100 Hz).
+        self.pending_f += f * imu.dt_s;
+        self.pending_dt += imu.dt_s;
+        if self.pending_dt >= self.covariance_interval_s {
+            self.flush_covariance()?;
+        }
+        Ok(())
+    }
+
+    /// Propagate the covariance over the accumulated interval.
+    fn flush_covariance(&mut self) -> Result<(), EstimationError> {
+        if self.pending_dt <= 0.0 {
+            return Ok(());
+        }
+        let f_mean = self.pending_f / self.pending_dt;
+        let (phi, q) = self.model.discrete(&f_mean, self.pending_dt);
+        self.pending_f = Matrix21::zeros();
+        self.pending_dt = 0.0;
         self.kf.predict(&phi, &q)
+    }
+
+    /// Interval of the covariance propagation [s] (default 0.05; 0: every sample).
+    pub fn set_covariance_interval(&mut self, seconds: f64) {
+        self.covariance_interval_s = seconds.max(0.0);
     }
 
     /// GNSS antenna position fix with σ (north, east, down) under a policy.
@@ -153,6 +182,7 @@ impl NedFilter {
         let z = fix.ned_to(&antenna);
         let h = NedErrorModel::position_measurement(&(c * self.lever_arm));
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
+        self.flush_covariance()?;
         let rec = self.kf.update_with(&z, &h, &r, policy)?;
         self.feedback()?;
         Ok(rec)
@@ -179,6 +209,7 @@ impl NedFilter {
         let z = v_ant - velocity_ned;
         let h = NedErrorModel::velocity_measurement(&(c * self.rate.cross(&self.lever_arm)));
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
+        self.flush_covariance()?;
         let rec = self.kf.update_with(&z, &h, &r, policy)?;
         self.feedback()?;
         Ok(rec)
