@@ -736,6 +736,8 @@ pub struct ProcessReport {
     pub imu_samples: usize,
     /// GNSS epochs.
     pub gnss_epochs: usize,
+    /// Policy of the GNSS updates in the main run and the outage scores.
+    pub policy: crate::process::PolicyName,
     /// RMS 3-D antenna error over RTK-fixed epochs, all GNSS used [m].
     pub tracking_rms_m: f64,
     /// Updates by outcome in the clean run.
@@ -780,8 +782,8 @@ pub fn process(
     let inputs = load_inputs(&cfg, base).map_err(process_error)?;
     let read_s = t_read.elapsed().as_secs_f64();
     let t_run = Instant::now();
-    let clean = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
-        .map_err(process_error)?;
+    let clean =
+        run_filter(&cfg, &inputs, &RunPlan::default(), cfg.gnss.policy).map_err(process_error)?;
     let run_s = t_run.elapsed().as_secs_f64();
     aidnav_io::writers::ensure_dir(out)?;
     let mut files = Vec::new();
@@ -894,7 +896,7 @@ pub fn process(
                     free_ins_in_windows: free,
                     ..RunPlan::default()
                 };
-                let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept)?;
+                let epochs = run_filter(&cfg, &inputs, &plan, cfg.gnss.policy)?;
                 Ok((
                     l,
                     free,
@@ -968,6 +970,7 @@ pub fn process(
     let report = ProcessReport {
         imu_samples: inputs.imu.len(),
         gnss_epochs: inputs.gnss.len(),
+        policy: cfg.gnss.policy,
         tracking_rms_m: tracking_rms(&inputs.gnss, &clean),
         outcomes,
         outages,

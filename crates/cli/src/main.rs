@@ -367,7 +367,8 @@ fn run_process(a: ProcessArgs) -> Result<()> {
     );
     let outcomes: Vec<String> = r.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
-        "all GNSS: RMS 3-D antenna error over RTK-fixed epochs {:.4} m (KF-GINS 0.016 m); updates: {}",
+        "all GNSS, policy {:?}: RMS 3-D antenna error over RTK-fixed epochs {:.4} m (KF-GINS 0.016 m); updates: {}",
+        r.policy,
         r.tracking_rms_m,
         outcomes.join(", ")
     );

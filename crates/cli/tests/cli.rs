@@ -438,3 +438,61 @@ fn reproduce_extended_state_writes_the_case_keys_other_tools_read() {
         assert!(out.join(f).is_file(), "{f} missing");
     }
 }
+
+#[test]
+fn process_runs_the_recorded_drive_and_scores_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = repo().join("examples/drive_0708.toml");
+    let stdout = success(&[
+        "process",
+        config.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("54858 IMU samples")
+            && stdout.contains("KF-GINS")
+            && stdout.contains("huber"),
+        "{stdout}"
+    );
+    let summary = read_summary(dir.path());
+    let outages = summary["result"]["outages"].as_array().unwrap();
+    assert_eq!(outages.len(), 3);
+    for o in outages {
+        assert!(
+            o["three_d_m"]
+                .as_f64()
+                .is_some_and(|v| v.is_finite() && v > 0.0),
+            "{o}"
+        );
+    }
+    assert!(
+        !summary["result"]["anomalies"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+    for f in ["solution.csv", "trajectory.svg", "outage_drift.svg"] {
+        assert!(dir.path().join(f).is_file(), "{f} missing");
+    }
+}
+
+#[test]
+fn process_names_file_line_and_key_of_a_bad_config() {
+    let dir = tempfile::tempdir().unwrap();
+    let c = dir.path().join("c.toml");
+    std::fs::write(
+        &c,
+        "[data]\ndir = \".\"\nimu = \"i.csv\"\nimu_tags = \"i.csv.tag\"\ngnss = \"g.pos\"\n[imu]\nsmoothing_s = -1.0\n",
+    )
+    .unwrap();
+    let err = failure(&["process", c.to_str().unwrap()]);
+    assert!(err.contains("c.toml:7: imu.smoothing_s"), "{err}");
+    std::fs::write(
+        &c,
+        "[data]\ndir = \".\"\nimu = \"i.csv\"\nimu_tags = \"i.csv.tag\"\ngnss = \"g.pos\"\n",
+    )
+    .unwrap();
+    let err = failure(&["process", c.to_str().unwrap()]);
+    assert!(err.contains("i.csv.tag: cannot read"), "{err}");
+}

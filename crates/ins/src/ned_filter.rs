@@ -11,8 +11,8 @@ use aidnav_estimation::{
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
 use aidnav_models::ned_ins::{
-    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, Matrix21, NedErrorModel, POSITION,
-    STATES, VELOCITY, Vector21,
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, STATES,
+    VELOCITY, Vector21,
 };
 use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 
@@ -57,7 +57,8 @@ pub struct NedFilter {
     instruments: InstrumentEstimate,
     lever_arm: Vector3<f64>,
     rate: Vector3<f64>,
-    pending_f: Matrix21,
+    pending_force: Vector3<f64>,
+    pending_angle: Vector3<f64>,
     pending_dt: f64,
     covariance_interval_s: f64,
 }
@@ -79,7 +80,8 @@ impl NedFilter {
             instruments: InstrumentEstimate::default(),
             lever_arm,
             rate: Vector3::zeros(),
-            pending_f: Matrix21::zeros(),
+            pending_force: Vector3::zeros(),
+            pending_angle: Vector3::zeros(),
             pending_dt: 0.0,
             covariance_interval_s: 0.05,
         })
@@ -131,20 +133,12 @@ impl NedFilter {
             return Ok(());
         }
         self.ins.update(&imu);
-        let s = self.ins.state();
         self.rate = imu.delta_angle / imu.dt_s;
-        let c = s.attitude.to_rotation_matrix().into_inner();
-        let f = self.model.continuous(
-            &c,
-            &(imu.delta_velocity / imu.dt_s),
-            &self.rate,
-            &earth_rate_ned(s.position.latitude_rad),
-            &transport_rate_ned(&s.position, &s.velocity),
-            s.position.latitude_rad,
-        );
-        // The covariance follows at a lower rate: F Δt summed over the
-        // interval (the error dynamics change slowly against 100 Hz).
-        self.pending_f += f * imu.dt_s;
+        // The covariance follows at a lower rate, with F built once per
+        // interval from the mean body specific force and rate (the error
+        // dynamics change slowly against 100 Hz).
+        self.pending_force += imu.delta_velocity;
+        self.pending_angle += imu.delta_angle;
         self.pending_dt += imu.dt_s;
         if self.pending_dt >= self.covariance_interval_s {
             self.flush_covariance()?;
@@ -157,9 +151,20 @@ impl NedFilter {
         if self.pending_dt <= 0.0 {
             return Ok(());
         }
-        let f_mean = self.pending_f / self.pending_dt;
-        let (phi, q) = self.model.discrete(&f_mean, self.pending_dt);
-        self.pending_f = Matrix21::zeros();
+        let dt = self.pending_dt;
+        let s = self.ins.state();
+        let c = s.attitude.to_rotation_matrix().into_inner();
+        let f = self.model.continuous(
+            &c,
+            &(self.pending_force / dt),
+            &(self.pending_angle / dt),
+            &earth_rate_ned(s.position.latitude_rad),
+            &transport_rate_ned(&s.position, &s.velocity),
+            s.position.latitude_rad,
+        );
+        let (phi, q) = self.model.discrete(&f, dt);
+        self.pending_force = Vector3::zeros();
+        self.pending_angle = Vector3::zeros();
         self.pending_dt = 0.0;
         self.kf.predict(&phi, &q)
     }
@@ -213,6 +218,20 @@ impl NedFilter {
         let rec = self.kf.update_with(&z, &h, &r, policy)?;
         self.feedback()?;
         Ok(rec)
+    }
+
+    /// Non-holonomic constraint: zero lateral and vertical body velocity
+    /// with σ `sigma_mps` (a land vehicle on its wheels).
+    pub fn update_non_holonomic(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
+        self.flush_covariance()?;
+        let s = *self.ins.state();
+        let c = s.attitude.to_rotation_matrix().into_inner();
+        let body = c.transpose() * s.velocity;
+        let z = nalgebra::Vector2::new(body.y, body.z);
+        let h = NedErrorModel::non_holonomic_measurement(&c, &s.velocity);
+        let r = nalgebra::Matrix2::identity() * (sigma_mps * sigma_mps);
+        self.kf.update(&z, &h, &r)?;
+        self.feedback()
     }
 
     /// Move every error estimate into the INS and the instrument corrections.

@@ -1,0 +1,82 @@
+//! Throughput of `aidnav process` on the recorded drive (54 858 IMU samples,
+//! 2 197 GNSS epochs), by stage: reading (+ mounting and smoothing), the NED
+//! mechanization alone, the whole filter pass (mechanization, covariance,
+//! GNSS and non-holonomic updates), and writing the solution CSV.
+//! Divide 54 858 by the time for IMU epochs per second.
+//!
+//! `cargo bench -p aidnav --bench process` (needs ../shared/data beside the
+//! repository).
+
+use std::hint::black_box;
+use std::path::Path;
+
+use aidnav::ins::ned::{ImuIncrement, NedMechanization, NedState};
+use aidnav::process::{PolicyName, ProcessConfig, RunPlan, load_inputs, run_filter};
+use criterion::{Criterion, criterion_group, criterion_main};
+
+fn process(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let config = root.join("examples/drive_0708.toml");
+    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
+    let base = config.parent().unwrap().to_path_buf();
+    let inputs = load_inputs(&cfg, &base).unwrap();
+    let mut g = c.benchmark_group("drive_0708");
+    g.sample_size(10);
+    g.bench_function("read", |b| {
+        b.iter(|| black_box(load_inputs(&cfg, &base).unwrap().imu.len()))
+    });
+    g.bench_function("mechanization", |b| {
+        b.iter(|| {
+            let start = NedState {
+                position: inputs.gnss[0].position,
+                velocity: nalgebra::Vector3::zeros(),
+                attitude: nalgebra::UnitQuaternion::identity(),
+            };
+            let mut ins = NedMechanization::new(start);
+            for w in inputs.imu.windows(2) {
+                let dt = w[1].time_s - w[0].time_s;
+                ins.update(&ImuIncrement {
+                    dt_s: dt,
+                    delta_angle: (w[0].angular_rate + w[1].angular_rate) * (0.5 * dt),
+                    delta_velocity: (w[0].specific_force + w[1].specific_force) * (0.5 * dt),
+                });
+            }
+            black_box(ins.state().velocity)
+        })
+    });
+    g.bench_function("filter", |b| {
+        b.iter(|| {
+            black_box(
+                run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
+                    .unwrap()
+                    .len(),
+            )
+        })
+    });
+    let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    g.bench_function("write_solution", |b| {
+        b.iter(|| {
+            aidnav::io::writers::write_table(
+                &dir.path().join("solution.csv"),
+                &["t", "lat", "lon", "h", "vn", "ve", "vd"],
+                epochs.iter().map(|e| {
+                    vec![
+                        inputs.gnss[e.index].time_s,
+                        e.antenna.latitude_rad.to_degrees(),
+                        e.antenna.longitude_rad.to_degrees(),
+                        e.antenna.height_m,
+                        e.velocity.x,
+                        e.velocity.y,
+                        e.velocity.z,
+                    ]
+                }),
+            )
+            .unwrap()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, process);
+criterion_main!(benches);
