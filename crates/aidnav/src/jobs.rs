@@ -805,6 +805,9 @@ pub fn process(
             "sigma_e [m]",
             "sigma_d [m]",
             "nis",
+            "innovation_n [m]",
+            "innovation_e [m]",
+            "innovation_d [m]",
             "outcome (1 accepted, 2 limited, 3 rejected, 0 none)",
         ],
         clean.iter().map(|e| {
@@ -824,6 +827,9 @@ pub fn process(
                 e.sigma.y,
                 e.sigma.z,
                 e.nis,
+                e.innovation.x,
+                e.innovation.y,
+                e.innovation.z,
                 match e.outcome {
                     Some(Outcome::Accepted) => 1.0,
                     Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
@@ -871,6 +877,58 @@ pub fn process(
     }
     .write_svg(&out.join("trajectory.svg"))?;
     files.push(out.join("trajectory.svg"));
+    let instruments = out.join("instruments.csv");
+    write_table(
+        &instruments,
+        &[
+            "time [s GPST since 1970]",
+            "gyro_bias_x [deg/h]",
+            "gyro_bias_y [deg/h]",
+            "gyro_bias_z [deg/h]",
+            "accel_bias_x [mg]",
+            "accel_bias_y [mg]",
+            "accel_bias_z [mg]",
+            "gyro_scale_x [ppm]",
+            "gyro_scale_y [ppm]",
+            "gyro_scale_z [ppm]",
+            "accel_scale_x [ppm]",
+            "accel_scale_y [ppm]",
+            "accel_scale_z [ppm]",
+        ],
+        clean.iter().map(|e| {
+            let i = &e.instruments;
+            let mut row = vec![inputs.gnss[e.index].time_s];
+            row.extend(i.gyro_bias.iter().map(|v| v.to_degrees() * 3600.0));
+            row.extend(i.accel_bias.iter().map(|v| v / 9.806_65 * 1e3));
+            row.extend(i.gyro_scale.iter().map(|v| v * 1e6));
+            row.extend(i.accel_scale.iter().map(|v| v * 1e6));
+            row
+        }),
+    )?;
+    files.push(instruments);
+    let t0 = inputs.gnss[0].time_s;
+    LineChart {
+        title: "GNSS position innovations (antenna estimate − fix)".into(),
+        x_label: "time since the first fix [s]".into(),
+        y_label: "innovation [m]".into(),
+        series: ["north", "east", "down"]
+            .iter()
+            .enumerate()
+            .map(|(k, name)| Series {
+                label: (*name).into(),
+                points: clean
+                    .iter()
+                    .filter(|e| e.innovation[k].is_finite())
+                    .map(|e| (inputs.gnss[e.index].time_s - t0, e.innovation[k]))
+                    .collect(),
+                style: LineStyle::Solid,
+                color: k,
+            })
+            .collect(),
+        log_y: false,
+    }
+    .write_svg(&out.join("innovations.svg"))?;
+    files.push(out.join("innovations.svg"));
     let t_score = Instant::now();
     let (mut outages, mut outages_free, mut anomalies) = (Vec::new(), Vec::new(), Vec::new());
     if score {

@@ -30,18 +30,49 @@ use aidnav_models::ned_ins::{
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+/// Format of the IMU file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImuFormat {
+    /// Raw CSV (g, deg/s, tick ms) with an RTKLIB `.tag` file (`imu_tags`).
+    #[default]
+    RtklibTagged,
+    /// KF-GINS text: time, angle and velocity increments, body frame.
+    KfGins,
+    /// aidnav's generic CSV (see `aidnav_io::kfgins`).
+    GenericCsv,
+}
+
+/// Format of the GNSS file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GnssFormat {
+    /// RTKLIB `.pos` (latitude/longitude/height).
+    #[default]
+    RtklibPos,
+    /// KF-GINS text: time, lat, lon, h, σN σE σD [, velocity and σ].
+    KfGins,
+}
+
 /// Where the data are.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DataFiles {
     /// Directory of the files (relative: to the configuration file).
     pub dir: PathBuf,
-    /// Raw IMU CSV (g, deg/s, tick ms).
+    /// IMU file.
     pub imu: PathBuf,
-    /// Its RTKLIB time-tag file.
-    pub imu_tags: PathBuf,
-    /// RTKLIB `.pos` solution.
+    /// Its format. Default `rtklib_tagged`.
+    #[serde(default)]
+    pub imu_format: ImuFormat,
+    /// RTKLIB time-tag file of the IMU (for `rtklib_tagged`).
+    #[serde(default)]
+    pub imu_tags: Option<PathBuf>,
+    /// GNSS file.
     pub gnss: PathBuf,
+    /// Its format. Default `rtklib_pos`.
+    #[serde(default)]
+    pub gnss_format: GnssFormat,
 }
 
 /// IMU handling.
@@ -213,6 +244,13 @@ pub struct ProcessConfig {
 
 impl Validate for ProcessConfig {
     fn validate(&self) -> Result<(), Invalid> {
+        if self.data.imu_format == ImuFormat::RtklibTagged && self.data.imu_tags.is_none() {
+            return Err(Invalid::new(
+                "data.imu_tags",
+                "(missing)",
+                "the RTKLIB .tag file of the IMU CSV (imu_format = \"rtklib_tagged\")",
+            ));
+        }
         in_range("time_offset_s", self.imu.time_offset_s, -10.0, 10.0)
             .map_err(|e| e.within("imu"))?;
         in_range("smoothing_s", self.imu.smoothing_s, 0.0, 5.0).map_err(|e| e.within("imu"))?;
@@ -317,9 +355,22 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
     } else {
         base.join(&cfg.data.dir)
     };
-    let (mut imu, mut warnings) =
-        read_tagged_imu(&dir.join(&cfg.data.imu), &dir.join(&cfg.data.imu_tags))?;
-    let (gnss, w) = read_pos(&dir.join(&cfg.data.gnss))?;
+    let imu_path = dir.join(&cfg.data.imu);
+    let (mut imu, mut warnings) = match cfg.data.imu_format {
+        ImuFormat::RtklibTagged => {
+            let tags = cfg.data.imu_tags.as_ref().ok_or_else(|| {
+                ProcessError::Data("data.imu_tags is needed for imu_format = rtklib_tagged".into())
+            })?;
+            read_tagged_imu(&imu_path, &dir.join(tags))?
+        }
+        ImuFormat::KfGins => aidnav_io::kfgins::read_kfgins_imu(&imu_path)?,
+        ImuFormat::GenericCsv => aidnav_io::kfgins::read_generic_imu(&imu_path)?,
+    };
+    let gnss_path = dir.join(&cfg.data.gnss);
+    let (gnss, w) = match cfg.data.gnss_format {
+        GnssFormat::RtklibPos => read_pos(&gnss_path)?,
+        GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(&gnss_path)?,
+    };
     warnings.extend(w);
     let [r, p, y] = cfg.imu.mounting_deg.map(f64::to_radians);
     let c = euler_to_ctm(r, p, y);
@@ -488,8 +539,12 @@ pub struct Epoch {
     pub sigma: Vector3<f64>,
     /// Position NIS of the update (NaN when withheld).
     pub nis: f64,
+    /// Position innovation, antenna estimate minus fix (NED) [m] (NaN when withheld).
+    pub innovation: Vector3<f64>,
     /// What the update did (None: withheld).
     pub outcome: Option<Outcome>,
+    /// The instrument corrections after the epoch.
+    pub instruments: aidnav_ins::ned_filter::InstrumentEstimate,
 }
 
 /// Run the filter over the whole log under a plan and a policy.
@@ -580,6 +635,7 @@ pub fn run_filter(
             }
             let g = &gnss[next];
             let (mut nis, mut outcome) = (f64::NAN, None);
+            let mut innovation = Vector3::repeat(f64::NAN);
             if !withheld(g.time_s) {
                 let mut fix = g.position;
                 if let Some(Some(o)) = plan.outliers.get(next) {
@@ -591,6 +647,7 @@ pub fn run_filter(
                 let rec = filter.update_position_with(&fix, &sigma, position_policy.as_mut())?;
                 nis = rec.nis;
                 outcome = Some(rec.outcome);
+                innovation = rec.residual;
                 if cfg.gnss.use_velocity
                     && let (Some(v), Some(sv)) = (g.velocity_ned, g.velocity_sigma_neu)
                 {
@@ -612,7 +669,9 @@ pub fn run_filter(
                 attitude: st.attitude,
                 sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
                 nis,
+                innovation,
                 outcome,
+                instruments: *reporting.instruments(),
             });
             next += 1;
         }
@@ -667,7 +726,7 @@ pub fn score_windows(
         let mut any = false;
         for e in epochs {
             let g = &gnss[e.index];
-            if g.time_s < a || g.time_s >= b || g.quality != 1 {
+            if g.time_s < a || g.time_s >= b || !is_reference(g) {
                 continue;
             }
             let d = g.position.ned_to(&e.antenna);
@@ -692,12 +751,18 @@ pub fn score_windows(
     }
 }
 
+/// Whether a fix serves as the reference of the scores: RTK fixed (Q = 1),
+/// or of unknown quality (Q = 0, formats without a quality column).
+fn is_reference(g: &GnssFix) -> bool {
+    g.quality == 1 || g.quality == 0
+}
+
 /// RMS 3-D error over all RTK-fixed epochs against the clean fixes.
 pub fn tracking_rms(gnss: &[GnssFix], epochs: &[Epoch]) -> f64 {
     let (sum, n) =
         epochs
             .iter()
-            .filter(|e| gnss[e.index].quality == 1)
+            .filter(|e| is_reference(&gnss[e.index]))
             .fold((0.0, 0usize), |(s, n), e| {
                 (
                     s + gnss[e.index].position.ned_to(&e.antenna).norm_squared(),

@@ -7,10 +7,12 @@
 //! - [`measurements`]: the measurement CSV of `aidnav filter` (empty cell = missing).
 //! - [`writers`]: CSV observers for filter runs, `summary.json`.
 //! - [`plot`]: SVG line charts.
+//! - [`kfgins`]: KF-GINS IMU and GNSS text files, aidnav's generic IMU CSV.
 //! - [`rtklib`]: RTKLIB `.pos` solutions and the raw IMU CSV with its `.tag` time tags.
 
 pub mod config;
 pub mod error;
+pub mod kfgins;
 pub mod measurements;
 pub mod model_file;
 pub mod plot;

@@ -1,0 +1,359 @@
+//! KF-GINS text files (spec 40), so KF-GINS users can switch with their data
+//! as it is, and aidnav's generic CSV.
+//!
+//! KF-GINS IMU file: whitespace- or comma-separated columns `time [s]`,
+//! three angle increments `dθx dθy dθz [rad]`, three velocity increments
+//! `dvx dvy dvz [m/s]`, body frame forward–right–down; each row holds the
+//! increments over the interval that ends at its time. KF-GINS GNSS file:
+//! `time [s] latitude [deg] longitude [deg] height [m] σN σE σD [m]`
+//! (optionally followed by `vN vE vD σvN σvE σvD`).
+//!
+//! Generic CSV (header required, column order free, extra columns
+//! ignored): IMU `time_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2,
+//! az_m_s2` (rates and specific force, body or sensor frame); GNSS
+//! `time_s, lat_deg, lon_deg, height_m, sigma_n_m, sigma_e_m, sigma_d_m` and
+//! optionally `vn_mps, ve_mps, vd_mps, sigma_vn_mps, sigma_ve_mps,
+//! sigma_vd_mps`.
+//!
+//! Errors name the file, line and column: non-numbers, non-finite values,
+//! σ ≤ 0, time that does not increase, a rate that cannot be in rad/s
+//! (|ω| > 35 rad/s, i.e. degrees given); a truncated last line is skipped
+//! with a warning.
+
+use std::path::Path;
+
+use aidnav_frames::earth::Geodetic;
+use nalgebra::Vector3;
+
+use crate::error::{IoError, Result};
+use crate::rtklib::{GnssFix, ImuSample};
+
+fn data_error(path: &Path, line: usize, column: &str, message: impl Into<String>) -> IoError {
+    IoError::Data {
+        path: path.to_path_buf(),
+        line,
+        column: column.to_string(),
+        message: message.into(),
+    }
+}
+
+/// Numeric rows of a text file: (line number, values); comment lines (`#`,
+/// `%`) and blank lines skipped; a last line with fewer than `min` fields
+/// skipped with a warning.
+/// Parsed rows (line number, values) and the warnings.
+type Rows = (Vec<(usize, Vec<f64>)>, Vec<String>);
+
+fn rows(path: &Path, min: usize, names: &[&str]) -> Result<Rows> {
+    let text = read(path)?;
+    let lines: Vec<(usize, String)> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim().to_string()))
+        .collect();
+    parse_rows(path, lines, min, names)
+}
+
+fn read(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|source| IoError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The row checks on (line number, text) pairs.
+fn parse_rows(
+    path: &Path,
+    lines: Vec<(usize, String)>,
+    min: usize,
+    names: &[&str],
+) -> Result<Rows> {
+    let lines: Vec<(usize, String)> = lines
+        .into_iter()
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#') && !l.starts_with('%'))
+        .collect();
+    let mut out: Vec<(usize, Vec<f64>)> = Vec::with_capacity(lines.len());
+    let mut warnings = Vec::new();
+    for (k, (line, l)) in lines.iter().enumerate() {
+        let line = *line;
+        let fields: Vec<&str> = l
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|f| !f.is_empty())
+            .collect();
+        if fields.len() < min {
+            if k + 1 == lines.len() {
+                warnings.push(format!(
+                    "{}:{line}: truncated last line skipped ({} fields)",
+                    path.display(),
+                    fields.len()
+                ));
+                continue;
+            }
+            return Err(data_error(
+                path,
+                line,
+                "(line)",
+                format!("{} fields, expected at least {min}", fields.len()),
+            ));
+        }
+        let mut v = Vec::with_capacity(fields.len());
+        for (i, f) in fields.iter().enumerate() {
+            let name = names.get(i).copied().unwrap_or("(extra)");
+            let x: f64 = f
+                .parse()
+                .map_err(|_| data_error(path, line, name, format!("`{f}` is not a number")))?;
+            if !x.is_finite() {
+                return Err(data_error(path, line, name, "not finite"));
+            }
+            v.push(x);
+        }
+        if let Some((prev_line, prev)) = out.last()
+            && v[0] <= prev[0]
+        {
+            return Err(data_error(
+                path,
+                line,
+                names[0],
+                format!(
+                    "time {} does not increase (line {prev_line}: {})",
+                    v[0], prev[0]
+                ),
+            ));
+        }
+        out.push((line, v));
+    }
+    if out.is_empty() {
+        return Err(data_error(path, 0, "(file)", "no data rows"));
+    }
+    Ok((out, warnings))
+}
+
+const KF_IMU: [&str; 7] = ["time", "dθx", "dθy", "dθz", "dvx", "dvy", "dvz"];
+const KF_GNSS: [&str; 13] = [
+    "time",
+    "latitude",
+    "longitude",
+    "height",
+    "σN",
+    "σE",
+    "σD",
+    "vN",
+    "vE",
+    "vD",
+    "σvN",
+    "σvE",
+    "σvD",
+];
+
+/// Read a KF-GINS IMU file; increments become mean rates over each row's
+/// interval (the first row, with no interval, is dropped).
+pub fn read_kfgins_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    let (rows, warnings) = rows(path, 7, &KF_IMU)?;
+    let mut out = Vec::with_capacity(rows.len());
+    for w in rows.windows(2) {
+        let (line, v) = (&w[1].0, &w[1].1);
+        let dt = v[0] - w[0].1[0];
+        let rate = Vector3::new(v[1], v[2], v[3]) / dt;
+        if rate.amax() > 35.0 {
+            return Err(data_error(
+                path,
+                *line,
+                "dθx",
+                format!(
+                    "|ω| = {:.1} rad/s: are the angle increments in degrees?",
+                    rate.amax()
+                ),
+            ));
+        }
+        out.push(ImuSample {
+            time_s: v[0],
+            angular_rate: rate,
+            specific_force: Vector3::new(v[4], v[5], v[6]) / dt,
+        });
+    }
+    Ok((out, warnings))
+}
+
+fn sigma_checked(path: &Path, line: usize, names: &[&str], v: &[f64]) -> Result<Vector3<f64>> {
+    for (k, x) in v.iter().enumerate() {
+        if *x <= 0.0 {
+            return Err(data_error(
+                path,
+                line,
+                names[k],
+                format!("σ = {x}: must be > 0"),
+            ));
+        }
+    }
+    Ok(Vector3::new(v[0], v[1], v[2]))
+}
+
+/// Read a KF-GINS GNSS file (quality unknown: reported as 0).
+pub fn read_kfgins_gnss(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
+    let (rows, warnings) = rows(path, 7, &KF_GNSS)?;
+    let fixes = rows
+        .iter()
+        .map(|(line, v)| {
+            if v[1].abs() > 90.0 {
+                return Err(data_error(
+                    path,
+                    *line,
+                    "latitude",
+                    format!("{} deg is outside ±90", v[1]),
+                ));
+            }
+            let sigma = sigma_checked(path, *line, &KF_GNSS[4..7], &v[4..7])?;
+            let (velocity_ned, velocity_sigma_neu) = if v.len() >= 13 {
+                let s = sigma_checked(path, *line, &KF_GNSS[10..13], &v[10..13])?;
+                (Some(Vector3::new(v[7], v[8], v[9])), Some(s))
+            } else {
+                (None, None)
+            };
+            Ok(GnssFix {
+                time_s: v[0],
+                position: Geodetic {
+                    latitude_rad: v[1].to_radians(),
+                    longitude_rad: v[2].to_radians(),
+                    height_m: v[3],
+                },
+                quality: 0,
+                satellites: 0,
+                position_sigma_neu: sigma,
+                velocity_ned,
+                velocity_sigma_neu,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok((fixes, warnings))
+}
+
+/// Column indices of named header fields; error naming the missing one.
+fn columns(path: &Path, header: &str, wanted: &[&str]) -> Result<Vec<usize>> {
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    wanted
+        .iter()
+        .map(|w| {
+            names.iter().position(|n| n == w).ok_or_else(|| {
+                data_error(
+                    path,
+                    1,
+                    w,
+                    format!("column missing from the header `{header}`"),
+                )
+            })
+        })
+        .collect()
+}
+
+/// Read a generic IMU CSV (see the module docs).
+pub fn read_generic_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    let text = read(path)?;
+    let header = text.lines().next().unwrap_or("");
+    let wanted = [
+        "time_s", "gx_rad_s", "gy_rad_s", "gz_rad_s", "ax_m_s2", "ay_m_s2", "az_m_s2",
+    ];
+    let idx = columns(path, header, &wanted)?;
+    // The named columns, in order, with their original line numbers.
+    let lines = text
+        .lines()
+        .enumerate()
+        .skip(1)
+        .map(|(i, l)| {
+            let f: Vec<&str> = l.split(',').map(str::trim).collect();
+            let picked: Vec<&str> = idx.iter().filter_map(|&c| f.get(c).copied()).collect();
+            (i + 1, picked.join(","))
+        })
+        .collect();
+    let (rows, warnings) = parse_rows(path, lines, 7, &wanted)?;
+    let out: Vec<ImuSample> = rows
+        .into_iter()
+        .map(|(_, v)| ImuSample {
+            time_s: v[0],
+            angular_rate: Vector3::new(v[1], v[2], v[3]),
+            specific_force: Vector3::new(v[4], v[5], v[6]),
+        })
+        .collect();
+    if let Some(s) = out.iter().find(|s| s.angular_rate.amax() > 35.0) {
+        return Err(data_error(
+            path,
+            0,
+            "gx_rad_s",
+            format!(
+                "|ω| = {:.1} rad/s at t = {}: degrees given?",
+                s.angular_rate.amax(),
+                s.time_s
+            ),
+        ));
+    }
+    Ok((out, warnings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kfgins_files_round_trip_and_fail_clearly() {
+        let dir = tempfile::tempdir().unwrap();
+        let imu = dir.path().join("imu.txt");
+        std::fs::write(
+            &imu,
+            "100.000 0 0 0 0 0 0\n100.005 1e-5 -2e-5 3e-5 0.001 0.002 -0.049\n100.010 1e-5 -2e-5 3e-5 0.001 0.002 -0.049\n100.0",
+        )
+        .unwrap();
+        let (s, w) = read_kfgins_imu(&imu).unwrap();
+        assert_eq!(s.len(), 2);
+        assert!((s[0].specific_force.z + 9.8).abs() < 1e-9);
+        assert!(w[0].contains("truncated last line"));
+        std::fs::write(&imu, "100.000 0 0 0 0 0 0\n100.005 1 0 0 0 0 -0.049\n").unwrap();
+        let e = read_kfgins_imu(&imu).unwrap_err().to_string();
+        assert!(
+            e.contains("imu.txt:2: column `dθx`") && e.contains("degrees"),
+            "{e}"
+        );
+        let gnss = dir.path().join("gnss.txt");
+        std::fs::write(
+            &gnss,
+            "100.0 30.5 114.3 20.0 0.01 0.01 0.02\n100.0 30.5 114.3 20.0 0.01 0.01 0.02\n",
+        )
+        .unwrap();
+        let e = read_kfgins_gnss(&gnss).unwrap_err().to_string();
+        assert!(
+            e.contains("gnss.txt:2: column `time`") && e.contains("does not increase"),
+            "{e}"
+        );
+        std::fs::write(&gnss, "100.0 30.5 114.3 20.0 0.01 0 0.02\n").unwrap();
+        let e = read_kfgins_gnss(&gnss).unwrap_err().to_string();
+        assert!(e.contains("column `σE`: σ = 0"), "{e}");
+        std::fs::write(&gnss, "100.0 30.5 114.3 NaN 0.01 0.01 0.02\n").unwrap();
+        let e = read_kfgins_gnss(&gnss).unwrap_err().to_string();
+        assert!(e.contains("column `height`"), "{e}");
+    }
+
+    #[test]
+    fn generic_csv_finds_its_columns_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("imu.csv");
+        std::fs::write(
+            &p,
+            "extra,time_s,az_m_s2,ay_m_s2,ax_m_s2,gz_rad_s,gy_rad_s,gx_rad_s\n7,1.0,-9.8,0,0,0.1,0,0\n7,1.01,-9.8,0,0,0.1,0,0\n",
+        )
+        .unwrap();
+        let (s, _) = read_generic_imu(&p).unwrap();
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[1].specific_force.z, -9.8);
+        assert_eq!(s[0].angular_rate.z, 0.1);
+        std::fs::write(&p, "time_s,gx_rad_s\n1,0\n").unwrap();
+        let e = read_generic_imu(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("imu.csv:1: column `gy_rad_s`: column missing"),
+            "{e}"
+        );
+        std::fs::write(
+            &p,
+            "time_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2\n1,0,0,0,0,0,x\n",
+        )
+        .unwrap();
+        let e = read_generic_imu(&p).unwrap_err().to_string();
+        assert!(e.contains("imu.csv:2: column `az_m_s2`"), "{e}");
+    }
+}
