@@ -25,17 +25,8 @@ use std::path::Path;
 use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;
 
-use crate::error::{IoError, Result};
-use crate::rtklib::{GnssFix, ImuSample};
-
-fn data_error(path: &Path, line: usize, column: &str, message: impl Into<String>) -> IoError {
-    IoError::Data {
-        path: path.to_path_buf(),
-        line,
-        column: column.to_string(),
-        message: message.into(),
-    }
-}
+use crate::error::Result;
+use crate::rtklib::{GnssFix, ImuSample, data_error, read_text};
 
 /// Numeric rows of a text file: (line number, values); comment lines (`#`,
 /// `%`) and blank lines skipped; a last line with fewer than `min` fields
@@ -44,20 +35,13 @@ fn data_error(path: &Path, line: usize, column: &str, message: impl Into<String>
 type Rows = (Vec<(usize, Vec<f64>)>, Vec<String>);
 
 fn rows(path: &Path, min: usize, names: &[&str]) -> Result<Rows> {
-    let text = read(path)?;
+    let text = read_text(path)?;
     let lines: Vec<(usize, String)> = text
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim().to_string()))
         .collect();
     parse_rows(path, lines, min, names)
-}
-
-fn read(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).map_err(|source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    })
 }
 
 /// The row checks on (line number, text) pairs.
@@ -246,7 +230,7 @@ fn columns(path: &Path, header: &str, wanted: &[&str]) -> Result<Vec<usize>> {
 
 /// Read a generic IMU CSV (see the module docs).
 pub fn read_generic_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
-    let text = read(path)?;
+    let text = read_text(path)?;
     let header = text.lines().next().unwrap_or("");
     let wanted = [
         "time_s", "gx_rad_s", "gy_rad_s", "gz_rad_s", "ax_m_s2", "ay_m_s2", "az_m_s2",

@@ -66,7 +66,13 @@ fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
 /// GPS week 0 began 1980-01-06.
 const GPS_EPOCH_1970_S: f64 = 315_964_800.0;
 
-fn data_error(path: &Path, line: usize, column: &str, message: impl Into<String>) -> IoError {
+/// A data error naming the file, line and column.
+pub(crate) fn data_error(
+    path: &Path,
+    line: usize,
+    column: &str,
+    message: impl Into<String>,
+) -> IoError {
     IoError::Data {
         path: path.to_path_buf(),
         line,
@@ -75,7 +81,8 @@ fn data_error(path: &Path, line: usize, column: &str, message: impl Into<String>
     }
 }
 
-fn read_text(path: &Path) -> Result<String> {
+/// The whole file as text, or a read error naming it.
+pub(crate) fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).map_err(|source| IoError::Read {
         path: path.to_path_buf(),
         source,
