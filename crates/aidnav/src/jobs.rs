@@ -742,8 +742,12 @@ pub struct ProcessReport {
     pub tracking_rms_m: f64,
     /// Updates by outcome in the clean run.
     pub outcomes: Vec<(String, usize)>,
+    /// RMS 3-D error of the RTS-smoothed antenna positions (with `output.smooth`).
+    pub tracking_smoothed_rms_m: Option<f64>,
     /// Outage scores (filter coasting).
     pub outages: Vec<crate::process::OutageScore>,
+    /// Outage scores of the RTS-smoothed solution (with `output.smooth`).
+    pub outages_smoothed: Vec<crate::process::OutageScore>,
     /// Outage scores of the free INS (raw IMU, no instrument correction).
     pub outages_free_ins: Vec<crate::process::OutageScore>,
     /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
@@ -782,8 +786,12 @@ pub fn process(
     let inputs = load_inputs(&cfg, base).map_err(process_error)?;
     let read_s = t_read.elapsed().as_secs_f64();
     let t_run = Instant::now();
-    let clean =
-        run_filter(&cfg, &inputs, &RunPlan::default(), cfg.gnss.policy).map_err(process_error)?;
+    let clean_plan = RunPlan {
+        smooth: cfg.output.smooth,
+        ..RunPlan::default()
+    };
+    let clean = run_filter(&cfg, &inputs, &clean_plan, cfg.gnss.policy).map_err(process_error)?;
+    let smoothed: Vec<crate::process::Epoch> = clean.iter().filter_map(|e| e.smoothed()).collect();
     let run_s = t_run.elapsed().as_secs_f64();
     aidnav_io::writers::ensure_dir(out)?;
     let mut files = Vec::new();
@@ -840,6 +848,27 @@ pub fn process(
         }),
     )?;
     files.push(solution);
+    if !smoothed.is_empty() {
+        let path = out.join("smoothed.csv");
+        write_table(
+            &path,
+            &[
+                "time [s GPST since 1970]",
+                "latitude [deg]",
+                "longitude [deg]",
+                "height [m]",
+            ],
+            smoothed.iter().map(|e| {
+                vec![
+                    inputs.gnss[e.index].time_s,
+                    e.antenna.latitude_rad.to_degrees(),
+                    e.antenna.longitude_rad.to_degrees(),
+                    e.antenna.height_m,
+                ]
+            }),
+        )?;
+        files.push(path);
+    }
     let mut outcomes: Vec<(String, usize)> = Vec::new();
     for e in &clean {
         let key = e
@@ -931,6 +960,7 @@ pub fn process(
     files.push(out.join("innovations.svg"));
     let t_score = Instant::now();
     let (mut outages, mut outages_free, mut anomalies) = (Vec::new(), Vec::new(), Vec::new());
+    let mut outages_smoothed = Vec::new();
     if score {
         let first = inputs.imu[0].time_s;
         let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
@@ -952,6 +982,7 @@ pub fn process(
                 let plan = RunPlan {
                     windows: windows.clone(),
                     free_ins_in_windows: free,
+                    smooth: cfg.output.smooth,
                     ..RunPlan::default()
                 };
                 let epochs = run_filter(&cfg, &inputs, &plan, cfg.gnss.policy)?;
@@ -982,6 +1013,12 @@ pub fn process(
                     style: LineStyle::Solid,
                     color: i / 2,
                 });
+                let smoothed: Vec<crate::process::Epoch> =
+                    epochs.iter().filter_map(|e| e.smoothed()).collect();
+                if !smoothed.is_empty() {
+                    let windows = outage_windows(&cfg.score, first, last, l);
+                    outages_smoothed.push(score_windows(&inputs.gnss, &smoothed, &windows, l));
+                }
                 outages.push(s);
             } else {
                 outages_free.push(s);
@@ -1030,6 +1067,9 @@ pub fn process(
         gnss_epochs: inputs.gnss.len(),
         policy: cfg.gnss.policy,
         tracking_rms_m: tracking_rms(&inputs.gnss, &clean),
+        tracking_smoothed_rms_m: (!smoothed.is_empty())
+            .then(|| tracking_rms(&inputs.gnss, &smoothed)),
+        outages_smoothed,
         outcomes,
         outages,
         outages_free_ins: outages_free,

@@ -219,6 +219,21 @@ impl Default for ScoreConfig {
     }
 }
 
+/// Outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputConfig {
+    /// Also run the Rauch–Tung–Striebel smoother (post-processing) and
+    /// write smoothed.csv and the smoothed scores. Default true.
+    pub smooth: bool,
+}
+
+impl Default for OutputConfig {
+    fn default() -> Self {
+        Self { smooth: true }
+    }
+}
+
 /// The configuration file of `aidnav process`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -240,6 +255,9 @@ pub struct ProcessConfig {
     /// Scoring.
     #[serde(default)]
     pub score: ScoreConfig,
+    /// Outputs.
+    #[serde(default)]
+    pub output: OutputConfig,
 }
 
 impl Validate for ProcessConfig {
@@ -497,6 +515,9 @@ pub struct RunPlan {
     /// mechanized from the raw IMU (no instrument corrections, no updates)
     /// to the window's end; the epochs inside a window report that copy.
     pub free_ins_in_windows: bool,
+    /// Keep the forward pass and add the RTS-smoothed antenna position to
+    /// every epoch (not with `free_ins_in_windows`).
+    pub smooth: bool,
 }
 
 /// Measurement policy of a run.
@@ -545,6 +566,17 @@ pub struct Epoch {
     pub outcome: Option<Outcome>,
     /// The instrument corrections after the epoch.
     pub instruments: aidnav_ins::ned_filter::InstrumentEstimate,
+    /// RTS-smoothed antenna position (runs with `RunPlan::smooth`).
+    pub smoothed_antenna: Option<Geodetic>,
+    record_index: Option<usize>,
+}
+
+impl Epoch {
+    /// This epoch with the smoothed antenna position in place of the filtered one.
+    pub fn smoothed(&self) -> Option<Epoch> {
+        self.smoothed_antenna
+            .map(|antenna| Epoch { antenna, ..*self })
+    }
 }
 
 /// Run the filter over the whole log under a plan and a policy.
@@ -577,6 +609,10 @@ pub fn run_filter(
     let lever = Vector3::from(cfg.gnss.lever_arm_m);
     let mut filter = NedFilter::new(model, state, &sig, lever)?;
     filter.set_gyro_bias(gyro_bias);
+    let smooth = plan.smooth && !plan.free_ins_in_windows;
+    if smooth {
+        filter.start_recording(MAX_RECORDED_EPOCHS);
+    }
     let mut position_policy = policy.policy();
     let mut velocity_policy = policy.policy();
     let imu = &inputs.imu;
@@ -672,12 +708,29 @@ pub fn run_filter(
                 innovation,
                 outcome,
                 instruments: *reporting.instruments(),
+                smoothed_antenna: None,
+                record_index: filter.recorded_epoch(),
             });
             next += 1;
         }
     }
+    if smooth {
+        let states = filter.smoothed_states()?.ok_or_else(|| {
+            ProcessError::Data(format!(
+                "the log is too long to smooth: more than {MAX_RECORDED_EPOCHS} covariance epochs ({} MB)",
+                (MAX_RECORDED_EPOCHS * aidnav_ins::ned_filter::BYTES_PER_RECORDED_EPOCH) >> 20
+            ))
+        })?;
+        for e in &mut epochs {
+            e.smoothed_antenna = e.record_index.map(|i| filter.antenna_of(&states[i]));
+        }
+    }
     Ok(epochs)
 }
+
+/// Most covariance epochs a smoothing run keeps (≈ 4 GiB; about five hours
+/// at the 20 Hz covariance rate plus updates).
+pub const MAX_RECORDED_EPOCHS: usize = (4 << 30) / aidnav_ins::ned_filter::BYTES_PER_RECORDED_EPOCH;
 
 /// The default outage schedule for length L.
 pub fn outage_windows(

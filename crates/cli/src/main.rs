@@ -356,7 +356,7 @@ fn run_process(a: ProcessArgs) -> Result<()> {
         eprintln!("warning: {w}");
     }
     println!(
-        "{} IMU samples, {} GNSS epochs; read {:.2} s, one filter pass {:.2} s ({:.0} IMU epochs/s), scoring {:.2} s; aidnav {}",
+        "{} IMU samples, {} GNSS epochs; read {:.2} s, filter pass (+ smoother when on) {:.2} s ({:.0} IMU epochs/s), scoring {:.2} s; aidnav {}",
         r.imu_samples,
         r.gnss_epochs,
         r.timing_s[0],
@@ -372,13 +372,27 @@ fn run_process(a: ProcessArgs) -> Result<()> {
         r.tracking_rms_m,
         outcomes.join(", ")
     );
+    if let Some(s) = r.tracking_smoothed_rms_m {
+        println!("RTS-smoothed: RMS 3-D antenna error over RTK-fixed epochs {s:.4} m");
+    }
     if !r.outages.is_empty() {
         println!("simulated outages — RMS over windows of the maximum drift [m]:");
         println!(
-            "{:>6} {:>8} {:>12} {:>10} {:>8} {:>14} {:>9}",
-            "L [s]", "windows", "horizontal", "vertical", "3-D", "free INS 3-D", "KF-GINS"
+            "{:>6} {:>8} {:>12} {:>10} {:>8} {:>14} {:>12} {:>9}",
+            "L [s]",
+            "windows",
+            "horizontal",
+            "vertical",
+            "3-D",
+            "free INS 3-D",
+            "smoothed 3-D",
+            "KF-GINS"
         );
-        for (s, f) in r.outages.iter().zip(&r.outages_free_ins) {
+        for (k, (s, f)) in r.outages.iter().zip(&r.outages_free_ins).enumerate() {
+            let smoothed = r
+                .outages_smoothed
+                .get(k)
+                .map_or_else(|| "—".to_string(), |o| format!("{:.2}", o.three_d_m));
             let kf_gins = match s.outage_s.round() as i64 {
                 10 => "4.4",
                 30 => "30.1",
@@ -386,13 +400,14 @@ fn run_process(a: ProcessArgs) -> Result<()> {
                 _ => "—",
             };
             println!(
-                "{:>6.0} {:>8} {:>12.2} {:>10.2} {:>8.2} {:>14.1} {:>9}",
+                "{:>6.0} {:>8} {:>12.2} {:>10.2} {:>8.2} {:>14.1} {:>12} {:>9}",
                 s.outage_s,
                 s.windows,
                 s.horizontal_m,
                 s.vertical_m,
                 s.three_d_m,
                 f.three_d_m,
+                smoothed,
                 kf_gins
             );
         }
