@@ -752,6 +752,9 @@ pub struct ProcessReport {
     pub outages_free_ins: Vec<crate::process::OutageScore>,
     /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
     pub anomalies: Vec<(f64, crate::process::PolicyName, f64)>,
+    /// (policy, RMS 3-D error over the RTK-fixed epochs with GNSS) with the
+    /// 30 s outages and a burst after each; and the same without bursts.
+    pub post_outage_bursts: Vec<(crate::process::PolicyName, f64, f64)>,
     /// Reader warnings.
     pub warnings: Vec<String>,
     /// Wall time [s]: reading, one filter pass, scoring.
@@ -961,6 +964,7 @@ pub fn process(
     let t_score = Instant::now();
     let (mut outages, mut outages_free, mut anomalies) = (Vec::new(), Vec::new(), Vec::new());
     let mut outages_smoothed = Vec::new();
+    let mut post_bursts = Vec::new();
     if score {
         let first = inputs.imu[0].time_s;
         let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
@@ -1060,6 +1064,32 @@ pub fn process(
             })
             .collect::<Result<_, crate::process::ProcessError>>()
             .map_err(process_error)?;
+        if cfg.score.post_outage_burst_s > 0.0 {
+            let windows = outage_windows(&cfg.score, first, last, 30.0);
+            let bursts = crate::process::post_outage_bursts(
+                &inputs.gnss,
+                &windows,
+                cfg.score.post_outage_burst_s,
+                cfg.score.outlier_m,
+                cfg.score.seed,
+            );
+            post_bursts = policies
+                .par_iter()
+                .map(|&p| {
+                    let run = |outliers: Vec<Option<nalgebra::Vector3<f64>>>| {
+                        let plan = RunPlan {
+                            windows: windows.clone(),
+                            outliers,
+                            ..RunPlan::default()
+                        };
+                        run_filter(&cfg, &inputs, &plan, p)
+                            .map(|e| crate::process::tracking_rms_with_gnss(&inputs.gnss, &e))
+                    };
+                    Ok((p, run(bursts.clone())?, run(Vec::new())?))
+                })
+                .collect::<Result<_, crate::process::ProcessError>>()
+                .map_err(process_error)?;
+        }
     }
     let score_s = t_score.elapsed().as_secs_f64();
     let report = ProcessReport {
@@ -1070,6 +1100,7 @@ pub fn process(
         tracking_smoothed_rms_m: (!smoothed.is_empty())
             .then(|| tracking_rms(&inputs.gnss, &smoothed)),
         outages_smoothed,
+        post_outage_bursts: post_bursts,
         outcomes,
         outages,
         outages_free_ins: outages_free,

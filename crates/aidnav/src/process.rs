@@ -204,6 +204,10 @@ pub struct ScoreConfig {
     pub outlier_m: [f64; 2],
     /// Seed of the injected outliers. Default 20261123.
     pub seed: u64,
+    /// Burst after every 30 s outage: this long after GNSS returns, the
+    /// fixes carry one common 5–50 m jump (a bad re-acquisition) [s]; 0: no
+    /// burst run. Default 2.5 (10 epochs at 4 Hz).
+    pub post_outage_burst_s: f64,
 }
 
 impl Default for ScoreConfig {
@@ -215,6 +219,7 @@ impl Default for ScoreConfig {
             outlier_fractions: vec![0.1, 0.3],
             outlier_m: [5.0, 50.0],
             seed: 20261123,
+            post_outage_burst_s: 2.5,
         }
     }
 }
@@ -308,6 +313,13 @@ impl Validate for ProcessConfig {
         }
         non_negative("lead_s", self.score.lead_s).map_err(|e| e.within("score"))?;
         non_negative("gap_s", self.score.gap_s).map_err(|e| e.within("score"))?;
+        in_range(
+            "post_outage_burst_s",
+            self.score.post_outage_burst_s,
+            0.0,
+            60.0,
+        )
+        .map_err(|e| e.within("score"))?;
         for f in &self.score.outlier_fractions {
             in_range("outlier_fractions", *f, 0.0, 1.0).map_err(|e| e.within("score"))?;
         }
@@ -823,6 +835,38 @@ pub fn tracking_rms(gnss: &[GnssFix], epochs: &[Epoch]) -> f64 {
                 )
             });
     (sum / n.max(1) as f64).sqrt()
+}
+
+/// RMS 3-D error over the RTK-fixed epochs where GNSS was used (not
+/// withheld), against the clean fixes.
+pub fn tracking_rms_with_gnss(gnss: &[GnssFix], epochs: &[Epoch]) -> f64 {
+    let used: Vec<Epoch> = epochs
+        .iter()
+        .filter(|e| e.outcome.is_some())
+        .copied()
+        .collect();
+    tracking_rms(gnss, &used)
+}
+
+/// One common jump per window for the fixes in [end, end + burst_s) after
+/// each window (seeded), by GNSS index.
+pub fn post_outage_bursts(
+    gnss: &[GnssFix],
+    windows: &[(f64, f64)],
+    burst_s: f64,
+    range_m: [f64; 2],
+    seed: u64,
+) -> Vec<Option<Vector3<f64>>> {
+    let jumps = inject_outliers(windows.len(), 1.0, range_m, seed);
+    gnss.iter()
+        .map(|g| {
+            windows
+                .iter()
+                .zip(&jumps)
+                .find(|((_, end), _)| g.time_s >= *end && g.time_s < end + burst_s)
+                .and_then(|(_, j)| *j)
+        })
+        .collect()
 }
 
 /// Outliers for a fraction of the epochs (seeded).
