@@ -1042,6 +1042,8 @@ pub fn process(
             PolicyName::Chi2Gate,
             PolicyName::RecoveringGate,
             PolicyName::Huber,
+            PolicyName::Rejection,
+            PolicyName::Limiting,
         ];
         let mut cases: Vec<(f64, PolicyName)> = policies.iter().map(|&p| (0.0, p)).collect();
         for &f in &cfg.score.outlier_fractions {

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use aidnav_estimation::{
     AcceptAll, Chi2Gate, EstimationError, Huber, MeasurementPolicy, Outcome, RecoveringChi2Gate,
+    adaptive::{AnomalyDetector, Limiting, Rejection},
     nalgebra::U3,
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned};
@@ -142,7 +143,8 @@ pub struct GnssConfig {
     /// Floor on the velocity σ [m/s]. Default 0.02.
     pub min_velocity_sigma_mps: f64,
     /// Measurement policy of the GNSS updates (main run and outage scores):
-    /// `accept`, `chi2_gate`, `recovering_gate` or `huber`. Default `accept`
+    /// `accept`, `chi2_gate`, `recovering_gate`, `huber`, `rejection` or
+    /// `limiting` (spec 20's detector with rejection or limiting). Default `accept`
     /// (as KF-GINS). Choose `huber` when the stream may hold outliers: on the
     /// recorded drive it costs about 1 cm on clean data and keeps 5–50 m
     /// outliers on 30 % of the epochs to 8 cm (the anomaly table).
@@ -544,6 +546,11 @@ pub enum PolicyName {
     RecoveringGate,
     /// Huber re-weighting, k = 1.345.
     Huber,
+    /// Spec 20 eq. 5 detector (νᵀν > γ tr S, γ = 9) with eq. 6 rejection.
+    Rejection,
+    /// Spec 20 eq. 5 detector with eq. 8 limiting (the innovation clipped to
+    /// the gate, its direction kept).
+    Limiting,
 }
 
 impl PolicyName {
@@ -553,6 +560,12 @@ impl PolicyName {
             PolicyName::Chi2Gate => Box::new(Chi2Gate { probability: 0.999 }),
             PolicyName::RecoveringGate => Box::new(RecoveringChi2Gate::new(0.999, 20)),
             PolicyName::Huber => Box::new(Huber { k: 1.345 }),
+            PolicyName::Rejection => Box::new(Rejection {
+                detector: AnomalyDetector { gamma: 9.0 },
+            }),
+            PolicyName::Limiting => Box::new(Limiting {
+                detector: AnomalyDetector { gamma: 9.0 },
+            }),
         }
     }
 }
