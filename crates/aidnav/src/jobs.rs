@@ -851,6 +851,38 @@ pub fn process(
         }),
     )?;
     files.push(solution);
+    if cfg.output.kf_gins_text {
+        use std::fmt::Write as _;
+        let mut text = String::new();
+        for e in &clean {
+            let gps = inputs.gnss[e.index].time_s - 315_964_800.0;
+            let week = (gps / 604_800.0).floor();
+            let (r, p, y) = e.attitude.euler_angles();
+            let _ = writeln!(
+                text,
+                "{:.0} {:.3} {:.9} {:.9} {:.4} {:.4} {:.4} {:.4} {:.5} {:.5} {:.5}",
+                week,
+                gps - week * 604_800.0,
+                e.antenna.latitude_rad.to_degrees(),
+                e.antenna.longitude_rad.to_degrees(),
+                e.antenna.height_m,
+                e.velocity.x,
+                e.velocity.y,
+                e.velocity.z,
+                r.to_degrees(),
+                p.to_degrees(),
+                y.to_degrees()
+            );
+        }
+        let path = out.join("navresult.txt");
+        std::fs::write(&path, text).map_err(|e| {
+            JobError::Io(IoError::Write {
+                path: path.clone(),
+                message: e.to_string(),
+            })
+        })?;
+        files.push(path);
+    }
     if !smoothed.is_empty() {
         let path = out.join("smoothed.csv");
         write_table(
@@ -1015,6 +1047,18 @@ pub fn process(
                         })
                         .collect(),
                     style: LineStyle::Solid,
+                    color: i / 2,
+                });
+                drift_series.push(Series {
+                    label: format!("{l:.0} s outages: 3σ"),
+                    points: epochs
+                        .iter()
+                        .map(|e| {
+                            let g = &inputs.gnss[e.index];
+                            (g.time_s - first, (3.0 * e.sigma.norm()).max(1e-3))
+                        })
+                        .collect(),
+                    style: LineStyle::Dashed,
                     color: i / 2,
                 });
                 let smoothed: Vec<crate::process::Epoch> =

@@ -116,6 +116,12 @@ pub struct InitialConfig {
     pub heading_sigma_deg: f64,
     /// Prior σ of roll and pitch [deg]. Default 0.5.
     pub tilt_sigma_deg: f64,
+    /// A given initial attitude (roll, pitch, yaw) [deg] instead of
+    /// levelling and the GNSS course; the gyro bias then starts at zero.
+    /// Default none.
+    pub attitude_deg: Option<[f64; 3]>,
+    /// A given initial NED velocity [m/s] (default: at rest).
+    pub velocity_ned_mps: Option<[f64; 3]>,
 }
 
 impl Default for InitialConfig {
@@ -125,6 +131,8 @@ impl Default for InitialConfig {
             heading_speed_mps: 2.0,
             heading_sigma_deg: 5.0,
             tilt_sigma_deg: 0.5,
+            attitude_deg: None,
+            velocity_ned_mps: None,
         }
     }
 }
@@ -233,11 +241,18 @@ pub struct OutputConfig {
     /// Also run the Rauch–Tung–Striebel smoother (post-processing) and
     /// write smoothed.csv and the smoothed scores. Default true.
     pub smooth: bool,
+    /// Also write navresult.txt in KF-GINS's layout (GPS week, seconds of
+    /// week, lat, lon [deg], h [m], vN vE vD [m/s], roll pitch yaw [deg];
+    /// antenna position). Default false.
+    pub kf_gins_text: bool,
 }
 
 impl Default for OutputConfig {
     fn default() -> Self {
-        Self { smooth: true }
+        Self {
+            smooth: true,
+            kf_gins_text: false,
+        }
     }
 }
 
@@ -464,7 +479,52 @@ fn initialise(
         .position(|s| s.time_s >= first_fix.time_s)
         .ok_or_else(|| ProcessError::Data("no IMU sample after the first GNSS epoch".into()))?;
     let t0 = imu[start].time_s;
-    let window: Vec<&ImuSample> = imu[start..]
+    let (attitude, w) = match cfg.initial.attitude_deg {
+        Some([r, p, y]) => (
+            UnitQuaternion::from_euler_angles(r.to_radians(), p.to_radians(), y.to_radians()),
+            None,
+        ),
+        None => {
+            let (attitude, w) = align(cfg, inputs, start, t0)?;
+            (attitude, Some(w))
+        }
+    };
+    // Antenna fix → IMU position.
+    let fix = inputs
+        .gnss
+        .iter()
+        .rev()
+        .find(|g| g.time_s <= t0)
+        .unwrap_or(first_fix);
+    let arm = attitude * Vector3::from(cfg.gnss.lever_arm_m);
+    let position = fix.position.offset_by(&-arm);
+    let gyro_bias = w.map_or_else(Vector3::zeros, |w| {
+        w - attitude.inverse() * earth_rate_ned(position.latitude_rad)
+    });
+    Ok((
+        NedState {
+            position,
+            velocity: cfg
+                .initial
+                .velocity_ned_mps
+                .map_or_else(Vector3::zeros, Vector3::from),
+            attitude,
+        },
+        gyro_bias,
+        start,
+    ))
+}
+
+/// Coarse alignment: roll and pitch by levelling over the static window at
+/// the start, heading from the first GNSS course above the speed threshold;
+/// also the mean gyro output at rest (bias + Earth rate).
+fn align(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    start: usize,
+    t0: f64,
+) -> Result<(UnitQuaternion<f64>, Vector3<f64>), ProcessError> {
+    let window: Vec<&ImuSample> = inputs.imu[start..]
         .iter()
         .take_while(|s| s.time_s < t0 + cfg.initial.static_s)
         .collect();
@@ -473,12 +533,13 @@ fn initialise(
             "static window holds fewer than 10 IMU samples".into(),
         ));
     }
+    let n = window.len() as f64;
     let f = window
         .iter()
         .map(|s| s.specific_force)
         .sum::<Vector3<f64>>()
-        / window.len() as f64;
-    let w = window.iter().map(|s| s.angular_rate).sum::<Vector3<f64>>() / window.len() as f64;
+        / n;
+    let w = window.iter().map(|s| s.angular_rate).sum::<Vector3<f64>>() / n;
     let roll = (-f.y).atan2(-f.z);
     let pitch = f.x.atan2(f.y.hypot(f.z));
     let moving = inputs
@@ -490,31 +551,12 @@ fn initialise(
         })
         .ok_or_else(|| {
             ProcessError::Data(
-                "the GNSS speed never exceeds initial.heading_speed_mps: no heading".into(),
+                "the GNSS speed never exceeds initial.heading_speed_mps: no heading (give initial.attitude_deg)".into(),
             )
         })?;
     let v = moving.velocity_ned.expect("checked");
     let yaw = v.y.atan2(v.x);
-    let attitude = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
-    // Antenna fix → IMU position.
-    let fix = inputs
-        .gnss
-        .iter()
-        .rev()
-        .find(|g| g.time_s <= t0)
-        .unwrap_or(first_fix);
-    let arm = attitude * Vector3::from(cfg.gnss.lever_arm_m);
-    let position = fix.position.offset_by(&-arm);
-    let gyro_bias = w - attitude.inverse() * earth_rate_ned(position.latitude_rad);
-    Ok((
-        NedState {
-            position,
-            velocity: Vector3::zeros(),
-            attitude,
-        },
-        gyro_bias,
-        start,
-    ))
+    Ok((UnitQuaternion::from_euler_angles(roll, pitch, yaw), w))
 }
 
 /// Which epochs a run withholds and how it corrupts the others.

@@ -496,3 +496,36 @@ fn process_names_file_line_and_key_of_a_bad_config() {
     let err = failure(&["process", c.to_str().unwrap()]);
     assert!(err.contains("i.csv.tag: cannot read"), "{err}");
 }
+
+#[test]
+fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
+    let data = repo().join("../shared/data/rtklibexplorer-gnss-imu/drive_0708");
+    let config = example
+        .replace(
+            "# attitude_deg = [0.0, 0.0, 90.0]",
+            "attitude_deg = [0.0, 0.0, 90.0]",
+        )
+        .replace("kf_gins_text = false", "kf_gins_text = true")
+        .replace("smooth = true ", "smooth = false ");
+    let c = dir.path().join("c.toml");
+    std::fs::write(&c, config).unwrap();
+    let out = dir.path().join("out");
+    success(&[
+        "process",
+        c.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--no-score",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let nav = std::fs::read_to_string(out.join("navresult.txt")).unwrap();
+    let first: Vec<&str> = nav.lines().next().unwrap().split_whitespace().collect();
+    assert_eq!(first.len(), 11);
+    assert_eq!(first[0], "2374"); // GPS week of 2025-07-08
+    assert!(!out.join("smoothed.csv").exists());
+    let summary = read_summary(&out);
+    assert_eq!(summary["scenario"]["initial"]["attitude_deg"][2], 90.0);
+}
