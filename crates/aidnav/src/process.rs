@@ -234,6 +234,26 @@ impl Default for ScoreConfig {
     }
 }
 
+/// How the estimates reach the INS.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Feedback {
+    /// Closed loop (seed 000): every estimate is fed back into the INS and
+    /// the instrument corrections.
+    #[default]
+    Closed,
+    /// Open loop (seed 004): the INS runs free, the output is corrected.
+    Open,
+}
+
+/// The filter.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FilterConfig {
+    /// `closed` (default) or `open`. Open loop cannot be smoothed.
+    pub feedback: Feedback,
+}
+
 /// Outputs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -274,6 +294,9 @@ pub struct ProcessConfig {
     /// Vehicle constraints.
     #[serde(default)]
     pub constraints: ConstraintConfig,
+    /// The filter.
+    #[serde(default)]
+    pub filter: FilterConfig,
     /// Scoring.
     #[serde(default)]
     pub score: ScoreConfig,
@@ -676,7 +699,9 @@ pub fn run_filter(
     let lever = Vector3::from(cfg.gnss.lever_arm_m);
     let mut filter = NedFilter::new(model, state, &sig, lever)?;
     filter.set_gyro_bias(gyro_bias);
-    let smooth = plan.smooth && !plan.free_ins_in_windows;
+    filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
+    let smooth =
+        plan.smooth && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed;
     if smooth {
         filter.start_recording(MAX_RECORDED_EPOCHS);
     }
@@ -764,7 +789,7 @@ pub fn run_filter(
             };
             let (antenna, _) = reporting.antenna();
             let s = reporting.sigmas();
-            let st = reporting.state();
+            let st = &reporting.solution();
             epochs.push(Epoch {
                 index: next,
                 antenna,

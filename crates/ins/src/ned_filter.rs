@@ -82,6 +82,7 @@ pub struct NedFilter {
     pending_dt: f64,
     covariance_interval_s: f64,
     record: Option<ForwardRecord>,
+    open_loop: bool,
 }
 
 impl NedFilter {
@@ -106,12 +107,40 @@ impl NedFilter {
             pending_dt: 0.0,
             covariance_interval_s: 0.05,
             record: None,
+            open_loop: false,
         })
     }
 
-    /// The navigation state (IMU).
+    /// The INS's own navigation state (uncorrected in open loop).
     pub fn state(&self) -> &NedState {
         self.ins.state()
+    }
+
+    /// Open loop (seed 004's output-correction scheme): the estimates are
+    /// never fed back; the INS runs on its raw (initially corrected)
+    /// instruments and the output is the INS corrected by the estimate.
+    /// Smoothing is not available in open loop.
+    pub fn set_open_loop(&mut self, open: bool) {
+        self.open_loop = open;
+        if open {
+            self.record = None;
+        }
+    }
+
+    /// The navigation solution: the INS, corrected by the error estimate in
+    /// open loop.
+    pub fn solution(&self) -> NedState {
+        let s = *self.ins.state();
+        if !self.open_loop {
+            return s;
+        }
+        let x = self.kf.state();
+        let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
+        NedState {
+            position: s.position.offset_by(&-v3(POSITION)),
+            velocity: s.velocity - v3(VELOCITY),
+            attitude: UnitQuaternion::from_scaled_axis(v3(ATTITUDE)) * s.attitude,
+        }
     }
 
     /// The instrument corrections.
@@ -139,7 +168,7 @@ impl NedFilter {
 
     /// The antenna position and velocity implied by the INS.
     pub fn antenna(&self) -> (Geodetic, Vector3<f64>) {
-        let s = self.ins.state();
+        let s = &self.solution();
         let c = s.attitude.to_rotation_matrix().into_inner();
         let arm = c * self.lever_arm;
         (
@@ -273,7 +302,8 @@ impl NedFilter {
     ) -> Result<GnssUpdate, EstimationError> {
         let s = *self.ins.state();
         let c = s.attitude.to_rotation_matrix().into_inner();
-        let (antenna, _) = self.antenna();
+        // The INS's own antenna: in open loop the estimate x is part of H x.
+        let antenna = s.position.offset_by(&(c * self.lever_arm));
         let z = fix.ned_to(&antenna);
         let h = NedErrorModel::position_measurement(&(c * self.lever_arm));
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
@@ -299,8 +329,9 @@ impl NedFilter {
         sigma_ned: &Vector3<f64>,
         policy: &mut P,
     ) -> Result<GnssUpdate, EstimationError> {
-        let c = self.ins.state().attitude.to_rotation_matrix().into_inner();
-        let (_, v_ant) = self.antenna();
+        let s = *self.ins.state();
+        let c = s.attitude.to_rotation_matrix().into_inner();
+        let v_ant = s.velocity + c * self.rate.cross(&self.lever_arm);
         let z = v_ant - velocity_ned;
         let h = NedErrorModel::velocity_measurement(&(c * self.rate.cross(&self.lever_arm)));
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
@@ -326,6 +357,9 @@ impl NedFilter {
 
     /// Move every error estimate into the INS and the instrument corrections.
     fn feedback(&mut self) -> Result<(), EstimationError> {
+        if self.open_loop {
+            return Ok(());
+        }
         let x = *self.kf.state();
         let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
         let s = *self.ins.state();
@@ -422,6 +456,53 @@ mod tests {
             worst_smoothed < 0.2 * worst_filtered,
             "{worst_smoothed} vs {worst_filtered}"
         );
+    }
+
+    /// While the INS errors stay small (linear regime), open and closed loop
+    /// give the same solution.
+    #[test]
+    fn open_loop_matches_closed_loop_for_small_errors() {
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.5,
+                longitude_rad: 0.2,
+                height_m: 10.0,
+            },
+            velocity: Vector3::zeros(),
+            attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 1.0),
+        };
+        let model = NedErrorModel::default();
+        let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
+        let mut sig = Vector21::zeros();
+        for i in 0..3 {
+            sig[POSITION + i] = 0.5;
+            sig[VELOCITY + i] = 0.05;
+            sig[ATTITUDE + i] = 0.01;
+            sig[GYRO_BIAS + i] = sg;
+            sig[ACCEL_BIAS + i] = sa;
+            sig[GYRO_SCALE + i] = kg;
+            sig[ACCEL_SCALE + i] = ka;
+        }
+        let mut closed = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
+        let mut open = closed.clone();
+        open.set_open_loop(true);
+        let mut imu = NedMechanization::stationary_increment(&start, 0.01);
+        imu.delta_velocity.y += 2e-3 * 0.01;
+        for k in 0..6_000 {
+            closed.propagate(&imu).unwrap();
+            open.propagate(&imu).unwrap();
+            if k % 25 == 24 {
+                for f in [&mut closed, &mut open] {
+                    f.update_position(&start.position, &Vector3::repeat(0.05))
+                        .unwrap();
+                }
+            }
+        }
+        let (a, b) = (closed.solution(), open.solution());
+        let d = a.position.ned_to(&b.position).norm();
+        assert!(d < 0.01, "{d}");
+        // The open-loop INS itself has drifted away; only its output is corrected.
+        assert!(start.position.ned_to(&open.state().position).norm() > 1.0);
     }
 
     #[test]
