@@ -392,6 +392,23 @@ mod tests {
     use super::*;
     use aidnav_models::ned_ins::ImuNoise;
 
+    /// Prior σ: position, velocity, tilt, heading as given, instruments from
+    /// the model's noise terms.
+    fn prior(model: &NedErrorModel, [p, v, tilt, heading]: [f64; 4]) -> Vector21 {
+        let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
+        let mut sig = Vector21::zeros();
+        for i in 0..3 {
+            sig[POSITION + i] = p;
+            sig[VELOCITY + i] = v;
+            sig[ATTITUDE + i] = if i == 2 { heading } else { tilt };
+            sig[GYRO_BIAS + i] = sg;
+            sig[ACCEL_BIAS + i] = sa;
+            sig[GYRO_SCALE + i] = kg;
+            sig[ACCEL_SCALE + i] = ka;
+        }
+        sig
+    }
+
     /// A static INS with biased gyros and accelerometers, fed exact
     /// position and zero velocity: it stays put, levels itself, and finds the
     /// vertical accelerometer bias.
@@ -410,17 +427,7 @@ mod tests {
             attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
         };
         let model = NedErrorModel::default();
-        let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
-        let mut sig = Vector21::zeros();
-        for i in 0..3 {
-            sig[POSITION + i] = 0.5;
-            sig[VELOCITY + i] = 0.05;
-            sig[ATTITUDE + i] = 0.01;
-            sig[GYRO_BIAS + i] = sg;
-            sig[ACCEL_BIAS + i] = sa;
-            sig[GYRO_SCALE + i] = kg;
-            sig[ACCEL_SCALE + i] = ka;
-        }
+        let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
         let mut f = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
         f.start_recording(100_000);
         let imu = NedMechanization::stationary_increment(&start, 0.01);
@@ -472,17 +479,7 @@ mod tests {
             attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 1.0),
         };
         let model = NedErrorModel::default();
-        let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
-        let mut sig = Vector21::zeros();
-        for i in 0..3 {
-            sig[POSITION + i] = 0.5;
-            sig[VELOCITY + i] = 0.05;
-            sig[ATTITUDE + i] = 0.01;
-            sig[GYRO_BIAS + i] = sg;
-            sig[ACCEL_BIAS + i] = sa;
-            sig[GYRO_SCALE + i] = kg;
-            sig[ACCEL_SCALE + i] = ka;
-        }
+        let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
         let mut closed = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
         let mut open = closed.clone();
         open.set_open_loop(true);
@@ -519,17 +516,7 @@ mod tests {
         let model = NedErrorModel {
             noise: ImuNoise::default(),
         };
-        let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
-        let mut sig = Vector21::zeros();
-        for i in 0..3 {
-            sig[POSITION + i] = 1.0;
-            sig[VELOCITY + i] = 0.1;
-            sig[ATTITUDE + i] = if i == 2 { 0.1 } else { 0.01 };
-            sig[GYRO_BIAS + i] = sg;
-            sig[ACCEL_BIAS + i] = sa;
-            sig[GYRO_SCALE + i] = kg;
-            sig[ACCEL_SCALE + i] = ka;
-        }
+        let sig = prior(&model, [1.0, 0.1, 0.01, 0.1]);
         let mut f = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
         let mut imu = NedMechanization::stationary_increment(&start, 0.01);
         imu.delta_velocity.z += 0.01 * 0.01; // 0.01 m/s² bias on body z
