@@ -744,6 +744,10 @@ pub struct ProcessReport {
     pub outcomes: Vec<(String, usize)>,
     /// RMS 3-D error of the RTS-smoothed antenna positions (with `output.smooth`).
     pub tracking_smoothed_rms_m: Option<f64>,
+    /// Time after the first fix at which spec 10's rule (δ non-increasing
+    /// 15 s, then ≤ threshold) declares the instruments converged, for
+    /// δ_thr = 3 % and 1 % (None: never).
+    pub instrument_convergence_s: Vec<(f64, Option<f64>)>,
     /// Outage scores (filter coasting).
     pub outages: Vec<crate::process::OutageScore>,
     /// Outage scores of the RTS-smoothed solution (with `output.smooth`).
@@ -791,6 +795,7 @@ pub fn process(
     let t_run = Instant::now();
     let clean_plan = RunPlan {
         smooth: cfg.output.smooth,
+        monitor: cfg.filter.convergence_monitor,
         ..RunPlan::default()
     };
     let clean = run_filter(&cfg, &inputs, &clean_plan, cfg.gnss.policy).map_err(process_error)?;
@@ -816,6 +821,7 @@ pub fn process(
             "sigma_e [m]",
             "sigma_d [m]",
             "nis",
+            "delta (Cramér–Rao convergence of the instruments)",
             "innovation_n [m]",
             "innovation_e [m]",
             "innovation_d [m]",
@@ -838,6 +844,7 @@ pub fn process(
                 e.sigma.y,
                 e.sigma.z,
                 e.nis,
+                e.convergence,
                 e.innovation.x,
                 e.innovation.y,
                 e.innovation.z,
@@ -1143,6 +1150,19 @@ pub fn process(
         gnss_epochs: inputs.gnss.len(),
         policy: cfg.gnss.policy,
         tracking_rms_m: tracking_rms(&inputs.gnss, &clean),
+        instrument_convergence_s: if cfg.filter.convergence_monitor {
+            [0.03, 0.01]
+                .into_iter()
+                .zip(crate::process::convergence_times(
+                    &inputs.gnss,
+                    &clean,
+                    &[0.03, 0.01],
+                    15.0,
+                ))
+                .collect()
+        } else {
+            Vec::new()
+        },
         tracking_smoothed_rms_m: (!smoothed.is_empty())
             .then(|| tracking_rms(&inputs.gnss, &smoothed)),
         outages_smoothed,

@@ -252,6 +252,13 @@ pub enum Feedback {
 pub struct FilterConfig {
     /// `closed` (default) or `open`. Open loop cannot be smoothed.
     pub feedback: Feedback,
+    /// Run spec 10's Cramér–Rao convergence measure δ(n) on the instrument
+    /// states (a Fisher recursion beside the filter, +0.2 s per pass on the
+    /// drive) and report when the rule declares them converged. Note that
+    /// the bound assumes constant instrument errors; with Gauss–Markov
+    /// instruments (Q > 0) P_M stays above it and δ rises late in a log.
+    /// Default false.
+    pub convergence_monitor: bool,
 }
 
 /// Outputs.
@@ -597,6 +604,8 @@ pub struct RunPlan {
     /// Keep the forward pass and add the RTS-smoothed antenna position to
     /// every epoch (not with `free_ins_in_windows`).
     pub smooth: bool,
+    /// Run the Cramér–Rao convergence monitor (δ(n) per epoch).
+    pub monitor: bool,
 }
 
 /// Measurement policy of a run.
@@ -658,6 +667,10 @@ pub struct Epoch {
     pub instruments: aidnav_ins::ned_filter::InstrumentEstimate,
     /// RTS-smoothed antenna position (runs with `RunPlan::smooth`).
     pub smoothed_antenna: Option<Geodetic>,
+    /// Spec 10's δ(n) on the instrument states (runs with
+    /// `RunPlan::monitor`; NaN otherwise or while the Fisher information is
+    /// singular).
+    pub convergence: f64,
     record_index: Option<usize>,
 }
 
@@ -704,6 +717,9 @@ pub fn run_filter(
         plan.smooth && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed;
     if smooth {
         filter.start_recording(MAX_RECORDED_EPOCHS);
+    }
+    if plan.monitor {
+        filter.start_convergence_monitor()?;
     }
     let mut position_policy = policy.policy();
     let mut velocity_policy = policy.policy();
@@ -764,6 +780,10 @@ pub fn run_filter(
             let g = &gnss[next];
             let (mut nis, mut outcome) = (f64::NAN, None);
             let mut innovation = Vector3::repeat(f64::NAN);
+            let mut convergence = f64::NAN;
+            if plan.monitor {
+                filter.begin_epoch()?;
+            }
             if !withheld(g.time_s) {
                 let mut fix = g.position;
                 if let Some(Some(o)) = plan.outliers.get(next) {
@@ -783,6 +803,9 @@ pub fn run_filter(
                     filter.update_velocity_with(&v, &sv, velocity_policy.as_mut())?;
                 }
             }
+            if plan.monitor {
+                convergence = filter.instrument_convergence().unwrap_or(f64::NAN);
+            }
             let reporting = match &free_ins {
                 Some(f) if in_window(g.time_s) => f,
                 _ => &filter,
@@ -801,6 +824,7 @@ pub fn run_filter(
                 outcome,
                 instruments: *reporting.instruments(),
                 smoothed_antenna: None,
+                convergence,
                 record_index: filter.recorded_epoch(),
             });
             next += 1;
@@ -915,6 +939,38 @@ pub fn tracking_rms(gnss: &[GnssFix], epochs: &[Epoch]) -> f64 {
                 )
             });
     (sum / n.max(1) as f64).sqrt()
+}
+
+/// Flight times (since the first epoch) at which spec 10's switch rule —
+/// δ(n) non-increasing for `falling_s`, then ≤ threshold for 5 epochs —
+/// declares the instrument errors converged, per threshold (None: never).
+pub fn convergence_times(
+    gnss: &[GnssFix],
+    epochs: &[Epoch],
+    thresholds: &[f64],
+    falling_s: f64,
+) -> Vec<Option<f64>> {
+    use aidnav_supervisors::convergence::{ConvergenceSwitch, SwitchRule};
+    let Some(t0) = epochs.first().map(|e| gnss[e.index].time_s) else {
+        return vec![None; thresholds.len()];
+    };
+    thresholds
+        .iter()
+        .map(|&threshold| {
+            let mut switch = ConvergenceSwitch::new(SwitchRule {
+                threshold,
+                falling_s,
+                ..SwitchRule::default()
+            });
+            epochs
+                .iter()
+                .filter(|e| e.convergence.is_finite())
+                .find_map(|e| {
+                    let t = gnss[e.index].time_s - t0;
+                    switch.observe(t, e.convergence).then_some(t)
+                })
+        })
+        .collect()
 }
 
 /// RMS 3-D error over the RTK-fixed epochs where GNSS was used (not

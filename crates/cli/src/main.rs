@@ -372,6 +372,23 @@ fn run_process(a: ProcessArgs) -> Result<()> {
         r.tracking_rms_m,
         outcomes.join(", ")
     );
+    let conv: Vec<String> = r
+        .instrument_convergence_s
+        .iter()
+        .map(|(thr, t)| {
+            format!(
+                "δ ≤ {:.0} %: {}",
+                thr * 100.0,
+                t.map_or("never".into(), |t| format!("{t:.1} s"))
+            )
+        })
+        .collect();
+    if !conv.is_empty() {
+        println!(
+            "instrument errors converged (spec 10's Cramér–Rao rule, after the first fix): {}",
+            conv.join(", ")
+        );
+    }
     if let Some(s) = r.tracking_smoothed_rms_m {
         println!("RTS-smoothed: RMS 3-D antenna error over RTK-fixed epochs {s:.4} m");
     }

@@ -508,6 +508,7 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
             "attitude_deg = [0.0, 0.0, 90.0]",
         )
         .replace("kf_gins_text = false", "kf_gins_text = true")
+        .replace("convergence_monitor = false", "convergence_monitor = true")
         .replace("smooth = true ", "smooth = false ");
     let c = dir.path().join("c.toml");
     std::fs::write(&c, config).unwrap();
@@ -528,4 +529,12 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
     assert!(!out.join("smoothed.csv").exists());
     let summary = read_summary(&out);
     assert_eq!(summary["scenario"]["initial"]["attitude_deg"][2], 90.0);
+    // The monitor reports one entry per threshold (3 %, 1 %).
+    assert_eq!(
+        summary["result"]["instrument_convergence_s"]
+            .as_array()
+            .unwrap()
+            .len(),
+        2
+    );
 }

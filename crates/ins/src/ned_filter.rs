@@ -6,7 +6,8 @@
 //! any measurement policy of the engine on each update.
 
 use aidnav_estimation::{
-    AcceptAll, EstimationError, FixedKalmanFilter, ForwardEpoch, MeasurementPolicy, UpdateRecord,
+    AcceptAll, EstimationError, FisherInformation, FixedKalmanFilter, ForwardEpoch,
+    MeasurementPolicy, Outcome, UpdateRecord,
     nalgebra::{Const, U3},
     rts_smooth,
 };
@@ -83,6 +84,18 @@ pub struct NedFilter {
     covariance_interval_s: f64,
     record: Option<ForwardRecord>,
     open_loop: bool,
+    monitor: Option<ConvergenceMonitor>,
+}
+
+/// Spec 10's Cramér–Rao convergence measure on the instrument states:
+/// the Fisher information without process noise, propagated and updated
+/// alongside the filter, and the prior variances that make the 12
+/// instrument states (four units) comparable.
+#[derive(Debug, Clone)]
+struct ConvergenceMonitor {
+    fisher: FisherInformation<Const<STATES>>,
+    prior: Vector21,
+    before: f64,
 }
 
 impl NedFilter {
@@ -108,6 +121,7 @@ impl NedFilter {
             covariance_interval_s: 0.05,
             record: None,
             open_loop: false,
+            monitor: None,
         })
     }
 
@@ -218,6 +232,9 @@ impl NedFilter {
         self.pending_angle = Vector3::zeros();
         self.pending_dt = 0.0;
         self.kf.predict(&phi, &q)?;
+        if let Some(m) = self.monitor.as_mut() {
+            m.fisher.propagate(&phi)?;
+        }
         let (p, state) = (*self.kf.covariance(), *self.ins.state());
         if let Some(r) = self.record.as_mut() {
             if r.epochs.len() >= r.max_epochs {
@@ -288,6 +305,68 @@ impl NedFilter {
         state.position.offset_by(&(state.attitude * self.lever_arm))
     }
 
+    /// Start the Cramér–Rao convergence monitor of the instrument states
+    /// (spec 10's δ(n), see [`instrument_convergence`](Self::instrument_convergence)).
+    pub fn start_convergence_monitor(&mut self) -> Result<(), EstimationError> {
+        let p = *self.kf.covariance();
+        self.monitor = Some(ConvergenceMonitor {
+            fisher: FisherInformation::from_prior_covariance(&p)?,
+            prior: p.diagonal(),
+            before: 0.0,
+        });
+        Ok(())
+    }
+
+    /// Normalised trace of the instrument block of P.
+    fn instrument_trace(&self, p: &SMatrix<f64, STATES, STATES>) -> f64 {
+        self.monitor.as_ref().map_or(0.0, |m| {
+            (GYRO_BIAS..STATES).map(|i| p[(i, i)] / m.prior[i]).sum()
+        })
+    }
+
+    /// Mark the start of an epoch's updates (the δ numerator is the drop of
+    /// the instrument trace from here to [`instrument_convergence`](Self::instrument_convergence)).
+    pub fn begin_epoch(&mut self) -> Result<(), EstimationError> {
+        self.flush_covariance()?;
+        let before = self.instrument_trace(self.kf.covariance());
+        if let Some(m) = self.monitor.as_mut() {
+            m.before = before;
+        }
+        Ok(())
+    }
+
+    /// δ(n) of spec 10 for the instrument states since [`begin_epoch`](Self::begin_epoch):
+    /// the reduction of tr P_M by this epoch's updates over tr P_Γ,M, each
+    /// instrument state in units of its prior variance (the 12 states have
+    /// four units). None without a monitor or while the Fisher information
+    /// is still singular.
+    pub fn instrument_convergence(&self) -> Option<f64> {
+        let m = self.monitor.as_ref()?;
+        let bound = m.fisher.cramer_rao_bound().ok()?;
+        let after = self.instrument_trace(self.kf.covariance());
+        let bound_trace: f64 = (GYRO_BIAS..STATES)
+            .map(|i| bound[(i, i)] / m.prior[i])
+            .sum();
+        Some((m.before - after) / bound_trace)
+    }
+
+    fn add_information<M: nalgebra::Dim>(
+        &mut self,
+        h: &nalgebra::OMatrix<f64, M, Const<STATES>>,
+        r: &nalgebra::OMatrix<f64, M, M>,
+        outcome: Outcome,
+    ) -> Result<(), EstimationError>
+    where
+        nalgebra::DefaultAllocator: aidnav_estimation::FilterAllocator<Const<STATES>, M>,
+    {
+        if let Some(m) = self.monitor.as_mut()
+            && outcome != Outcome::Rejected
+        {
+            m.fisher.add_measurement(h, r)?;
+        }
+        Ok(())
+    }
+
     /// Interval of the covariance propagation [s] (default 0.05; 0: every sample).
     pub fn set_covariance_interval(&mut self, seconds: f64) {
         self.covariance_interval_s = seconds.max(0.0);
@@ -309,6 +388,7 @@ impl NedFilter {
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
         self.flush_covariance()?;
         let rec = self.kf.update_with(&z, &h, &r, policy)?;
+        self.add_information(&h, &r, rec.outcome)?;
         self.feedback()?;
         Ok(rec)
     }
@@ -337,6 +417,7 @@ impl NedFilter {
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
         self.flush_covariance()?;
         let rec = self.kf.update_with(&z, &h, &r, policy)?;
+        self.add_information(&h, &r, rec.outcome)?;
         self.feedback()?;
         Ok(rec)
     }
@@ -352,6 +433,7 @@ impl NedFilter {
         let h = NedErrorModel::non_holonomic_measurement(&c, &s.velocity);
         let r = nalgebra::Matrix2::identity() * (sigma_mps * sigma_mps);
         self.kf.update(&z, &h, &r)?;
+        self.add_information(&h, &r, Outcome::Accepted)?;
         self.feedback()
     }
 
