@@ -57,22 +57,8 @@ fn process(c: &mut Criterion) {
     let dir = tempfile::tempdir().unwrap();
     g.bench_function("write_solution", |b| {
         b.iter(|| {
-            aidnav::io::writers::write_table(
-                &dir.path().join("solution.csv"),
-                &["t", "lat", "lon", "h", "vn", "ve", "vd"],
-                epochs.iter().map(|e| {
-                    vec![
-                        inputs.gnss[e.index].time_s,
-                        e.antenna.latitude_rad.to_degrees(),
-                        e.antenna.longitude_rad.to_degrees(),
-                        e.antenna.height_m,
-                        e.velocity.x,
-                        e.velocity.y,
-                        e.velocity.z,
-                    ]
-                }),
-            )
-            .unwrap()
+            aidnav::jobs::write_solution(&dir.path().join("solution.csv"), &inputs.gnss, &epochs)
+                .unwrap()
         })
     });
     g.finish();

@@ -50,6 +50,14 @@ pub enum JobError {
 /// Result alias of the jobs.
 pub type JobResult<T> = Result<T, JobError>;
 
+/// Wrap an engine error with what was being computed.
+fn estimation(context: &str) -> impl FnOnce(EstimationError) -> JobError + '_ {
+    move |source| JobError::Estimation {
+        context: context.into(),
+        source,
+    }
+}
+
 /// Memory the RTS smoother may use for the stored forward pass before the job
 /// refuses (two n×n matrices and two n-vectors per epoch).
 pub const MAX_SMOOTHER_BYTES: usize = 4 << 30;
@@ -211,12 +219,8 @@ pub fn consistency(
     quiet: bool,
 ) -> JobResult<ConsistencyResult> {
     let mc = campaign(scenario.runs, scenario.seed, "consistency", quiet);
-    let result = aidnav_sim::experiments::consistency::run(scenario, &mc).map_err(|source| {
-        JobError::Estimation {
-            context: "consistency demo".into(),
-            source,
-        }
-    })?;
+    let result = aidnav_sim::experiments::consistency::run(scenario, &mc)
+        .map_err(estimation("consistency demo"))?;
     aidnav_io::writers::ensure_dir(out)?;
     let (lo, hi) = result.nees_epoch_bounds;
     let epochs = scenario.epochs;
@@ -296,12 +300,8 @@ pub fn anomalies(
     quiet: bool,
 ) -> JobResult<AnomaliesResult> {
     let mc = campaign(scenario.runs, scenario.seed, "anomalies", quiet);
-    let result = aidnav_sim::experiments::anomalies::run(scenario, &mc).map_err(|source| {
-        JobError::Estimation {
-            context: "anomalies experiment".into(),
-            source,
-        }
-    })?;
+    let result = aidnav_sim::experiments::anomalies::run(scenario, &mc)
+        .map_err(estimation("anomalies experiment"))?;
     aidnav_io::writers::ensure_dir(out)?;
     let ex = &result.example;
     let dt = scenario.platform.dt_s;
@@ -501,12 +501,8 @@ pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult
 /// `group_low`, `group_high`) into `out`.
 pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<GroupResult> {
     let mc = campaign(scenario.runs, scenario.seed, "group", quiet);
-    let result = aidnav_sim::experiments::group::run(scenario, &mc).map_err(|source| {
-        JobError::Estimation {
-            context: "group experiment".into(),
-            source,
-        }
-    })?;
+    let result = aidnav_sim::experiments::group::run(scenario, &mc)
+        .map_err(estimation("group experiment"))?;
     aidnav_io::writers::ensure_dir(out)?;
     let dt = scenario.single.dt_s;
     let mut header = vec!["time [s]".to_string()];
@@ -592,12 +588,8 @@ pub fn formation(
     quiet: bool,
 ) -> JobResult<FormationResult> {
     let mc = campaign(scenario.runs, scenario.seed, "formation", quiet);
-    let result = aidnav_sim::experiments::formation::run(scenario, &mc).map_err(|source| {
-        JobError::Estimation {
-            context: "formation flight".into(),
-            source,
-        }
-    })?;
+    let result = aidnav_sim::experiments::formation::run(scenario, &mc)
+        .map_err(estimation("formation flight"))?;
     aidnav_io::writers::ensure_dir(out)?;
     let mut header = vec!["time [s]".to_string(), "member".to_string()];
     header.extend(SOLUTIONS.iter().map(|s| format!("{s}_position_error [m]")));
@@ -804,59 +796,7 @@ pub fn process(
     aidnav_io::writers::ensure_dir(out)?;
     let mut files = Vec::new();
     let solution = out.join("solution.csv");
-    write_table(
-        &solution,
-        &[
-            "time [s GPST since 1970]",
-            "latitude [deg]",
-            "longitude [deg]",
-            "height [m]",
-            "vn [m/s]",
-            "ve [m/s]",
-            "vd [m/s]",
-            "roll [deg]",
-            "pitch [deg]",
-            "yaw [deg]",
-            "sigma_n [m]",
-            "sigma_e [m]",
-            "sigma_d [m]",
-            "nis",
-            "delta (Cramér–Rao convergence of the instruments)",
-            "innovation_n [m]",
-            "innovation_e [m]",
-            "innovation_d [m]",
-            "outcome (1 accepted, 2 limited, 3 rejected, 0 none)",
-        ],
-        clean.iter().map(|e| {
-            let (r, p, y) = e.attitude.euler_angles();
-            vec![
-                inputs.gnss[e.index].time_s,
-                e.antenna.latitude_rad.to_degrees(),
-                e.antenna.longitude_rad.to_degrees(),
-                e.antenna.height_m,
-                e.velocity.x,
-                e.velocity.y,
-                e.velocity.z,
-                r.to_degrees(),
-                p.to_degrees(),
-                y.to_degrees(),
-                e.sigma.x,
-                e.sigma.y,
-                e.sigma.z,
-                e.nis,
-                e.convergence,
-                e.innovation.x,
-                e.innovation.y,
-                e.innovation.z,
-                match e.outcome {
-                    Some(Outcome::Accepted) => 1.0,
-                    Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
-                    Some(Outcome::Rejected) => 3.0,
-                    _ => 0.0,
-                },
-            ]
-        }),
-    )?;
+    write_solution(&solution, &inputs.gnss, &clean)?;
     files.push(solution);
     if cfg.output.kf_gins_text {
         use std::fmt::Write as _;
@@ -1013,12 +953,15 @@ pub fn process(
             .iter()
             .flat_map(|&l| [(l, false), (l, true)])
             .collect();
-        let scored: Vec<(
+        // (L, free INS?, score, score of the smoothed solution, epochs)
+        type Scored = (
             f64,
             bool,
             crate::process::OutageScore,
+            Option<crate::process::OutageScore>,
             Vec<crate::process::Epoch>,
-        )> = plans
+        );
+        let scored: Vec<Scored> = plans
             .par_iter()
             .map(|&(l, free)| {
                 let windows = outage_windows(&cfg.score, first, last, l);
@@ -1029,17 +972,21 @@ pub fn process(
                     ..RunPlan::default()
                 };
                 let epochs = run_filter(&cfg, &inputs, &plan, cfg.gnss.policy)?;
+                let smoothed: Vec<crate::process::Epoch> =
+                    epochs.iter().filter_map(|e| e.smoothed()).collect();
                 Ok((
                     l,
                     free,
                     score_windows(&inputs.gnss, &epochs, &windows, l),
+                    (!smoothed.is_empty())
+                        .then(|| score_windows(&inputs.gnss, &smoothed, &windows, l)),
                     epochs,
                 ))
             })
             .collect::<Result<_, crate::process::ProcessError>>()
             .map_err(process_error)?;
         let mut drift_series = Vec::new();
-        for (i, (l, free, s, epochs)) in scored.into_iter().enumerate() {
+        for (i, (l, free, s, smoothed, epochs)) in scored.into_iter().enumerate() {
             if !free {
                 drift_series.push(Series {
                     label: format!("{l:.0} s outages"),
@@ -1068,12 +1015,7 @@ pub fn process(
                     style: LineStyle::Dashed,
                     color: i / 2,
                 });
-                let smoothed: Vec<crate::process::Epoch> =
-                    epochs.iter().filter_map(|e| e.smoothed()).collect();
-                if !smoothed.is_empty() {
-                    let windows = outage_windows(&cfg.score, first, last, l);
-                    outages_smoothed.push(score_windows(&inputs.gnss, &smoothed, &windows, l));
-                }
+                outages_smoothed.extend(smoothed);
                 outages.push(s);
             } else {
                 outages_free.push(s);
@@ -1183,13 +1125,73 @@ pub fn process(
     Ok(report)
 }
 
+/// Write `solution.csv`: per GNSS epoch the antenna position, NED velocity,
+/// attitude, σ, NIS, δ(n), innovation and update outcome.
+pub fn write_solution(
+    path: &Path,
+    gnss: &[aidnav_io::rtklib::GnssFix],
+    epochs: &[crate::process::Epoch],
+) -> JobResult<()> {
+    write_table(
+        path,
+        &[
+            "time [s GPST since 1970]",
+            "latitude [deg]",
+            "longitude [deg]",
+            "height [m]",
+            "vn [m/s]",
+            "ve [m/s]",
+            "vd [m/s]",
+            "roll [deg]",
+            "pitch [deg]",
+            "yaw [deg]",
+            "sigma_n [m]",
+            "sigma_e [m]",
+            "sigma_d [m]",
+            "nis",
+            "delta (Cramér–Rao convergence of the instruments)",
+            "innovation_n [m]",
+            "innovation_e [m]",
+            "innovation_d [m]",
+            "outcome (1 accepted, 2 limited, 3 rejected, 0 none)",
+        ],
+        epochs.iter().map(|e| {
+            let (r, p, y) = e.attitude.euler_angles();
+            vec![
+                gnss[e.index].time_s,
+                e.antenna.latitude_rad.to_degrees(),
+                e.antenna.longitude_rad.to_degrees(),
+                e.antenna.height_m,
+                e.velocity.x,
+                e.velocity.y,
+                e.velocity.z,
+                r.to_degrees(),
+                p.to_degrees(),
+                y.to_degrees(),
+                e.sigma.x,
+                e.sigma.y,
+                e.sigma.z,
+                e.nis,
+                e.convergence,
+                e.innovation.x,
+                e.innovation.y,
+                e.innovation.z,
+                match e.outcome {
+                    Some(Outcome::Accepted) => 1.0,
+                    Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
+                    Some(Outcome::Rejected) => 3.0,
+                    _ => 0.0,
+                },
+            ]
+        }),
+    )?;
+    Ok(())
+}
+
 fn process_error(e: crate::process::ProcessError) -> JobError {
     match e {
         crate::process::ProcessError::Io(io) => JobError::Io(io),
-        crate::process::ProcessError::Estimation(source) => JobError::Estimation {
-            context: "GNSS/INS filter".into(),
-            source,
-        },
+        crate::process::ProcessError::Estimation(source) => estimation("GNSS/INS filter")(source),
         crate::process::ProcessError::Data(m) => JobError::Refused(m),
     }
 }

@@ -56,10 +56,6 @@ pub struct ImuIncrement {
     pub delta_velocity: Vector3<f64>,
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
 /// Gravity vector in NED at a position.
 pub fn gravity_ned(p: &Geodetic) -> Vector3<f64> {
     Vector3::new(0.0, 0.0, normal_gravity(p.latitude_rad, p.height_m))
@@ -127,7 +123,7 @@ impl NedMechanization {
             let w_ie = earth_rate_ned(p_mid.latitude_rad);
             let w_en = transport_rate_ned(&p_mid, &v_mid);
             let zeta = (w_ie + w_en) * dt;
-            let dv_nav = (Matrix3::identity() - 0.5 * skew(&zeta)) * c_bn * dv_body;
+            let dv_nav = (Matrix3::identity() - 0.5 * zeta.cross_matrix()) * c_bn * dv_body;
             let dv_grav = (gravity_ned(&p_mid) - (2.0 * w_ie + w_en).cross(&v_mid)) * dt;
             velocity = old.velocity + dv_nav + dv_grav;
             position = Self::integrate_position(&old.position, &old.velocity, &velocity, dt);

@@ -47,6 +47,18 @@ impl InstrumentEstimate {
     }
 }
 
+/// A navigation state with an error estimate x removed: δr, δv subtracted,
+/// the attitude turned by φ (`C = (I + [φ×]) Ĉ`). Feedback, the open-loop
+/// output and the smoothed states all apply an estimate this way.
+fn corrected(state: &NedState, x: &Vector21) -> NedState {
+    let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
+    NedState {
+        position: state.position.offset_by(&-v3(POSITION)),
+        velocity: state.velocity - v3(VELOCITY),
+        attitude: UnitQuaternion::from_scaled_axis(v3(ATTITUDE)) * state.attitude,
+    }
+}
+
 /// Record of one GNSS update.
 pub type GnssUpdate = UpdateRecord<Const<STATES>, U3>;
 
@@ -148,13 +160,7 @@ impl NedFilter {
         if !self.open_loop {
             return s;
         }
-        let x = self.kf.state();
-        let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
-        NedState {
-            position: s.position.offset_by(&-v3(POSITION)),
-            velocity: s.velocity - v3(VELOCITY),
-            attitude: UnitQuaternion::from_scaled_axis(v3(ATTITUDE)) * s.attitude,
-        }
+        corrected(&s, self.kf.state())
     }
 
     /// The instrument corrections.
@@ -288,14 +294,7 @@ impl NedFilter {
             smoothed
                 .iter()
                 .zip(&r.states)
-                .map(|(e, s)| {
-                    let v3 = |o: usize| Vector3::new(e.x[o], e.x[o + 1], e.x[o + 2]);
-                    NedState {
-                        position: s.position.offset_by(&-v3(POSITION)),
-                        velocity: s.velocity - v3(VELOCITY),
-                        attitude: UnitQuaternion::from_scaled_axis(v3(ATTITUDE)) * s.attitude,
-                    }
-                })
+                .map(|(e, s)| corrected(s, &e.x))
                 .collect(),
         ))
     }
@@ -444,12 +443,7 @@ impl NedFilter {
         }
         let x = *self.kf.state();
         let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
-        let s = *self.ins.state();
-        self.ins.set_state(NedState {
-            position: s.position.offset_by(&-v3(POSITION)),
-            velocity: s.velocity - v3(VELOCITY),
-            attitude: UnitQuaternion::from_scaled_axis(v3(ATTITUDE)) * s.attitude,
-        });
+        self.ins.set_state(corrected(self.ins.state(), &x));
         self.instruments.gyro_bias += v3(GYRO_BIAS);
         self.instruments.accel_bias += v3(ACCEL_BIAS);
         self.instruments.gyro_scale += v3(GYRO_SCALE);

@@ -243,17 +243,15 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
         if let Some(prev) = fixes.last()
             && time_s <= prev.time_s
         {
-            {
-                return Err(data_error(
-                    path,
-                    line,
-                    "GPST",
-                    format!(
-                        "time {time_s:.3} s does not increase (previous epoch {:.3} s)",
-                        prev.time_s
-                    ),
-                ));
-            }
+            return Err(data_error(
+                path,
+                line,
+                "GPST",
+                format!(
+                    "time {time_s:.3} s does not increase (previous epoch {:.3} s)",
+                    prev.time_s
+                ),
+            ));
         }
         fixes.push(GnssFix {
             time_s,
@@ -406,17 +404,15 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
         if let Some(&(prev_line, _, prev_tick)) = raw.last()
             && v[6] <= prev_tick
         {
-            {
-                return Err(data_error(
-                    csv_path,
-                    line,
-                    "tick [ms]",
-                    format!(
-                        "tick {} does not increase (line {prev_line}: {prev_tick})",
-                        v[6]
-                    ),
-                ));
-            }
+            return Err(data_error(
+                csv_path,
+                line,
+                "tick [ms]",
+                format!(
+                    "tick {} does not increase (line {prev_line}: {prev_tick})",
+                    v[6]
+                ),
+            ));
         }
         raw.push((line, [v[0], v[1], v[2], v[3], v[4], v[5]], v[6]));
     }

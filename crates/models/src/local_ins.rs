@@ -137,10 +137,6 @@ pub struct LocalInsModel {
     pub gnss: GnssErrors,
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
 impl LocalInsModel {
     /// F of the continuous model at specific force `f_nav` (nav frame) and
     /// attitude `c_bn` (body → nav).
@@ -149,7 +145,7 @@ impl LocalInsModel {
         let i3 = Matrix3::identity();
         f.fixed_view_mut::<3, 3>(POSITION, VELOCITY).copy_from(&i3);
         f.fixed_view_mut::<3, 3>(VELOCITY, ATTITUDE)
-            .copy_from(&skew(f_nav));
+            .copy_from(&f_nav.cross_matrix());
         f.fixed_view_mut::<3, 3>(VELOCITY, ACCEL_BIAS)
             .copy_from(c_bn);
         f.fixed_view_mut::<3, 3>(ATTITUDE, GYRO_BIAS)

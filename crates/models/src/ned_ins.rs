@@ -117,10 +117,6 @@ pub struct NedErrorModel {
     pub noise: ImuNoise,
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
 impl NedErrorModel {
     /// F at attitude C_b^n, body specific force f^b and rate ω^b, Earth rate
     /// ω_ie and transport rate ω_en (NED), latitude-free gravity gradient at
@@ -138,13 +134,13 @@ impl NedErrorModel {
         let f_nav = c_bn * f_body;
         let w_in = w_ie + w_en;
         f.fixed_view_mut::<3, 3>(POSITION, POSITION)
-            .copy_from(&-skew(w_en));
+            .copy_from(&-w_en.cross_matrix());
         f.fixed_view_mut::<3, 3>(POSITION, VELOCITY)
             .copy_from(&Matrix3::identity());
         f.fixed_view_mut::<3, 3>(VELOCITY, VELOCITY)
-            .copy_from(&-skew(&(2.0 * w_ie + w_en)));
+            .copy_from(&-(2.0 * w_ie + w_en).cross_matrix());
         f.fixed_view_mut::<3, 3>(VELOCITY, ATTITUDE)
-            .copy_from(&skew(&f_nav));
+            .copy_from(&f_nav.cross_matrix());
         f.fixed_view_mut::<3, 3>(VELOCITY, ACCEL_BIAS)
             .copy_from(c_bn);
         f.fixed_view_mut::<3, 3>(VELOCITY, ACCEL_SCALE)
@@ -152,7 +148,7 @@ impl NedErrorModel {
         // Vertical channel: gravity grows as the INS sinks (δr_D > 0 ⇒ δg > 0).
         f[(VELOCITY + 2, POSITION + 2)] = 2.0 * 9.8 / 6.371e6;
         f.fixed_view_mut::<3, 3>(ATTITUDE, ATTITUDE)
-            .copy_from(&-skew(&w_in));
+            .copy_from(&-w_in.cross_matrix());
         f.fixed_view_mut::<3, 3>(ATTITUDE, GYRO_BIAS)
             .copy_from(&-c_bn);
         f.fixed_view_mut::<3, 3>(ATTITUDE, GYRO_SCALE)
@@ -220,7 +216,7 @@ impl NedErrorModel {
         h.fixed_view_mut::<3, 3>(0, POSITION)
             .copy_from(&Matrix3::identity());
         h.fixed_view_mut::<3, 3>(0, ATTITUDE)
-            .copy_from(&skew(lever_nav));
+            .copy_from(&lever_nav.cross_matrix());
         h
     }
 
@@ -233,7 +229,7 @@ impl NedErrorModel {
     ) -> SMatrix<f64, 2, STATES> {
         let ct = c_bn.transpose();
         let dv = ct;
-        let dphi = -(ct * skew(velocity));
+        let dphi = -(ct * velocity.cross_matrix());
         let mut h = SMatrix::<f64, 2, STATES>::zeros();
         for r in 0..2 {
             for c in 0..3 {
@@ -250,7 +246,7 @@ impl NedErrorModel {
         h.fixed_view_mut::<3, 3>(0, VELOCITY)
             .copy_from(&Matrix3::identity());
         h.fixed_view_mut::<3, 3>(0, ATTITUDE)
-            .copy_from(&skew(lever_velocity_nav));
+            .copy_from(&lever_velocity_nav.cross_matrix());
         h
     }
 }
@@ -311,7 +307,7 @@ mod tests {
         let v = c * Vector3::new(15.0, 0.0, 0.0);
         let phi = Vector3::new(2e-4, -1e-4, 3e-4);
         let dv = Vector3::new(0.02, -0.01, 0.03);
-        let c_hat = (Matrix3::identity() - skew(&phi)) * c;
+        let c_hat = (Matrix3::identity() - phi.cross_matrix()) * c;
         let body = c_hat.transpose() * (v + dv);
         let h = NedErrorModel::non_holonomic_measurement(&c_hat, &(v + dv));
         let mut x = Vector21::zeros();
@@ -328,7 +324,7 @@ mod tests {
         let c = nalgebra::Rotation3::from_euler_angles(0.1, 0.2, 1.0).into_inner();
         let l = Vector3::new(0.3, -0.05, -0.65);
         let phi = Vector3::new(1e-4, -2e-4, 3e-4);
-        let c_hat = (Matrix3::identity() - skew(&phi)) * c;
+        let c_hat = (Matrix3::identity() - phi.cross_matrix()) * c;
         let direct = c_hat * l - c * l;
         let h = NedErrorModel::position_measurement(&(c_hat * l));
         let mut x = Vector21::zeros();

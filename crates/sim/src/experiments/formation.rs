@@ -445,14 +445,10 @@ fn gauss3(rng: &mut RunRng, sigma: &Vector3<f64>) -> Vector3<f64> {
     )
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
 /// Covariance added to a line of sight `d` (nav frame) by the observer's
 /// attitude uncertainty: δd = d × ψ.
 fn attitude_covariance_on(d: &Vector3<f64>, p_psi: &Matrix3<f64>) -> Matrix3<f64> {
-    let s = skew(d);
+    let s = d.cross_matrix();
     s * p_psi * s.transpose()
 }
 
