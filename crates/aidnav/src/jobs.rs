@@ -746,6 +746,14 @@ pub struct ProcessReport {
     pub outages_smoothed: Vec<crate::process::OutageScore>,
     /// Outage scores of the free INS (raw IMU, no instrument correction).
     pub outages_free_ins: Vec<crate::process::OutageScore>,
+    /// Outage scores with spec 20's predictors bridging the windows (with
+    /// `outage_bridge.enabled`), per predictor.
+    pub outages_bridged: Vec<BridgedScores>,
+    /// Spec 20's efficiency criterion in the outage windows, per length.
+    pub efficiency: Vec<crate::process::EfficiencyScore>,
+    /// Fraction of the clean run's epochs at which K_eff > 1 (the
+    /// integrated solution is predicted better than GNSS).
+    pub k_eff_integrated_fraction: f64,
     /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
     pub anomalies: Vec<(f64, crate::process::PolicyName, f64)>,
     /// (policy, RMS 3-D error over the RTK-fixed epochs with GNSS) with the
@@ -757,6 +765,15 @@ pub struct ProcessReport {
     pub timing_s: [f64; 3],
     /// Files written.
     pub files: Vec<PathBuf>,
+}
+
+/// Outage scores of one bridging predictor.
+#[derive(Debug, Clone, Serialize)]
+pub struct BridgedScores {
+    /// The predictor.
+    pub predictor: aidnav_supervisors::outage::Predictor,
+    /// Per outage length, as the coasting filter's.
+    pub scores: Vec<crate::process::OutageScore>,
 }
 
 /// Run `aidnav process CONFIG.toml`: read the log named in the
@@ -944,6 +961,8 @@ pub fn process(
     let (mut outages, mut outages_free, mut anomalies) = (Vec::new(), Vec::new(), Vec::new());
     let mut outages_smoothed = Vec::new();
     let mut post_bursts = Vec::new();
+    let (mut outages_bridged, mut efficiency) = (Vec::new(), Vec::new());
+    let mut score_failures = Vec::new();
     if score {
         let first = inputs.imu[0].time_s;
         let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
@@ -969,6 +988,7 @@ pub fn process(
                     windows: windows.clone(),
                     free_ins_in_windows: free,
                     smooth: cfg.output.smooth,
+                    bridge: cfg.outage_bridge.enabled,
                     ..RunPlan::default()
                 };
                 let epochs = run_filter(&cfg, &inputs, &plan, cfg.gnss.policy)?;
@@ -986,8 +1006,29 @@ pub fn process(
             .collect::<Result<_, crate::process::ProcessError>>()
             .map_err(process_error)?;
         let mut drift_series = Vec::new();
+        if cfg.outage_bridge.enabled {
+            outages_bridged = crate::process::BRIDGE_PREDICTORS
+                .iter()
+                .map(|&predictor| BridgedScores {
+                    predictor,
+                    scores: Vec::new(),
+                })
+                .collect();
+        }
         for (i, (l, free, s, smoothed, epochs)) in scored.into_iter().enumerate() {
             if !free {
+                let windows = outage_windows(&cfg.score, first, last, l);
+                for (k, b) in outages_bridged.iter_mut().enumerate() {
+                    let bridged = crate::process::bridged_epochs(&epochs, k);
+                    b.scores
+                        .push(score_windows(&inputs.gnss, &bridged, &windows, l));
+                }
+                efficiency.push(crate::process::efficiency_in_windows(
+                    &inputs.gnss,
+                    &epochs,
+                    &windows,
+                    l,
+                ));
                 drift_series.push(Series {
                     label: format!("{l:.0} s outages"),
                     points: epochs
@@ -1030,18 +1071,24 @@ pub fn process(
         }
         .write_svg(&out.join("outage_drift.svg"))?;
         files.push(out.join("outage_drift.svg"));
-        let policies = [
-            PolicyName::Accept,
-            PolicyName::Chi2Gate,
-            PolicyName::RecoveringGate,
-            PolicyName::Huber,
-            PolicyName::Rejection,
-            PolicyName::Limiting,
-        ];
+        let policies = PolicyName::ALL;
         let mut cases: Vec<(f64, PolicyName)> = policies.iter().map(|&p| (0.0, p)).collect();
         for &f in &cfg.score.outlier_fractions {
             cases.extend(policies.iter().map(|&p| (f, p)));
         }
+        // A policy other than the configured one may make the filter fail
+        // on corrupted data (eq. 4's gain, say): that is a result of the
+        // table (NaN, and a warning saying why), not a reason to stop.
+        let failures = std::sync::Mutex::new(Vec::new());
+        let scored_or_nan = |what: String, run: Result<f64, crate::process::ProcessError>| {
+            run.unwrap_or_else(|e| {
+                failures
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .push(format!("{what}: {e}"));
+                f64::NAN
+            })
+        };
         anomalies = cases
             .par_iter()
             .map(|&(f, p)| {
@@ -1054,11 +1101,12 @@ pub fn process(
                     ),
                     ..RunPlan::default()
                 };
-                let epochs = run_filter(&cfg, &inputs, &plan, p)?;
-                Ok((f, p, tracking_rms(&inputs.gnss, &epochs)))
+                let run = run_filter(&cfg, &inputs, &plan, p)
+                    .map(|epochs| tracking_rms(&inputs.gnss, &epochs));
+                let what = format!("{:.0} % outliers, {}", 100.0 * f, p.name());
+                (f, p, scored_or_nan(what, run))
             })
-            .collect::<Result<_, crate::process::ProcessError>>()
-            .map_err(process_error)?;
+            .collect();
         if cfg.score.post_outage_burst_s > 0.0 {
             let windows = outage_windows(&cfg.score, first, last, 30.0);
             let bursts = crate::process::post_outage_bursts(
@@ -1071,20 +1119,27 @@ pub fn process(
             post_bursts = policies
                 .par_iter()
                 .map(|&p| {
-                    let run = |outliers: Vec<Option<nalgebra::Vector3<f64>>>| {
+                    let run = |outliers: Vec<Option<nalgebra::Vector3<f64>>>, what: &str| {
                         let plan = RunPlan {
                             windows: windows.clone(),
                             outliers,
                             ..RunPlan::default()
                         };
-                        run_filter(&cfg, &inputs, &plan, p)
-                            .map(|e| crate::process::tracking_rms_with_gnss(&inputs.gnss, &e))
+                        let run = run_filter(&cfg, &inputs, &plan, p)
+                            .map(|e| crate::process::tracking_rms_with_gnss(&inputs.gnss, &e));
+                        scored_or_nan(format!("30 s outages {what}, {}", p.name()), run)
                     };
-                    Ok((p, run(bursts.clone())?, run(Vec::new())?))
+                    (
+                        p,
+                        run(bursts.clone(), "with bursts"),
+                        run(Vec::new(), "without bursts"),
+                    )
                 })
-                .collect::<Result<_, crate::process::ProcessError>>()
-                .map_err(process_error)?;
+                .collect();
         }
+        score_failures = failures
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
     }
     let score_s = t_score.elapsed().as_secs_f64();
     let report = ProcessReport {
@@ -1112,8 +1167,17 @@ pub fn process(
         outcomes,
         outages,
         outages_free_ins: outages_free,
+        outages_bridged,
+        efficiency,
+        k_eff_integrated_fraction: clean.iter().filter(|e| e.k_eff > 1.0).count() as f64
+            / clean.len().max(1) as f64,
         anomalies,
-        warnings: inputs.warnings.clone(),
+        warnings: inputs
+            .warnings
+            .iter()
+            .cloned()
+            .chain(score_failures)
+            .collect(),
         timing_s: [read_s, run_s, score_s],
         files: files.clone(),
     };
@@ -1150,6 +1214,7 @@ pub fn write_solution(
             "sigma_d [m]",
             "nis",
             "delta (Cramér–Rao convergence of the instruments)",
+            "k_eff (sigma_gnss / sigma_filter, 3-D)",
             "innovation_n [m]",
             "innovation_e [m]",
             "innovation_d [m]",
@@ -1173,6 +1238,7 @@ pub fn write_solution(
                 e.sigma.z,
                 e.nis,
                 e.convergence,
+                e.k_eff,
                 e.innovation.x,
                 e.innovation.y,
                 e.innovation.z,

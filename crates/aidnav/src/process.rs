@@ -16,7 +16,10 @@ use std::path::{Path, PathBuf};
 
 use aidnav_estimation::{
     AcceptAll, Chi2Gate, EstimationError, Huber, MeasurementPolicy, Outcome, RecoveringChi2Gate,
-    adaptive::{AnomalyDetector, Limiting, Rejection},
+    adaptive::{
+        AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain, Limiting, Rejection,
+    },
+    gmdh::GmdhConfig,
     nalgebra::U3,
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned};
@@ -28,6 +31,7 @@ use aidnav_models::ned_ins::{
     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, VELOCITY,
     Vector21,
 };
+use aidnav_supervisors::outage::{BridgeConfig, OutageBridge, Predictor, RelaySchedule};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -155,8 +159,18 @@ pub struct GnssConfig {
     /// `limiting` (spec 20's detector with rejection or limiting). Default `accept`
     /// (as KF-GINS). Choose `huber` when the stream may hold outliers: on the
     /// recorded drive it costs about 1 cm on clean data and keeps 5–50 m
-    /// outliers on 30 % of the epochs to 8 cm (the anomaly table).
+    /// outliers on 30 % of the epochs to 8 cm (the anomaly table). Also
+    /// `adaptive_gain` (spec 20 eq. 4), `limited_adaptive_gain` (eq. 4 + 5 +
+    /// 8) and `developed` (eq. 9: limiting with the eq. 3 adaptive noise,
+    /// guarded by the detector).
     pub policy: PolicyName,
+    /// Anomaly level γ of spec 20's detector (eq. 5: νᵀν > γ tr S) in
+    /// `rejection`, `limiting`, `limited_adaptive_gain`, `developed` and the
+    /// adaptive noise's guard. Default 9.
+    pub anomaly_gamma: f64,
+    /// Innovations in eq. 4's sliding window (`adaptive_gain`,
+    /// `limited_adaptive_gain`). Default 20 (5 s at 4 Hz).
+    pub adaptive_window: usize,
 }
 
 /// Vehicle constraints.
@@ -194,6 +208,8 @@ impl Default for GnssConfig {
             min_position_sigma_m: 0.01,
             min_velocity_sigma_mps: 0.02,
             policy: PolicyName::Accept,
+            anomaly_gamma: 9.0,
+            adaptive_window: 20,
         }
     }
 }
@@ -247,7 +263,7 @@ pub enum Feedback {
 }
 
 /// The filter.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FilterConfig {
     /// `closed` (default) or `open`. Open loop cannot be smoothed.
@@ -259,6 +275,118 @@ pub struct FilterConfig {
     /// instruments (Q > 0) P_M stays above it and δ rises late in a log.
     /// Default false.
     pub convergence_monitor: bool,
+    /// Spec 20 eq. 3's adaptive process noise on the position updates:
+    /// `off`, `hard` (the term `K_{k−1} ν_k ν_kᵀ K_{k−1}ᵀ` of each epoch, as
+    /// the paper has it) or `averaged` (its mean over the last
+    /// `adaptive_noise_window` normal epochs, Mohamed–Schwarz). It is added
+    /// to the model's Q: replacing Q, as the paper does on its 3-state
+    /// model, leaves this 21-state P rank-deficient within seconds. An
+    /// anomalous ν (the eq. 5 detector with `gnss.anomaly_gamma`) feeds the
+    /// mean term of the last normal epochs instead; the first fix after an
+    /// outage feeds nothing (the gain of an epoch without a fix is zero).
+    /// Default `off` (`developed` uses `hard` unless this says otherwise).
+    pub adaptive_noise: AdaptiveNoise,
+    /// Window of the averaged term and of the guard's mean. Default 10.
+    pub adaptive_noise_window: usize,
+}
+
+impl Default for FilterConfig {
+    fn default() -> Self {
+        Self {
+            feedback: Feedback::Closed,
+            convergence_monitor: false,
+            adaptive_noise: AdaptiveNoise::Off,
+            adaptive_noise_window: 10,
+        }
+    }
+}
+
+/// Spec 20 eq. 3 on the NED filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AdaptiveNoise {
+    /// The model's Q only.
+    #[default]
+    Off,
+    /// Plus each epoch's K ν νᵀ Kᵀ (eq. 3's hard feedback).
+    Hard,
+    /// Plus its mean over the last window of normal epochs.
+    Averaged,
+}
+
+/// Outage bridging (spec 20's predictors on real data). In closed loop the
+/// filter's estimates are fed back and reset, so the series the predictors
+/// extrapolate is the *accumulated GNSS correction* of position and
+/// velocity (NED): what the INS needed, per axis, up to the outage. In an
+/// outage each predictor continues it from the outage start; the bridged
+/// output is the coasting filter's minus the predicted position increment
+/// plus the integral of the predicted velocity increment. (Holding the last
+/// estimate adds nothing in closed loop: that is the coasting filter, the
+/// a-priori model predictor.)
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutageBridgeConfig {
+    /// Score the bridged outputs in `aidnav process`'s outage table. Default true.
+    pub enabled: bool,
+    /// History of the trend [s]. Default 30.
+    pub trend_window_s: f64,
+    /// History of the self-organising model [s]. Default 60.
+    pub model_window_s: f64,
+    /// Every n-th epoch of the model history is used. Default 2.
+    pub model_decimation: usize,
+    /// Relay switch ages [s] (hold, trend, combined trend, model). Default
+    /// 1 / 10 / 30 s: a car's outage of a minute is "long".
+    pub relay: RelaySchedule,
+    /// Model selection (candidates, split). Default polynomials up to t²
+    /// (no harmonics: a minute holds no Schuler period).
+    pub gmdh: GmdhConfig,
+}
+
+impl Default for OutageBridgeConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            trend_window_s: 30.0,
+            model_window_s: 60.0,
+            model_decimation: 2,
+            relay: RelaySchedule {
+                t1_s: 1.0,
+                t2_s: 10.0,
+                t3_s: 30.0,
+            },
+            gmdh: GmdhConfig::default(),
+        }
+    }
+}
+
+impl OutageBridgeConfig {
+    fn bridge(&self) -> BridgeConfig {
+        BridgeConfig {
+            trend_window_s: self.trend_window_s,
+            model_window_s: self.model_window_s,
+            model_decimation: self.model_decimation,
+            relay: self.relay,
+            gmdh: self.gmdh.clone(),
+        }
+    }
+}
+
+/// The predictors scored, in the order of [`Epoch::bridged`].
+pub const BRIDGE_PREDICTORS: [Predictor; 4] = [
+    Predictor::Trend,
+    Predictor::CombinedTrend,
+    Predictor::Gmdh,
+    Predictor::Relay,
+];
+
+/// Spec 20's efficiency criterion K_eff = σ_GNSS / σ_KOI on the 3-D antenna
+/// position.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EfficiencyConfig {
+    /// σ_GNSS, prior data [m, 3-D]. Default none: each fix's own σ (with
+    /// the `gnss` floors) — in an outage the withheld fix's.
+    pub sigma_gnss_m: Option<f64>,
 }
 
 /// Outputs.
@@ -304,6 +432,12 @@ pub struct ProcessConfig {
     /// The filter.
     #[serde(default)]
     pub filter: FilterConfig,
+    /// Outage bridging by spec 20's predictors.
+    #[serde(default)]
+    pub outage_bridge: OutageBridgeConfig,
+    /// Spec 20's efficiency criterion.
+    #[serde(default)]
+    pub efficiency: EfficiencyConfig,
     /// Scoring.
     #[serde(default)]
     pub score: ScoreConfig,
@@ -353,6 +487,39 @@ impl Validate for ProcessConfig {
                 ("min_velocity_sigma_mps", self.gnss.min_velocity_sigma_mps),
             ],
         )?;
+        in_range("anomaly_gamma", self.gnss.anomaly_gamma, 1.0, 1e4)
+            .map_err(|e| e.within("gnss"))?;
+        count_in_range("adaptive_window", self.gnss.adaptive_window, 1, 10_000)
+            .map_err(|e| e.within("gnss"))?;
+        count_in_range(
+            "adaptive_noise_window",
+            self.filter.adaptive_noise_window,
+            1,
+            10_000,
+        )
+        .map_err(|e| e.within("filter"))?;
+        let b = &self.outage_bridge;
+        all_positive(
+            "outage_bridge",
+            &[
+                ("trend_window_s", b.trend_window_s),
+                ("model_window_s", b.model_window_s),
+                ("relay.t1_s", b.relay.t1_s),
+            ],
+        )?;
+        if !(b.relay.t1_s < b.relay.t2_s && b.relay.t2_s < b.relay.t3_s && b.relay.t3_s.is_finite())
+        {
+            return Err(Invalid::new(
+                "outage_bridge.relay",
+                format!("[{}, {}, {}]", b.relay.t1_s, b.relay.t2_s, b.relay.t3_s),
+                "0 < t1_s < t2_s < t3_s",
+            ));
+        }
+        count_in_range("model_decimation", b.model_decimation, 1, 1000)
+            .map_err(|e| e.within("outage_bridge"))?;
+        if let Some(sg) = self.efficiency.sigma_gnss_m {
+            all_positive("efficiency", &[("sigma_gnss_m", sg)])?;
+        }
         count_in_range("outages_s", self.score.outages_s.len(), 0, 10)
             .map_err(|e| e.within("score"))?;
         for l in &self.score.outages_s {
@@ -606,6 +773,9 @@ pub struct RunPlan {
     pub smooth: bool,
     /// Run the Cramér–Rao convergence monitor (δ(n) per epoch).
     pub monitor: bool,
+    /// Bridge the withheld windows with spec 20's predictors
+    /// ([`Epoch::bridged`]; closed loop, not with `free_ins_in_windows`).
+    pub bridge: bool,
 }
 
 /// Measurement policy of a run.
@@ -625,22 +795,60 @@ pub enum PolicyName {
     /// Spec 20 eq. 5 detector with eq. 8 limiting (the innovation clipped to
     /// the gate, its direction kept).
     Limiting,
+    /// Spec 20 eq. 4: the gain from the empirical innovation covariance of
+    /// the last `gnss.adaptive_window` epochs when it exceeds the model's.
+    AdaptiveGain,
+    /// Eq. 4's gain with the eq. 5 detector and eq. 8 limiting.
+    LimitedAdaptiveGain,
+    /// Spec 20 eq. 9, the developed algorithm: eq. 8 limiting with the eq. 3
+    /// adaptive process noise (`filter.adaptive_noise`, `hard` when that is
+    /// `off`), the noise fed by normal innovations only.
+    Developed,
 }
 
 impl PolicyName {
-    fn policy(self) -> Box<dyn MeasurementPolicy<U3>> {
+    /// Every policy, in the order of the anomaly table.
+    pub const ALL: [PolicyName; 9] = [
+        PolicyName::Accept,
+        PolicyName::Chi2Gate,
+        PolicyName::RecoveringGate,
+        PolicyName::Huber,
+        PolicyName::Rejection,
+        PolicyName::Limiting,
+        PolicyName::AdaptiveGain,
+        PolicyName::LimitedAdaptiveGain,
+        PolicyName::Developed,
+    ];
+
+    fn policy(self, gnss: &GnssConfig) -> Box<dyn MeasurementPolicy<U3>> {
+        let detector = AnomalyDetector {
+            gamma: gnss.anomaly_gamma,
+        };
+        let window = || {
+            AdaptiveGain::new(gnss.adaptive_window, DiagonalRule::All)
+                .unwrap_or_else(|| unreachable!("adaptive_window ≥ 1 is validated"))
+        };
         match self {
             PolicyName::Accept => Box::new(AcceptAll),
             PolicyName::Chi2Gate => Box::new(Chi2Gate { probability: 0.999 }),
             PolicyName::RecoveringGate => Box::new(RecoveringChi2Gate::new(0.999, 20)),
             PolicyName::Huber => Box::new(Huber { k: 1.345 }),
-            PolicyName::Rejection => Box::new(Rejection {
-                detector: AnomalyDetector { gamma: 9.0 },
-            }),
-            PolicyName::Limiting => Box::new(Limiting {
-                detector: AnomalyDetector { gamma: 9.0 },
+            PolicyName::Rejection => Box::new(Rejection { detector }),
+            PolicyName::Limiting | PolicyName::Developed => Box::new(Limiting { detector }),
+            PolicyName::AdaptiveGain => Box::new(window()),
+            PolicyName::LimitedAdaptiveGain => Box::new(LimitedAdaptiveGain {
+                gain: window(),
+                detector,
             }),
         }
+    }
+
+    /// The name in configuration files and tables.
+    pub fn name(self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default()
     }
 }
 
@@ -671,6 +879,12 @@ pub struct Epoch {
     /// `RunPlan::monitor`; NaN otherwise or while the Fisher information is
     /// singular).
     pub convergence: f64,
+    /// Spec 20's efficiency criterion K_eff = σ_GNSS / σ_KOI (3-D position);
+    /// above 1 the integrated solution is the better source.
+    pub k_eff: f64,
+    /// Inside an outage window of a run with `RunPlan::bridge`: the antenna
+    /// position bridged by each of [`BRIDGE_PREDICTORS`].
+    pub bridged: Option<[Geodetic; 4]>,
     record_index: Option<usize>,
 }
 
@@ -721,8 +935,24 @@ pub fn run_filter(
     if plan.monitor {
         filter.start_convergence_monitor()?;
     }
-    let mut position_policy = policy.policy();
-    let mut velocity_policy = policy.policy();
+    let adaptive = match (cfg.filter.adaptive_noise, policy) {
+        (AdaptiveNoise::Off, PolicyName::Developed) | (AdaptiveNoise::Hard, _) => Some(false),
+        (AdaptiveNoise::Averaged, _) => Some(true),
+        (AdaptiveNoise::Off, _) => None,
+    };
+    if let Some(average) = adaptive {
+        filter.set_adaptive_noise(
+            Some(cfg.gnss.anomaly_gamma),
+            cfg.filter.adaptive_noise_window,
+            average,
+        );
+    }
+    let mut position_policy = policy.policy(&cfg.gnss);
+    let mut velocity_policy = policy.policy(&cfg.gnss);
+    let bridging =
+        plan.bridge && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed;
+    let bridge_cfg = cfg.outage_bridge.bridge();
+    let mut bridge = BridgeState::default();
     let imu = &inputs.imu;
     let gnss = &inputs.gnss;
     let mut next = gnss
@@ -738,98 +968,131 @@ pub fn run_filter(
     let nhc = &cfg.constraints;
     let nhc_interval = 1.0 / nhc.non_holonomic_rate_hz;
     let mut next_nhc = imu[start].time_s + nhc_interval;
-    for k in start + 1..imu.len() {
-        let (a, b) = (&imu[k - 1], &imu[k]);
-        let mut t = a.time_s;
-        let (mut w0, mut f0) = (a.angular_rate, a.specific_force);
-        let dt_total = b.time_s - a.time_s;
-        loop {
-            let split = next < gnss.len() && gnss[next].time_s <= b.time_s;
-            let t_end = if split { gnss[next].time_s } else { b.time_s };
-            let frac = (t_end - a.time_s) / dt_total;
-            let w1 = a.angular_rate + (b.angular_rate - a.angular_rate) * frac;
-            let f1 = a.specific_force + (b.specific_force - a.specific_force) * frac;
-            let dt = t_end - t;
-            if dt > 0.0 {
-                let inc = ImuIncrement {
-                    dt_s: dt,
-                    delta_angle: (w0 + w1) * (0.5 * dt),
-                    delta_velocity: (f0 + f1) * (0.5 * dt),
+    // The time of the IMU sample being processed, for the error message.
+    let mut now = imu[start].time_s;
+    let pass = (|| -> Result<(), EstimationError> {
+        for k in start + 1..imu.len() {
+            let (a, b) = (&imu[k - 1], &imu[k]);
+            now = b.time_s;
+            let mut t = a.time_s;
+            let (mut w0, mut f0) = (a.angular_rate, a.specific_force);
+            let dt_total = b.time_s - a.time_s;
+            loop {
+                let split = next < gnss.len() && gnss[next].time_s <= b.time_s;
+                let t_end = if split { gnss[next].time_s } else { b.time_s };
+                let frac = (t_end - a.time_s) / dt_total;
+                let w1 = a.angular_rate + (b.angular_rate - a.angular_rate) * frac;
+                let f1 = a.specific_force + (b.specific_force - a.specific_force) * frac;
+                let dt = t_end - t;
+                if dt > 0.0 {
+                    let inc = ImuIncrement {
+                        dt_s: dt,
+                        delta_angle: (w0 + w1) * (0.5 * dt),
+                        delta_velocity: (f0 + f1) * (0.5 * dt),
+                    };
+                    if free && in_window(t_end) {
+                        free_ins
+                            .get_or_insert_with(|| filter.clone())
+                            .coast_uncorrected(&inc);
+                    } else if free {
+                        free_ins = None;
+                    }
+                    filter.propagate(&inc)?;
+                }
+                t = t_end;
+                w0 = w1;
+                f0 = f1;
+                if nhc.non_holonomic && t >= next_nhc {
+                    next_nhc += nhc_interval;
+                    if filter.state().velocity.norm() > nhc.min_speed_mps {
+                        filter.update_non_holonomic(nhc.non_holonomic_sigma_mps)?;
+                    }
+                }
+                if !split {
+                    break;
+                }
+                let g = &gnss[next];
+                let (mut nis, mut outcome) = (f64::NAN, None);
+                let mut innovation = Vector3::repeat(f64::NAN);
+                let mut convergence = f64::NAN;
+                if plan.monitor {
+                    filter.begin_epoch()?;
+                }
+                let fed_back_before = *filter.fed_back();
+                if !withheld(g.time_s) {
+                    let mut fix = g.position;
+                    if let Some(Some(o)) = plan.outliers.get(next) {
+                        fix = fix.offset_by(o);
+                    }
+                    let s = g.position_sigma_neu;
+                    let sigma =
+                        Vector3::new(s.x, s.y, s.z).map(|v| v.max(cfg.gnss.min_position_sigma_m));
+                    let rec =
+                        filter.update_position_with(&fix, &sigma, position_policy.as_mut())?;
+                    nis = rec.nis;
+                    outcome = Some(rec.outcome);
+                    innovation = rec.residual;
+                    if cfg.gnss.use_velocity
+                        && let (Some(v), Some(sv)) = (g.velocity_ned, g.velocity_sigma_neu)
+                    {
+                        let sv = sv.map(|x| x.max(cfg.gnss.min_velocity_sigma_mps));
+                        filter.update_velocity_with(&v, &sv, velocity_policy.as_mut())?;
+                    }
+                } else {
+                    filter.position_fix_missing()?;
+                }
+                if plan.monitor {
+                    convergence = filter.instrument_convergence().unwrap_or(f64::NAN);
+                }
+                let reporting = match &free_ins {
+                    Some(f) if in_window(g.time_s) => f,
+                    _ => &filter,
                 };
-                if free && in_window(t_end) {
-                    free_ins
-                        .get_or_insert_with(|| filter.clone())
-                        .coast_uncorrected(&inc);
-                } else if free {
-                    free_ins = None;
-                }
-                filter.propagate(&inc)?;
+                let (antenna, _) = reporting.antenna();
+                let s = reporting.sigmas();
+                let st = &reporting.solution();
+                let bridged = if !bridging {
+                    None
+                } else if withheld(g.time_s) {
+                    bridge.bridged(g.time_s, &antenna, &bridge_cfg)
+                } else {
+                    bridge.record(g.time_s, &(filter.fed_back() - fed_back_before));
+                    None
+                };
+                let sigma = Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]);
+                let sigma_gnss = cfg.efficiency.sigma_gnss_m.unwrap_or_else(|| {
+                    g.position_sigma_neu
+                        .map(|v| v.max(cfg.gnss.min_position_sigma_m))
+                        .norm()
+                });
+                epochs.push(Epoch {
+                    index: next,
+                    antenna,
+                    velocity: st.velocity,
+                    attitude: st.attitude,
+                    sigma,
+                    nis,
+                    innovation,
+                    outcome,
+                    instruments: *reporting.instruments(),
+                    smoothed_antenna: None,
+                    convergence,
+                    k_eff: aidnav_supervisors::efficiency::EfficiencyCriterion { sigma_gnss }
+                        .coefficient(sigma.norm()),
+                    bridged,
+                    record_index: filter.recorded_epoch(),
+                });
+                next += 1;
             }
-            t = t_end;
-            w0 = w1;
-            f0 = f1;
-            if nhc.non_holonomic && t >= next_nhc {
-                next_nhc += nhc_interval;
-                if filter.state().velocity.norm() > nhc.min_speed_mps {
-                    filter.update_non_holonomic(nhc.non_holonomic_sigma_mps)?;
-                }
-            }
-            if !split {
-                break;
-            }
-            let g = &gnss[next];
-            let (mut nis, mut outcome) = (f64::NAN, None);
-            let mut innovation = Vector3::repeat(f64::NAN);
-            let mut convergence = f64::NAN;
-            if plan.monitor {
-                filter.begin_epoch()?;
-            }
-            if !withheld(g.time_s) {
-                let mut fix = g.position;
-                if let Some(Some(o)) = plan.outliers.get(next) {
-                    fix = fix.offset_by(o);
-                }
-                let s = g.position_sigma_neu;
-                let sigma =
-                    Vector3::new(s.x, s.y, s.z).map(|v| v.max(cfg.gnss.min_position_sigma_m));
-                let rec = filter.update_position_with(&fix, &sigma, position_policy.as_mut())?;
-                nis = rec.nis;
-                outcome = Some(rec.outcome);
-                innovation = rec.residual;
-                if cfg.gnss.use_velocity
-                    && let (Some(v), Some(sv)) = (g.velocity_ned, g.velocity_sigma_neu)
-                {
-                    let sv = sv.map(|x| x.max(cfg.gnss.min_velocity_sigma_mps));
-                    filter.update_velocity_with(&v, &sv, velocity_policy.as_mut())?;
-                }
-            }
-            if plan.monitor {
-                convergence = filter.instrument_convergence().unwrap_or(f64::NAN);
-            }
-            let reporting = match &free_ins {
-                Some(f) if in_window(g.time_s) => f,
-                _ => &filter,
-            };
-            let (antenna, _) = reporting.antenna();
-            let s = reporting.sigmas();
-            let st = &reporting.solution();
-            epochs.push(Epoch {
-                index: next,
-                antenna,
-                velocity: st.velocity,
-                attitude: st.attitude,
-                sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
-                nis,
-                innovation,
-                outcome,
-                instruments: *reporting.instruments(),
-                smoothed_antenna: None,
-                convergence,
-                record_index: filter.recorded_epoch(),
-            });
-            next += 1;
         }
-    }
+        Ok(())
+    })();
+    pass.map_err(|e| {
+        ProcessError::Data(format!(
+            "the filter failed {:.2} s after the first IMU sample (t = {now:.3} s): {e}",
+            now - imu[0].time_s
+        ))
+    })?;
     if smooth {
         let states = filter.smoothed_states()?.ok_or_else(|| {
             ProcessError::Data(format!(
@@ -842,6 +1105,78 @@ pub fn run_filter(
         }
     }
     Ok(epochs)
+}
+
+/// The history of the accumulated GNSS corrections and, in an outage, the
+/// predictors built from it (see [`OutageBridgeConfig`]).
+#[derive(Debug, Default)]
+struct BridgeState {
+    /// Accumulated GNSS correction: position (NED, m), velocity (NED, m/s).
+    total: [f64; 6],
+    times: Vec<f64>,
+    history: [Vec<f64>; 6],
+    active: Option<ActiveBridge>,
+}
+
+/// The predictors of the current outage and the running integral of each
+/// one's predicted velocity increment.
+#[derive(Debug)]
+struct ActiveBridge {
+    /// Per channel (None: too little history to build the predictors).
+    channels: Option<Vec<OutageBridge>>,
+    last_t: f64,
+    last_dv: [Vector3<f64>; 4],
+    integral: [Vector3<f64>; 4],
+}
+
+impl BridgeState {
+    /// An epoch with GNSS: add its corrections (the estimate fed back by
+    /// its updates) to the history; any outage is over.
+    fn record(&mut self, t: f64, fed_back: &Vector21) {
+        self.active = None;
+        for (c, h) in self.history.iter_mut().enumerate() {
+            let i = if c < 3 {
+                POSITION + c
+            } else {
+                VELOCITY + c - 3
+            };
+            self.total[c] += fed_back[i];
+            h.push(self.total[c]);
+        }
+        self.times.push(t);
+    }
+
+    /// An epoch inside an outage: the antenna position each predictor
+    /// gives (None when the predictors could not be built).
+    fn bridged(&mut self, t: f64, antenna: &Geodetic, cfg: &BridgeConfig) -> Option<[Geodetic; 4]> {
+        let (times, history) = (&self.times, &self.history);
+        let active = self.active.get_or_insert_with(|| {
+            let channels = history
+                .iter()
+                .map(|h| OutageBridge::start(times, h, cfg).ok())
+                .collect::<Option<Vec<_>>>();
+            ActiveBridge {
+                channels,
+                last_t: times.last().copied().unwrap_or(t),
+                last_dv: [Vector3::zeros(); 4],
+                integral: [Vector3::zeros(); 4],
+            }
+        });
+        let channels = active.channels.as_ref()?;
+        let increment = |p: Predictor, c: usize| channels[c].predict_increment(p, t);
+        let mut out = [*antenna; 4];
+        for (k, &p) in BRIDGE_PREDICTORS.iter().enumerate() {
+            let dp = Vector3::new(increment(p, 0), increment(p, 1), increment(p, 2));
+            let dv = Vector3::new(increment(p, 3), increment(p, 4), increment(p, 5));
+            // Trapezoid over the epochs: the predicted velocity error
+            // integrates into position.
+            active.integral[k] += (active.last_dv[k] + dv) * (0.5 * (t - active.last_t));
+            active.last_dv[k] = dv;
+            out[k] = antenna.offset_by(&-(dp + active.integral[k]));
+        }
+        active.last_t = t;
+        Some(out)
+    }
 }
 
 /// Most covariance epochs a smoothing run keeps (≈ 4 GiB; about five hours
@@ -917,6 +1252,93 @@ pub fn score_windows(
         horizontal_m: rms(0),
         vertical_m: rms(1),
         three_d_m: rms(2),
+    }
+}
+
+/// The outage-window epochs with each epoch's antenna replaced by the
+/// position bridged by predictor `k` of [`BRIDGE_PREDICTORS`] (epochs
+/// without a bridge keep the coasting filter's).
+pub fn bridged_epochs(epochs: &[Epoch], k: usize) -> Vec<Epoch> {
+    epochs
+        .iter()
+        .map(|e| Epoch {
+            antenna: e.bridged.map_or(e.antenna, |b| b[k]),
+            ..*e
+        })
+        .collect()
+}
+
+/// Spec 20's efficiency criterion in the outage windows of one length:
+/// how long after GNSS is lost the filter still predicts itself better than
+/// GNSS (K_eff > 1), and how long its actual 3-D error stays below σ_GNSS.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EfficiencyScore {
+    /// L [s].
+    pub outage_s: f64,
+    /// Windows scored.
+    pub windows: usize,
+    /// Mean σ_GNSS over the windows' epochs [m].
+    pub sigma_gnss_m: f64,
+    /// Mean over windows of the outage age at which K_eff first falls below
+    /// 1 (windows where it never does count as L) [s].
+    pub predicted_crossing_s: f64,
+    /// Windows where it fell below 1.
+    pub predicted_crossed: usize,
+    /// Mean over windows of the age at which the actual 3-D error against
+    /// the RTK-fixed reference first exceeds σ_GNSS (censored at L) [s].
+    pub actual_crossing_s: f64,
+    /// Windows where it did.
+    pub actual_crossed: usize,
+}
+
+/// The efficiency criterion of a run with outage windows (see [`EfficiencyScore`]).
+pub fn efficiency_in_windows(
+    gnss: &[GnssFix],
+    epochs: &[Epoch],
+    windows: &[(f64, f64)],
+    length_s: f64,
+) -> EfficiencyScore {
+    let (mut n, mut sigma_sum, mut sigma_n) = (0usize, 0.0, 0usize);
+    let (mut predicted, mut actual) = ((0.0, 0usize), (0.0, 0usize));
+    for &(a, b) in windows {
+        let inside: Vec<&Epoch> = epochs
+            .iter()
+            .filter(|e| (a..b).contains(&gnss[e.index].time_s))
+            .collect();
+        if inside.is_empty() {
+            continue;
+        }
+        n += 1;
+        let age = |e: &Epoch| gnss[e.index].time_s - a;
+        let sigma_gnss = |e: &Epoch| e.k_eff * e.sigma.norm();
+        for e in &inside {
+            sigma_sum += sigma_gnss(e);
+            sigma_n += 1;
+        }
+        let first = |hit: &dyn Fn(&Epoch) -> bool| inside.iter().find(|e| hit(e)).map(|e| age(e));
+        for (acc, crossing) in [
+            (&mut predicted, first(&|e| e.k_eff < 1.0)),
+            (
+                &mut actual,
+                first(&|e| {
+                    is_reference(&gnss[e.index])
+                        && gnss[e.index].position.ned_to(&e.antenna).norm() > sigma_gnss(e)
+                }),
+            ),
+        ] {
+            acc.0 += crossing.unwrap_or(length_s);
+            acc.1 += usize::from(crossing.is_some());
+        }
+    }
+    let mean = |x: f64| x / n.max(1) as f64;
+    EfficiencyScore {
+        outage_s: length_s,
+        windows: n,
+        sigma_gnss_m: sigma_sum / sigma_n.max(1) as f64,
+        predicted_crossing_s: mean(predicted.0),
+        predicted_crossed: predicted.1,
+        actual_crossing_s: mean(actual.0),
+        actual_crossed: actual.1,
     }
 }
 
@@ -1029,4 +1451,73 @@ pub fn inject_outliers(
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A history whose velocity correction grows linearly (the INS kept
+    /// needing a = 0.01 m/s² of north correction) is bridged, by the trend,
+    /// with the position correction a τ²/2 — exactly, since the line fits
+    /// the history exactly and the trapezoid rule is exact for it; the relay
+    /// holds (no correction) up to T1, then follows the trend's increment.
+    #[test]
+    fn bridge_integrates_the_extrapolated_velocity_correction() {
+        let cfg = OutageBridgeConfig::default().bridge();
+        let (a, dt) = (0.01, 0.25);
+        let mut state = BridgeState::default();
+        for k in 0..400 {
+            let mut fed_back = Vector21::zeros();
+            if k > 0 {
+                fed_back[VELOCITY] = a * dt;
+            }
+            state.record(k as f64 * dt, &fed_back);
+        }
+        let t0 = 399.0 * dt;
+        let antenna = Geodetic {
+            latitude_rad: 0.5,
+            longitude_rad: 0.2,
+            height_m: 30.0,
+        };
+        for k in 1..=120 {
+            let tau = k as f64 * dt;
+            let bridged = state.bridged(t0 + tau, &antenna, &cfg).unwrap();
+            let north = |g: &Geodetic| antenna.ned_to(g).x;
+            let trend = north(&bridged[0]);
+            assert!(
+                (trend + 0.5 * a * tau * tau).abs() < 1e-6,
+                "τ = {tau}: {trend}"
+            );
+            let relay = north(&bridged[3]);
+            if tau <= cfg.relay.t1_s {
+                assert_eq!(relay, 0.0, "τ = {tau}");
+            } else if tau <= cfg.relay.t2_s {
+                // From T1 the relay's velocity increment is the trend's; its
+                // integral lacks the trend's first T1 seconds, less half a
+                // step's worth at the switch (the trapezoid spans the jump).
+                let lacking = 0.5 * a * cfg.relay.t1_s * cfg.relay.t1_s;
+                let d = relay - trend;
+                assert!(
+                    d >= lacking - 1e-6 && d <= lacking + 0.5 * a * cfg.relay.t1_s * dt + 1e-6,
+                    "τ = {tau}: {d} vs {lacking}"
+                );
+            }
+        }
+        // GNSS is back: the outage is over, the next one starts afresh.
+        state.record(t0 + 31.0, &Vector21::zeros());
+        assert!(state.active.is_none());
+    }
+
+    #[test]
+    fn policy_names_are_the_configuration_names() {
+        let names: Vec<String> = PolicyName::ALL.iter().map(|p| p.name()).collect();
+        assert_eq!(names[0], "accept");
+        assert_eq!(names[8], "developed");
+        for n in &names {
+            let p: PolicyName =
+                serde_json::from_value(serde_json::Value::String(n.clone())).unwrap();
+            assert_eq!(&p.name(), n);
+        }
+    }
 }

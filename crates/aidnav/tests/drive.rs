@@ -124,3 +124,61 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
     let last_b = b.last().unwrap().antenna;
     assert!(last_a.ned_to(&last_b).norm() < 0.05);
 }
+
+/// Spec 20's supervisors on the recorded drive: the outage predictors
+/// bridge every withheld epoch (the relay holds — adds nothing — up to T1),
+/// the efficiency criterion against a standalone receiver's σ says how long
+/// the coasting filter stays better than one, and eq. 3's adaptive noise
+/// tracks the RTK fixes more closely than the fixed model noise.
+#[test]
+fn supervisors_on_the_drive() {
+    use aidnav::process::{AdaptiveNoise, bridged_epochs, efficiency_in_windows};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let config = root.join("examples/drive_0708.toml");
+    let (mut cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
+    cfg.efficiency.sigma_gnss_m = Some(1.5);
+    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    let first = inputs.imu[0].time_s;
+    let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
+    let windows = outage_windows(&cfg.score, first, last, 30.0);
+    let plan = RunPlan {
+        windows: windows.clone(),
+        bridge: true,
+        ..RunPlan::default()
+    };
+    let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept).unwrap();
+    let inside = |t: f64| windows.iter().any(|&(a, b)| (a..b).contains(&t));
+    for e in &epochs {
+        let t = inputs.gnss[e.index].time_s;
+        assert_eq!(e.bridged.is_some(), inside(t), "t = {t}");
+        if let Some(b) = e.bridged {
+            let start = windows.iter().find(|w| (w.0..w.1).contains(&t)).unwrap().0;
+            // The last fix before the window is at most one epoch earlier.
+            if t - start + 0.25 < cfg.outage_bridge.relay.t1_s {
+                assert_eq!(b[3], e.antenna);
+            }
+        }
+    }
+    let coasting = score_windows(&inputs.gnss, &epochs, &windows, 30.0);
+    for k in 0..4 {
+        let s = score_windows(&inputs.gnss, &bridged_epochs(&epochs, k), &windows, 30.0);
+        assert_eq!(s.windows, coasting.windows);
+        assert!(s.three_d_m.is_finite() && s.three_d_m != coasting.three_d_m);
+    }
+    // Efficiency: K_eff starts above 1 in every window and falls below it
+    // within the 30 s; the actual error crosses 1.5 m in most windows too.
+    let eff = efficiency_in_windows(&inputs.gnss, &epochs, &windows, 30.0);
+    assert_eq!(eff.windows, 8);
+    assert!((eff.sigma_gnss_m - 1.5).abs() < 1e-12);
+    assert!(eff.predicted_crossed >= 6 && eff.predicted_crossing_s > 5.0);
+    assert!(eff.actual_crossed >= 6 && eff.actual_crossing_s > 5.0);
+    // Eq. 3: measured 0.025 m with the model's Q, 0.011 m with the term.
+    let clean = |cfg: &ProcessConfig| {
+        let e = run_filter(cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
+        tracking_rms(&inputs.gnss, &e)
+    };
+    let fixed = clean(&cfg);
+    cfg.filter.adaptive_noise = AdaptiveNoise::Hard;
+    let adaptive = clean(&cfg);
+    assert!(adaptive < 0.7 * fixed, "{adaptive} vs {fixed}");
+}

@@ -472,6 +472,29 @@ fn process_runs_the_recorded_drive_and_scores_it() {
             .unwrap()
             .is_empty()
     );
+    // Spec 20's supervisors: every predictor scored on every length, the
+    // efficiency criterion per length, K_eff per epoch in solution.csv.
+    let bridged = summary["result"]["outages_bridged"].as_array().unwrap();
+    let predictors: Vec<&str> = bridged
+        .iter()
+        .map(|b| b["predictor"].as_str().unwrap())
+        .collect();
+    assert_eq!(predictors, ["trend", "combined_trend", "gmdh", "relay"]);
+    for b in bridged {
+        assert_eq!(b["scores"].as_array().unwrap().len(), 3, "{b}");
+    }
+    let efficiency = summary["result"]["efficiency"].as_array().unwrap();
+    assert_eq!(efficiency.len(), 3);
+    assert_eq!(efficiency[1]["sigma_gnss_m"], 1.5);
+    let policies: Vec<&str> = summary["result"]["anomalies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a[1].as_str().unwrap())
+        .collect();
+    assert!(policies.contains(&"developed") && policies.contains(&"adaptive_gain"));
+    let solution = std::fs::read_to_string(dir.path().join("solution.csv")).unwrap();
+    assert!(solution.lines().next().unwrap().contains("k_eff"));
     for f in ["solution.csv", "trajectory.svg", "outage_drift.svg"] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }

@@ -13,6 +13,9 @@
 //! - [`innovation_feedback_q`] (eq. 3): the process-noise term `K ν νᵀ Kᵀ`
 //!   that replaces Q in the innovation-feedback adaptive filter; use it with
 //!   the split predict (`predict_state`, `innovation`, `predict_covariance`).
+//! - [`InnovationFeedbackNoise`] (eq. 3 with eq. 9's guard): that term from
+//!   the previous gain, and on anomalous innovations (or epochs without a
+//!   measurement) the mean of the terms of the last stable epochs instead.
 
 use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, allocator::Allocator};
 use serde::{Deserialize, Serialize};
@@ -251,4 +254,139 @@ where
     let mut q = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
     q.ger(1.0, &kv, &kv, 0.0);
     q
+}
+
+/// Spec 20 eq. 3's innovation-feedback process noise with eq. 9's guard:
+/// the term `K_{k−1} ν_k ν_kᵀ K_{k−1}ᵀ` while the innovations are normal; on
+/// an anomalous innovation (by the optional detector) or an epoch without a
+/// measurement, the mean of the terms of the last `stable_window` normal
+/// epochs, so a burst cannot inflate P. Feed it every update's gain with
+/// [`record_gain`](Self::record_gain). The ring is allocated once.
+///
+/// ```
+/// use aidnav_estimation::adaptive::InnovationFeedbackNoise;
+/// use aidnav_estimation::nalgebra::{Matrix1, Matrix2x1, Vector1};
+/// let mut q = InnovationFeedbackNoise::new(Matrix2x1::zeros(), None, 4).unwrap();
+/// q.record_gain(&Matrix2x1::new(0.5, 0.1));
+/// let term = q.process_noise(&Vector1::new(2.0), &Matrix1::new(1.0));
+/// assert!((term[(0, 0)] - 1.0).abs() < 1e-15); // (0.5 · 2)²
+/// assert!((term[(0, 1)] - 0.2).abs() < 1e-15); // (0.5 · 2)(0.1 · 2)
+/// ```
+#[derive(Debug, Clone)]
+pub struct InnovationFeedbackNoise<N: Dim, M: Dim>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    gain: OMatrix<f64, N, M>,
+    detector: Option<AnomalyDetector>,
+    stable: Vec<OMatrix<f64, N, N>>,
+    capacity: usize,
+    next: usize,
+    average: bool,
+}
+
+impl<N: Dim, M: Dim> InnovationFeedbackNoise<N, M>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    /// Start with a previous gain (zeros: no feedback until the first
+    /// update), an optional anomaly detector and a window of `stable_window
+    /// ≥ 1` stable terms (None when the window is 0).
+    pub fn new(
+        gain: OMatrix<f64, N, M>,
+        detector: Option<AnomalyDetector>,
+        stable_window: usize,
+    ) -> Option<Self> {
+        (stable_window >= 1).then(|| Self {
+            gain,
+            detector,
+            stable: Vec::with_capacity(stable_window),
+            capacity: stable_window,
+            next: 0,
+            average: false,
+        })
+    }
+
+    /// Return the mean of the last `stable_window` normal terms (this one
+    /// included) instead of the single term: the windowed estimate
+    /// `K (1/n Σ ν νᵀ) Kᵀ` of Mohamed and Schwarz (1999), smoother than
+    /// eq. 3's hard feedback when one large innovation meets a large gain
+    /// (the first fixes after an outage).
+    pub fn averaged(mut self, average: bool) -> Self {
+        self.average = average;
+        self
+    }
+
+    /// The gain of the last update (zero when it was rejected).
+    pub fn record_gain(&mut self, gain: &OMatrix<f64, N, M>) {
+        self.gain.copy_from(gain);
+    }
+
+    /// The process-noise term for an epoch with a measurement, from the
+    /// innovation ν of the predicted state and its covariance S. (For an
+    /// epoch without one use [`stable_mean`](Self::stable_mean).)
+    pub fn process_noise(
+        &mut self,
+        residual: &OVector<f64, M>,
+        s: &OMatrix<f64, M, M>,
+    ) -> OMatrix<f64, N, N> {
+        if self.detector.is_some_and(|d| d.exceeds(residual, s)) {
+            return self.stable_mean();
+        }
+        let q = innovation_feedback_q(&self.gain, residual);
+        if self.stable.len() < self.capacity {
+            self.stable.push(q.clone());
+        } else {
+            self.stable[self.next].copy_from(&q);
+        }
+        self.next = (self.next + 1) % self.capacity;
+        if self.average { self.stable_mean() } else { q }
+    }
+
+    /// Mean of the remembered stable terms (zero before the first).
+    pub fn stable_mean(&self) -> OMatrix<f64, N, N> {
+        let (nd, _) = self.gain.shape_generic();
+        let mut mean = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
+        for q in &self.stable {
+            mean += q;
+        }
+        if !self.stable.is_empty() {
+            mean /= self.stable.len() as f64;
+        }
+        mean
+    }
+}
+
+#[cfg(test)]
+mod feedback_tests {
+    use super::*;
+    use nalgebra::{Matrix1, Matrix2, Matrix2x1, Vector1};
+
+    #[test]
+    fn anomalies_and_missing_measurements_use_the_stable_mean() {
+        let detector = AnomalyDetector { gamma: 9.0 };
+        let mut q = InnovationFeedbackNoise::new(Matrix2x1::zeros(), Some(detector), 2).unwrap();
+        let s = Matrix1::new(1.0);
+        // Before any gain the term is zero.
+        assert_eq!(q.process_noise(&Vector1::new(1.0), &s), Matrix2::zeros());
+        q.record_gain(&Matrix2x1::new(1.0, 0.0));
+        let a = q.process_noise(&Vector1::new(1.0), &s);
+        let b = q.process_noise(&Vector1::new(2.0), &s);
+        assert_eq!((a[(0, 0)], b[(0, 0)]), (1.0, 4.0));
+        // The window holds the last two normal terms: (1 + 4) / 2 …
+        let outlier = q.process_noise(&Vector1::new(10.0), &s);
+        assert_eq!(outlier[(0, 0)], 2.5);
+        // … also when no measurement came.
+        assert_eq!(q.stable_mean()[(0, 0)], 2.5);
+        // A third normal term pushes the first out: (4 + 0.25) / 2.
+        q.process_noise(&Vector1::new(0.5), &s);
+        assert_eq!(q.stable_mean()[(0, 0)], 2.125);
+        assert!(InnovationFeedbackNoise::new(Matrix2x1::zeros(), None, 0).is_none());
+        // Averaged: the mean of the window, this term included.
+        let mut q = InnovationFeedbackNoise::new(Matrix2x1::new(1.0, 0.0), None, 2)
+            .unwrap()
+            .averaged(true);
+        q.process_noise(&Vector1::new(1.0), &s);
+        assert_eq!(q.process_noise(&Vector1::new(3.0), &s)[(0, 0)], 5.0);
+    }
 }

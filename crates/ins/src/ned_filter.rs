@@ -8,6 +8,7 @@
 use aidnav_estimation::{
     AcceptAll, EstimationError, FisherInformation, FixedKalmanFilter, ForwardEpoch,
     MeasurementPolicy, Outcome, UpdateRecord,
+    adaptive::{AnomalyDetector, InnovationFeedbackNoise},
     nalgebra::{Const, U3},
     rts_smooth,
 };
@@ -97,6 +98,8 @@ pub struct NedFilter {
     record: Option<ForwardRecord>,
     open_loop: bool,
     monitor: Option<ConvergenceMonitor>,
+    fed_back: Vector21,
+    adaptive: Option<InnovationFeedbackNoise<Const<STATES>, U3>>,
 }
 
 /// Spec 10's Cramér–Rao convergence measure on the instrument states:
@@ -134,6 +137,8 @@ impl NedFilter {
             record: None,
             open_loop: false,
             monitor: None,
+            fed_back: Vector21::zeros(),
+            adaptive: None,
         })
     }
 
@@ -366,6 +371,42 @@ impl NedFilter {
         Ok(())
     }
 
+    /// Spec 20 eq. 3's adaptive process noise on the GNSS position updates:
+    /// before each, `K_{k−1} ν_k ν_kᵀ K_{k−1}ᵀ` (previous position gain, this
+    /// innovation) is added to P on top of the model's Q — the mean over the
+    /// last `window` normal epochs when `average` (Mohamed–Schwarz), else
+    /// the single term (eq. 3's hard feedback). When the eq. 5 detector
+    /// (`gamma`) finds ν anomalous, the mean term of the last `window`
+    /// normal epochs is added instead (eq. 9's guard). (The paper's term
+    /// *replaces* Q; on this 21-state filter that leaves P rank-deficient
+    /// within seconds — three new directions per fix for 21 states — so it
+    /// is added here.)
+    pub fn set_adaptive_noise(&mut self, gamma: Option<f64>, window: usize, average: bool) {
+        self.adaptive = InnovationFeedbackNoise::new(
+            SMatrix::zeros(),
+            gamma.map(|gamma| AnomalyDetector { gamma }),
+            window.max(1),
+        )
+        .map(|noise| noise.averaged(average));
+    }
+
+    /// A GNSS epoch without a position fix (an outage): for the adaptive
+    /// noise the epoch's gain is zero, so the first fix after an outage
+    /// feeds nothing back.
+    pub fn position_fix_missing(&mut self) -> Result<(), EstimationError> {
+        if let Some(a) = self.adaptive.as_mut() {
+            a.record_gain(&SMatrix::zeros());
+        }
+        Ok(())
+    }
+
+    /// Sum of every error estimate fed back so far (closed loop): its
+    /// position and velocity parts are the corrections the INS has needed,
+    /// whose history the outage predictors extrapolate.
+    pub fn fed_back(&self) -> &Vector21 {
+        &self.fed_back
+    }
+
     /// Interval of the covariance propagation [s] (default 0.05; 0: every sample).
     pub fn set_covariance_interval(&mut self, seconds: f64) {
         self.covariance_interval_s = seconds.max(0.0);
@@ -386,7 +427,15 @@ impl NedFilter {
         let h = NedErrorModel::position_measurement(&(c * self.lever_arm));
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
         self.flush_covariance()?;
+        if let Some(a) = self.adaptive.as_mut() {
+            let innovation = self.kf.innovation(&z, &h, &r)?;
+            let q = a.process_noise(&innovation.residual, &innovation.s);
+            self.kf.set_covariance(self.kf.covariance() + q)?;
+        }
         let rec = self.kf.update_with(&z, &h, &r, policy)?;
+        if let Some(a) = self.adaptive.as_mut() {
+            a.record_gain(&rec.gain);
+        }
         self.add_information(&h, &r, rec.outcome)?;
         self.feedback()?;
         Ok(rec)
@@ -442,6 +491,7 @@ impl NedFilter {
             return Ok(());
         }
         let x = *self.kf.state();
+        self.fed_back += x;
         let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
         self.ins.set_state(corrected(self.ins.state(), &x));
         self.instruments.gyro_bias += v3(GYRO_BIAS);
@@ -576,6 +626,60 @@ mod tests {
         assert!(d < 0.01, "{d}");
         // The open-loop INS itself has drifted away; only its output is corrected.
         assert!(start.position.ned_to(&open.state().position).norm() > 1.0);
+    }
+
+    /// Eq. 3 on this filter: before a position update, P grows by exactly
+    /// `K_prev ν νᵀ K_prevᵀ` (previous position gain, this innovation); a
+    /// missing fix zeroes the gain, so the first fix after it adds nothing.
+    #[test]
+    fn adaptive_noise_adds_the_innovation_feedback_term() {
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.6,
+                longitude_rad: 0.1,
+                height_m: 100.0,
+            },
+            velocity: Vector3::zeros(),
+            attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3),
+        };
+        let model = NedErrorModel::default();
+        let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
+        let mut adaptive =
+            NedFilter::new(model, start, &sig, Vector3::new(0.5, 0.2, -0.3)).unwrap();
+        adaptive.set_adaptive_noise(None, 1, false);
+        let mut imu = NedMechanization::stationary_increment(&start, 0.01);
+        imu.delta_velocity.x += 0.05 * 0.01;
+        let sigma = Vector3::repeat(0.05);
+        let coast = |f: &mut NedFilter| {
+            for _ in 0..25 {
+                f.propagate(&imu).unwrap();
+            }
+        };
+        coast(&mut adaptive);
+        let first = adaptive.update_position(&start.position, &sigma).unwrap();
+        coast(&mut adaptive);
+        // The same filter without the adaptive term, its P raised by hand.
+        let mut by_hand = adaptive.clone();
+        by_hand.adaptive = None;
+        by_hand.flush_covariance().unwrap();
+        let second = adaptive.update_position(&start.position, &sigma).unwrap();
+        let kv = first.gain * second.residual;
+        let raised = by_hand.kf.covariance() + kv * kv.transpose();
+        by_hand.kf.set_covariance(raised).unwrap();
+        let again = by_hand.update_position(&start.position, &sigma).unwrap();
+        assert!(kv.norm() > 1e-4, "the term must matter: {}", kv.norm());
+        assert!((again.residual - second.residual).norm() < 1e-12);
+        let scale = adaptive.kf.covariance().norm();
+        assert!((adaptive.kf.covariance() - by_hand.kf.covariance()).norm() < 1e-12 * scale);
+        // After a missing fix the gain is zero: the next update equals one
+        // without the adaptive term.
+        adaptive.position_fix_missing().unwrap();
+        coast(&mut adaptive);
+        let mut plain = adaptive.clone();
+        plain.adaptive = None;
+        adaptive.update_position(&start.position, &sigma).unwrap();
+        plain.update_position(&start.position, &sigma).unwrap();
+        assert_eq!(adaptive.kf.covariance(), plain.kf.covariance());
     }
 
     #[test]

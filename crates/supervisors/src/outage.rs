@@ -182,6 +182,28 @@ impl OutageBridge {
             Predictor::Relay => self.predict(self.relay.choose(age), t),
         }
     }
+
+    /// The change each predictor foresees since the outage start, every
+    /// component anchored at its own value there (the trend's line and the
+    /// model do not pass exactly through the last estimate): for correcting
+    /// a navigation output that was right at the outage start. Hold: 0;
+    /// trend and model: `f(t) − f(T0)`; combined trend: the weighted
+    /// increments; relay: the increment of the predictor it uses at that age.
+    pub fn predict_increment(&self, predictor: Predictor, t: f64) -> f64 {
+        let age = t - self.t0;
+        let trend = || self.slope * (t - self.t0);
+        let model = || self.model.predict(t) - self.model.predict(self.t0);
+        match predictor {
+            Predictor::Hold => 0.0,
+            Predictor::Trend => trend(),
+            Predictor::Gmdh => model(),
+            Predictor::CombinedTrend => {
+                let w = self.relay.trend_weight(age);
+                w * trend() + (1.0 - w) * model()
+            }
+            Predictor::Relay => self.predict_increment(self.relay.choose(age), t),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -238,6 +260,25 @@ mod tests {
                 "T = {switch}: {before} vs {after}"
             );
         }
+        // Increments: zero at the start for every predictor, and the same
+        // change as the predictor itself.
+        for p in [
+            Predictor::Hold,
+            Predictor::Trend,
+            Predictor::CombinedTrend,
+            Predictor::Gmdh,
+            Predictor::Relay,
+        ] {
+            assert_eq!(b.predict_increment(p, 999.0), 0.0, "{p:?}");
+        }
+        for p in [Predictor::Trend, Predictor::Gmdh] {
+            let change = b.predict(p, 1100.0) - b.predict(p, 999.0);
+            assert!((b.predict_increment(p, 1100.0) - change).abs() < 1e-12);
+        }
+        assert_eq!(
+            b.predict_increment(Predictor::Relay, 1199.0),
+            b.predict_increment(Predictor::CombinedTrend, 1199.0)
+        );
         // Relay: follows its schedule.
         for (age, p) in [
             (5.0, Predictor::Hold),

@@ -36,8 +36,8 @@
 //! rejecting vs limiting.
 
 use aidnav_estimation::adaptive::{
-    AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain, Limiting, Rejection,
-    innovation_feedback_q,
+    AdaptiveGain, AnomalyDetector, DiagonalRule, InnovationFeedbackNoise, LimitedAdaptiveGain,
+    Limiting, Rejection,
 };
 use aidnav_estimation::{AcceptAll, Chi2Gate, EstimationError, Huber, KalmanFilter};
 use aidnav_io::config::{Invalid, Validate, count_in_range, positive, probability};
@@ -315,11 +315,8 @@ const CHANNEL_FAULTS: u64 = 1;
 struct Estimator {
     kf: KalmanFilter<nalgebra::Const<3>>,
     kind: Kind,
-    /// Gain of the previous update (eq. 3 feedback).
-    gain: nalgebra::Matrix3x1<f64>,
-    /// Ring of the last stable feedback terms.
-    stable_q: Vec<Matrix3<f64>>,
-    next: usize,
+    /// Eq. 3's feedback term (previous gain, ring of the last stable terms).
+    noise: InnovationFeedbackNoise<nalgebra::U3, nalgebra::U1>,
     /// Eq. 4's window with eq. 5's detector (used by the eq. 4 kinds).
     limited_gain: LimitedAdaptiveGain<nalgebra::U1>,
 }
@@ -355,9 +352,14 @@ impl Estimator {
         Ok(Self {
             kf: KalmanFilter::new(Vector3::zeros(), p0)?,
             kind,
-            gain: nalgebra::Matrix3x1::zeros(),
-            stable_q: Vec::new(),
-            next: 0,
+            // Eqs. 3 and 3 + 4 alone have no detector: every innovation feeds Q.
+            noise: InnovationFeedbackNoise::new(
+                nalgebra::Matrix3x1::zeros(),
+                (!matches!(kind, Kind::Adaptive | Kind::AdaptiveGain))
+                    .then_some(AnomalyDetector { gamma: sc.gamma }),
+                sc.stable_window,
+            )
+            .unwrap_or_else(|| unreachable!("stable_window ≥ 1 is validated")),
             limited_gain: LimitedAdaptiveGain {
                 gain: AdaptiveGain::new(sc.gain_window, DiagonalRule::All)
                     .unwrap_or_else(|| unreachable!("gain_window ≥ 1 is validated")),
@@ -383,24 +385,15 @@ impl Estimator {
                 | Kind::Developed
                 | Kind::DevelopedEq4
         );
-        let has_detector = !matches!(self.kind, Kind::Adaptive | Kind::AdaptiveGain);
         if !first {
             if adaptive {
                 self.kf.predict_state(&s.phi)?;
                 let q = match z {
                     Some(z) => {
                         let innov = self.kf.innovation(&Vector1::new(z), &s.h, &s.r)?;
-                        // Eqs. 3 and 3 + 4 alone have no detector.
-                        let anomalous = has_detector && detector.exceeds(&innov.residual, &innov.s);
-                        if anomalous {
-                            self.stable_mean()
-                        } else {
-                            let q = innovation_feedback_q(&self.gain, &innov.residual);
-                            self.remember(q, sc.stable_window);
-                            q
-                        }
+                        self.noise.process_noise(&innov.residual, &innov.s)
                     }
-                    None => self.stable_mean(),
+                    None => self.noise.stable_mean(),
                 };
                 self.kf.predict_covariance(&s.phi, &q)?;
             } else {
@@ -434,24 +427,8 @@ impl Estimator {
                 .kf
                 .update_with(&zv, &s.h, &s.r, &mut Huber { k: sc.huber_k }),
         }?;
-        self.gain = rec.gain;
+        self.noise.record_gain(&rec.gain);
         Ok(())
-    }
-
-    fn remember(&mut self, q: Matrix3<f64>, window: usize) {
-        if self.stable_q.len() < window {
-            self.stable_q.push(q);
-        } else {
-            self.stable_q[self.next] = q;
-        }
-        self.next = (self.next + 1) % window;
-    }
-
-    fn stable_mean(&self) -> Matrix3<f64> {
-        if self.stable_q.is_empty() {
-            return Matrix3::zeros();
-        }
-        self.stable_q.iter().sum::<Matrix3<f64>>() / self.stable_q.len() as f64
     }
 }
 
