@@ -57,6 +57,8 @@ pub enum GnssFormat {
     RtklibPos,
     /// KF-GINS text: time, lat, lon, h, σN σE σD [, velocity and σ].
     KfGins,
+    /// NMEA 0183: GGA + RMC (+ GST for σ), see `aidnav_io::nmea`.
+    Nmea,
 }
 
 /// Where the data are.
@@ -614,6 +616,7 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
     let (gnss, w) = match cfg.data.gnss_format {
         GnssFormat::RtklibPos => read_pos(&gnss_path)?,
         GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(&gnss_path)?,
+        GnssFormat::Nmea => aidnav_io::nmea::read_nmea(&gnss_path)?,
     };
     warnings.extend(w);
     let [r, p, y] = cfg.imu.mounting_deg.map(f64::to_radians);

@@ -182,3 +182,85 @@ fn supervisors_on_the_drive() {
     let adaptive = clean(&cfg);
     assert!(adaptive < 0.7 * fixed, "{adaptive} vs {fixed}");
 }
+
+/// The drive's fixes written as an NMEA log (GGA + RMC + GST, UTC, the
+/// talker a receiver would use) and read back give nearly the same
+/// solution: NMEA has no vertical velocity (the reader leaves it
+/// practically unobserved) and rounds the horizontal one.
+#[test]
+fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let config = root.join("examples/drive_0708.toml");
+    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
+    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    let sentence =
+        |body: String| format!("${body}*{:02X}\r\n", body.bytes().fold(0u8, |a, b| a ^ b));
+    let dm = |rad: f64, pos: char, neg: char, width: usize| {
+        let deg = rad.to_degrees().abs();
+        let d = deg.trunc();
+        let hemi = if rad >= 0.0 { pos } else { neg };
+        format!("{:0width$}{:010.7},{hemi}", d as u32, (deg - d) * 60.0)
+    };
+    let mut log = String::new();
+    for g in &inputs.gnss {
+        // GPST → UTC (18 leap seconds in 2025).
+        let utc = g.time_s - 18.0;
+        let days = (utc / 86_400.0).floor();
+        let tod = utc - days * 86_400.0;
+        let (h, m, s) = (
+            (tod / 3600.0).floor(),
+            ((tod % 3600.0) / 60.0).floor(),
+            tod % 60.0,
+        );
+        let time = format!("{h:02}{m:02}{s:05.2}");
+        let v = g.velocity_ned.unwrap();
+        let course = v.y.atan2(v.x).to_degrees().rem_euclid(360.0);
+        let knots = v.xy().norm() * 3600.0 / 1852.0;
+        log += &sentence(format!(
+            "GNRMC,{time},A,{},{},{knots:.3},{course:.2},080725,,,R",
+            dm(g.position.latitude_rad, 'N', 'S', 2),
+            dm(g.position.longitude_rad, 'E', 'W', 3)
+        ));
+        let quality = match g.quality {
+            1 => 4,
+            2 => 5,
+            _ => 1,
+        };
+        log += &sentence(format!(
+            "GNGGA,{time},{},{},{quality},{},1.0,{:.4},M,0.0,M,,",
+            dm(g.position.latitude_rad, 'N', 'S', 2),
+            dm(g.position.longitude_rad, 'E', 'W', 3),
+            g.satellites,
+            g.position.height_m
+        ));
+        let s = g.position_sigma_neu;
+        log += &sentence(format!(
+            "GNGST,{time},0.1,0.1,0.1,0.0,{:.4},{:.4},{:.4}",
+            s.x, s.y, s.z
+        ));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("drive.nmea"), log).unwrap();
+    let mut nmea = cfg.clone();
+    nmea.data.dir = config.parent().unwrap().join(&cfg.data.dir);
+    nmea.data.gnss = dir.path().join("drive.nmea");
+    nmea.data.gnss_format = aidnav::process::GnssFormat::Nmea;
+    let again = load_inputs(&nmea, dir.path()).unwrap();
+    assert_eq!(again.gnss.len(), inputs.gnss.len());
+    for (a, b) in inputs.gnss.iter().zip(&again.gnss) {
+        assert!(
+            (a.time_s - b.time_s).abs() < 0.006,
+            "{} vs {}",
+            a.time_s,
+            b.time_s
+        );
+        assert!(a.position.ned_to(&b.position).norm() < 1e-3);
+        assert_eq!(a.quality, b.quality);
+    }
+    let run = |cfg: &ProcessConfig, i: &aidnav::process::Inputs| {
+        let e = run_filter(cfg, i, &RunPlan::default(), PolicyName::Accept).unwrap();
+        tracking_rms(&i.gnss, &e)
+    };
+    let (ta, tb) = (run(&cfg, &inputs), run(&nmea, &again));
+    assert!((ta - tb).abs() < 0.01, "{ta} vs {tb}");
+}

@@ -15,6 +15,7 @@ pub mod error;
 pub mod kfgins;
 pub mod measurements;
 pub mod model_file;
+pub mod nmea;
 pub mod plot;
 pub mod rtklib;
 pub mod writers;

@@ -1,0 +1,501 @@
+//! NMEA 0183 GNSS logs (spec 40's "welcome next format"): `GGA` (position,
+//! fix quality, satellites), `RMC` (date, speed and course) and `GST`
+//! (position error σ), any talker (`GP`, `GN`, `GL`, …).
+//!
+//! One fix per GGA epoch:
+//! - time: the GGA UTC time of day on the date of the last RMC (a day is
+//!   added when the time of day wraps past midnight), converted to GPST
+//!   (UTC + the leap seconds of that date) — as the other readers' times;
+//! - position: latitude, longitude, and the *ellipsoidal* height = GGA's
+//!   altitude above mean sea level + its geoid separation (field 11);
+//! - quality, mapped to RTKLIB's Q (which the scores use): GGA 4 (RTK fixed)
+//!   → 1, 5 (RTK float) → 2, 2 (DGPS) → 4, 1 (single) → 5; GGA 0 (no fix)
+//!   and 6 (dead reckoning) epochs are skipped and counted in a warning;
+//! - σ (north, east, up): from the GST of the same time when there is one,
+//!   otherwise by quality: 0.02 / 0.02 / 0.04 m fixed, 0.3 / 0.3 / 0.6 m
+//!   float, 1 / 1 / 2 m DGPS, 3 / 3 / 6 m single (the file says nothing
+//!   better; a warning says how many epochs took these);
+//! - velocity (north, east, 0) from the RMC of the same time (knots, course
+//!   over ground), σ 0.1 m/s horizontally and 10 m/s vertically (NMEA has no
+//!   vertical velocity: it is left practically unobserved).
+//!
+//! Errors name the file and line: a bad checksum, a field that is not a
+//! number, latitude beyond 90°, minutes ≥ 60, time going backwards, a GGA
+//! before any RMC (no date). A truncated last line, lines that are not NMEA
+//! sentences and sentences of other types are skipped with a warning.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use aidnav_frames::earth::Geodetic;
+use nalgebra::Vector3;
+
+use crate::error::Result;
+use crate::rtklib::{GnssFix, data_error, days_from_civil, read_text};
+
+/// GPS − UTC [s] from each date on (IERS bulletins; 18 s since 2017).
+const LEAP_SECONDS: [((i64, i64, i64), f64); 18] = [
+    ((1981, 7, 1), 1.0),
+    ((1982, 7, 1), 2.0),
+    ((1983, 7, 1), 3.0),
+    ((1985, 7, 1), 4.0),
+    ((1988, 1, 1), 5.0),
+    ((1990, 1, 1), 6.0),
+    ((1991, 1, 1), 7.0),
+    ((1992, 7, 1), 8.0),
+    ((1993, 7, 1), 9.0),
+    ((1994, 7, 1), 10.0),
+    ((1996, 1, 1), 11.0),
+    ((1997, 7, 1), 12.0),
+    ((1999, 1, 1), 13.0),
+    ((2006, 1, 1), 14.0),
+    ((2009, 1, 1), 15.0),
+    ((2012, 7, 1), 16.0),
+    ((2015, 7, 1), 17.0),
+    ((2017, 1, 1), 18.0),
+];
+
+/// GPS − UTC [s] on the day `days` since 1970-01-01.
+fn leap_seconds(days: i64) -> f64 {
+    LEAP_SECONDS
+        .iter()
+        .rev()
+        .find(|((y, m, d), _)| days >= days_from_civil(*y, *m, *d))
+        .map_or(0.0, |&(_, s)| s)
+}
+
+/// σ (north, east, up) by GGA quality when no GST is given.
+fn default_sigma(gga_quality: u8) -> Vector3<f64> {
+    match gga_quality {
+        4 => Vector3::new(0.02, 0.02, 0.04),
+        5 => Vector3::new(0.3, 0.3, 0.6),
+        2 => Vector3::new(1.0, 1.0, 2.0),
+        _ => Vector3::new(3.0, 3.0, 6.0),
+    }
+}
+
+/// RTKLIB's Q for a GGA quality (None: not a position fix).
+fn rtklib_quality(gga_quality: u8) -> Option<u8> {
+    match gga_quality {
+        4 => Some(1),
+        5 => Some(2),
+        2 => Some(4),
+        1 => Some(5),
+        _ => None,
+    }
+}
+
+/// The sentence between `$` and `*`, its checksum verified.
+fn checked_body<'a>(path: &Path, line: usize, text: &'a str) -> Result<Option<&'a str>> {
+    let Some(rest) = text.strip_prefix('$') else {
+        return Ok(None);
+    };
+    let Some((body, sum)) = rest.rsplit_once('*') else {
+        return Ok(None);
+    };
+    let want = u8::from_str_radix(sum.trim(), 16)
+        .map_err(|_| data_error(path, line, "checksum", format!("`{sum}` is not hex")))?;
+    let got = body.bytes().fold(0u8, |a, b| a ^ b);
+    if got != want {
+        return Err(data_error(
+            path,
+            line,
+            "checksum",
+            format!("{got:02X} computed, {want:02X} written: a corrupted sentence"),
+        ));
+    }
+    Ok(Some(body))
+}
+
+/// `hhmmss.ss` → seconds of the day.
+fn time_of_day(path: &Path, line: usize, f: &str) -> Result<f64> {
+    let bad = || data_error(path, line, "time", format!("`{f}` is not hhmmss.ss"));
+    if f.len() < 6 || !f.is_char_boundary(2) || !f.is_char_boundary(4) {
+        return Err(bad());
+    }
+    let h: u32 = f[0..2].parse().map_err(|_| bad())?;
+    let m: u32 = f[2..4].parse().map_err(|_| bad())?;
+    let s: f64 = f[4..].parse().map_err(|_| bad())?;
+    if h > 23 || m > 59 || !(0.0..61.0).contains(&s) {
+        return Err(bad());
+    }
+    Ok(f64::from(h * 3600 + m * 60) + s)
+}
+
+/// `(d)ddmm.mmmm` + hemisphere → radians.
+fn angle(path: &Path, line: usize, column: &str, f: &str, hemi: &str, limit: f64) -> Result<f64> {
+    let bad = |why: String| data_error(path, line, column, why);
+    let v: f64 = f
+        .parse()
+        .map_err(|_| bad(format!("`{f}` is not a number")))?;
+    let degrees = (v / 100.0).trunc();
+    let minutes = v - 100.0 * degrees;
+    if !(0.0..60.0).contains(&minutes) || !v.is_finite() || v < 0.0 {
+        return Err(bad(format!("`{f}` is not (d)ddmm.mmmm")));
+    }
+    let value = degrees + minutes / 60.0;
+    if value > limit {
+        return Err(bad(format!("{value}° is beyond {limit}°")));
+    }
+    let sign = match hemi {
+        "N" | "E" => 1.0,
+        "S" | "W" => -1.0,
+        _ => return Err(bad(format!("hemisphere `{hemi}` is not N/S/E/W"))),
+    };
+    Ok((sign * value).to_radians())
+}
+
+fn number(path: &Path, line: usize, column: &str, f: &str) -> Result<f64> {
+    f.parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| data_error(path, line, column, format!("`{f}` is not a number")))
+}
+
+/// A GGA epoch waiting for its GST / RMC of the same time.
+struct Pending {
+    line: usize,
+    time_of_day: f64,
+    time_s: f64,
+    position: Geodetic,
+    gga_quality: u8,
+    satellites: u32,
+}
+
+/// Read an NMEA log (see the module docs).
+pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
+    let text = read_text(path)?;
+    let lines: Vec<&str> = text.lines().collect();
+    let mut warnings = Vec::new();
+    let mut date_days: Option<i64> = None;
+    let mut last_tod: Option<f64> = None;
+    let mut epochs: Vec<Pending> = Vec::new();
+    // σ (north, east, up) and NED velocity by time of day [centiseconds].
+    let mut sigmas: HashMap<i64, Vector3<f64>> = HashMap::new();
+    let mut velocities: HashMap<i64, Vector3<f64>> = HashMap::new();
+    let key = |tod: f64| (tod * 100.0).round() as i64;
+    let (mut not_nmea, mut other, mut no_fix, mut duplicates) = (0usize, 0usize, 0usize, 0usize);
+    for (i, raw) in lines.iter().enumerate() {
+        let line = i + 1;
+        let t = raw.trim();
+        if t.is_empty() {
+            continue;
+        }
+        let body = match checked_body(path, line, t) {
+            Ok(Some(b)) => b,
+            Ok(None) if i + 1 == lines.len() && t.starts_with('$') => {
+                warnings.push(format!(
+                    "{}:{line}: truncated last sentence skipped",
+                    path.display()
+                ));
+                continue;
+            }
+            Ok(None) => {
+                not_nmea += 1;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        let f: Vec<&str> = body.split(',').collect();
+        let kind = f[0].get(2..).unwrap_or("");
+        let need = |n: usize| {
+            if f.len() < n {
+                Err(data_error(
+                    path,
+                    line,
+                    kind,
+                    format!("{} fields, {kind} has at least {n}", f.len()),
+                ))
+            } else {
+                Ok(())
+            }
+        };
+        match kind {
+            "RMC" => {
+                need(10)?;
+                let d = f[9];
+                let bad = || data_error(path, line, "date", format!("`{d}` is not ddmmyy"));
+                if d.len() != 6 || !d.is_ascii() {
+                    return Err(bad());
+                }
+                let dd: i64 = d[0..2].parse().map_err(|_| bad())?;
+                let mm: i64 = d[2..4].parse().map_err(|_| bad())?;
+                let yy: i64 = d[4..6].parse().map_err(|_| bad())?;
+                if !(1..=31).contains(&dd) || !(1..=12).contains(&mm) {
+                    return Err(bad());
+                }
+                // Two-digit years: 1980–2079.
+                let year = if yy >= 80 { 1900 + yy } else { 2000 + yy };
+                date_days = Some(days_from_civil(year, mm, dd));
+                let tod = time_of_day(path, line, f[1])?;
+                if f[2] == "A" && !f[7].is_empty() && !f[8].is_empty() {
+                    let speed = number(path, line, "speed", f[7])? * 1852.0 / 3600.0;
+                    let course = number(path, line, "course", f[8])?.to_radians();
+                    velocities.insert(
+                        key(tod),
+                        Vector3::new(speed * course.cos(), speed * course.sin(), 0.0),
+                    );
+                }
+            }
+            "GST" => {
+                need(9)?;
+                let tod = time_of_day(path, line, f[1])?;
+                if f[6].is_empty() || f[7].is_empty() || f[8].is_empty() {
+                    continue;
+                }
+                let s = Vector3::new(
+                    number(path, line, "sigma_latitude", f[6])?,
+                    number(path, line, "sigma_longitude", f[7])?,
+                    number(path, line, "sigma_altitude", f[8])?,
+                );
+                if s.iter().any(|&v| v <= 0.0) {
+                    return Err(data_error(
+                        path,
+                        line,
+                        "sigma",
+                        format!("σ = {s:?} must be > 0 (a receiver claiming 0 cannot be weighted)"),
+                    ));
+                }
+                sigmas.insert(key(tod), s);
+            }
+            "GGA" => {
+                need(12)?;
+                let tod = time_of_day(path, line, f[1])?;
+                let gga_quality: u8 = f[6].parse().map_err(|_| {
+                    data_error(path, line, "quality", format!("`{}` is not a number", f[6]))
+                })?;
+                if rtklib_quality(gga_quality).is_none() || f[2].is_empty() {
+                    no_fix += 1;
+                    continue;
+                }
+                let Some(mut days) = date_days else {
+                    return Err(data_error(
+                        path,
+                        line,
+                        "date",
+                        "a GGA before any RMC: the time of day cannot be placed (log RMC too)",
+                    ));
+                };
+                if let Some(prev) = last_tod {
+                    if tod < prev - 43_200.0 {
+                        // Past midnight before the next RMC.
+                        days += 1;
+                        date_days = Some(days);
+                    } else if tod == prev {
+                        duplicates += 1;
+                        continue;
+                    } else if tod < prev {
+                        return Err(data_error(
+                            path,
+                            line,
+                            "time",
+                            format!("{tod} s of the day after {prev} s: time goes backwards"),
+                        ));
+                    }
+                }
+                last_tod = Some(tod);
+                let altitude = number(path, line, "altitude", f[9])?;
+                let separation = if f[11].is_empty() {
+                    0.0
+                } else {
+                    number(path, line, "geoid_separation", f[11])?
+                };
+                let utc = days as f64 * 86_400.0 + tod;
+                epochs.push(Pending {
+                    line,
+                    time_of_day: tod,
+                    time_s: utc + leap_seconds(days),
+                    position: Geodetic {
+                        latitude_rad: angle(path, line, "latitude", f[2], f[3], 90.0)?,
+                        longitude_rad: angle(path, line, "longitude", f[4], f[5], 180.0)?,
+                        height_m: altitude + separation,
+                    },
+                    gga_quality,
+                    satellites: f[7].parse().unwrap_or(0),
+                });
+            }
+            _ => other += 1,
+        }
+    }
+    let mut defaulted = 0usize;
+    let fixes: Vec<GnssFix> = epochs
+        .iter()
+        .map(|e| {
+            let k = key(e.time_of_day);
+            let sigma = sigmas.get(&k).copied().unwrap_or_else(|| {
+                defaulted += 1;
+                default_sigma(e.gga_quality)
+            });
+            let velocity = velocities.get(&k).copied();
+            GnssFix {
+                time_s: e.time_s,
+                position: e.position,
+                quality: rtklib_quality(e.gga_quality).unwrap_or(0),
+                satellites: e.satellites,
+                position_sigma_neu: sigma,
+                velocity_ned: velocity,
+                velocity_sigma_neu: velocity.map(|_| Vector3::new(0.1, 0.1, 10.0)),
+            }
+        })
+        .collect();
+    let p = path.display();
+    for (n, what) in [
+        (not_nmea, "lines that are not NMEA sentences skipped"),
+        (other, "sentences other than GGA, RMC and GST skipped"),
+        (
+            no_fix,
+            "GGA epochs without a position fix (quality 0 or 6) skipped",
+        ),
+        (
+            duplicates,
+            "repeated GGA epochs (same time, another talker) skipped",
+        ),
+        (defaulted, "epochs without GST: σ by fix quality"),
+    ] {
+        if n > 0 {
+            warnings.push(format!("{p}: {n} {what}"));
+        }
+    }
+    if fixes.is_empty() {
+        return Err(data_error(
+            path,
+            epochs.first().map_or(lines.len(), |e| e.line),
+            "GGA",
+            "no GGA position fix in the file",
+        ));
+    }
+    Ok((fixes, warnings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sentence with its checksum.
+    fn sentence(body: &str) -> String {
+        format!("${body}*{:02X}", body.bytes().fold(0u8, |a, b| a ^ b))
+    }
+
+    fn read(lines: &[String]) -> Result<(Vec<GnssFix>, Vec<String>)> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("log.nmea");
+        std::fs::write(&p, lines.join("\r\n")).unwrap();
+        read_nmea(&p)
+    }
+
+    fn log() -> Vec<String> {
+        [
+            "GNRMC,235959.00,A,4807.038000,N,01131.000000,E,10.0,90.0,311216,,,A",
+            "GNGGA,235959.00,4807.038000,N,01131.000000,E,4,12,0.9,545.4,M,46.9,M,1.0,0000",
+            "GNGST,235959.00,0.5,0.01,0.01,0.0,0.011,0.012,0.025",
+            "GNGGA,000000.00,4807.038000,N,01131.000000,W,5,12,0.9,545.4,M,46.9,M,1.0,0000",
+            "GNGGA,000000.00,4807.038000,N,01131.000000,W,5,12,0.9,545.4,M,46.9,M,1.0,0000",
+            "GNGGA,000000.25,,,,,0,0,,,M,,M,,",
+            "GNGSV,3,1,12,01,40,083,46",
+        ]
+        .iter()
+        .map(|b| sentence(b))
+        .collect()
+    }
+
+    #[test]
+    fn reads_position_time_quality_sigma_and_velocity() {
+        let (fixes, warnings) = read(&log()).unwrap();
+        assert_eq!(fixes.len(), 2);
+        let (a, b) = (&fixes[0], &fixes[1]);
+        // 2016-12-31 23:59:59 UTC: 17 leap seconds that day (18 from 2017).
+        let utc = days_from_civil(2016, 12, 31) as f64 * 86_400.0 + 86_399.0;
+        assert_eq!(a.time_s, utc + 17.0);
+        // Past midnight without a new RMC: the next day, 18 leap seconds.
+        assert_eq!(b.time_s, utc + 1.0 + 18.0);
+        assert!((a.position.latitude_rad.to_degrees() - (48.0 + 7.038 / 60.0)).abs() < 1e-12);
+        assert!((a.position.longitude_rad.to_degrees() - (11.0 + 31.0 / 60.0)).abs() < 1e-12);
+        assert!(b.position.longitude_rad < 0.0);
+        assert!((a.position.height_m - (545.4 + 46.9)).abs() < 1e-9);
+        assert_eq!((a.quality, b.quality, a.satellites), (1, 2, 12));
+        assert_eq!(a.position_sigma_neu, Vector3::new(0.011, 0.012, 0.025));
+        assert_eq!(b.position_sigma_neu, Vector3::new(0.3, 0.3, 0.6));
+        // 10 kn due east.
+        let v = a.velocity_ned.unwrap();
+        assert!((v.y - 10.0 * 1852.0 / 3600.0).abs() < 1e-12 && v.x.abs() < 1e-12);
+        assert!(b.velocity_ned.is_none());
+        let all = warnings.join("\n");
+        for w in [
+            "1 sentences other than",
+            "1 GGA epochs without",
+            "1 repeated GGA",
+            "1 epochs without GST",
+        ] {
+            assert!(all.contains(w), "{w} in {all}");
+        }
+    }
+
+    #[test]
+    fn malformed_logs_are_named() {
+        let cases: Vec<(Vec<String>, &str)> = vec![
+            // A corrupted character: the checksum no longer matches.
+            (
+                {
+                    let mut l = log();
+                    l[1] = l[1].replace("545.4", "545.5");
+                    l
+                },
+                "log.nmea:2: column `checksum`",
+            ),
+            (log()[1..].to_vec(), "log.nmea:1: column `date`"),
+            (
+                {
+                    let mut l = log();
+                    l.insert(
+                        3,
+                        sentence(
+                            "GNGGA,235958.00,4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,,",
+                        ),
+                    );
+                    l
+                },
+                "log.nmea:4: column `time`",
+            ),
+            (
+                {
+                    let mut l = log();
+                    l[1] = sentence(
+                        "GNGGA,235959.00,4867.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,,",
+                    );
+                    l
+                },
+                "log.nmea:2: column `latitude`",
+            ),
+            (
+                {
+                    let mut l = log();
+                    l[2] = sentence("GNGST,235959.00,0.5,0.01,0.01,0.0,0.0,0.012,0.025");
+                    l
+                },
+                "log.nmea:3: column `sigma`",
+            ),
+            (
+                {
+                    let mut l = log();
+                    l[1] =
+                        sentence("GNGGA,235959.00,4807.038,N,01131.000,E,4,12,0.9,NaN,M,46.9,M,,");
+                    l
+                },
+                "log.nmea:2: column `altitude`",
+            ),
+        ];
+        for (lines, want) in cases {
+            let err = read(&lines).unwrap_err().to_string();
+            assert!(err.contains(want), "{want}: {err}");
+        }
+        // A truncated last sentence is skipped with a warning.
+        let mut l = log();
+        l.push("$GNGGA,000001.00,4807.0".into());
+        let (fixes, warnings) = read(&l).unwrap();
+        assert_eq!(fixes.len(), 2);
+        assert!(
+            warnings.iter().any(|w| w.contains("truncated")),
+            "{warnings:?}"
+        );
+    }
+}
