@@ -57,8 +57,13 @@ fn process(c: &mut Criterion) {
     let dir = tempfile::tempdir().unwrap();
     g.bench_function("write_solution", |b| {
         b.iter(|| {
-            aidnav::jobs::write_solution(&dir.path().join("solution.csv"), &inputs.gnss, &epochs)
-                .unwrap()
+            aidnav::jobs::write_solution(
+                &dir.path().join("solution.csv"),
+                &inputs.gnss,
+                &epochs,
+                &[],
+            )
+            .unwrap()
         })
     });
     g.finish();

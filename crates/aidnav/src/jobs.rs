@@ -807,19 +807,42 @@ pub fn process(
         monitor: cfg.filter.convergence_monitor,
         ..RunPlan::default()
     };
-    let clean = run_filter(&cfg, &inputs, &clean_plan, cfg.gnss.policy).map_err(process_error)?;
+    let crate::process::Run {
+        epochs: clean,
+        between,
+    } = crate::process::run_filter_rows(
+        &cfg,
+        &inputs,
+        &clean_plan,
+        cfg.gnss.policy,
+        cfg.output.interval_s,
+    )
+    .map_err(process_error)?;
     let smoothed: Vec<crate::process::Epoch> = clean.iter().filter_map(|e| e.smoothed()).collect();
     let run_s = t_run.elapsed().as_secs_f64();
     aidnav_io::writers::ensure_dir(out)?;
     let mut files = Vec::new();
     let solution = out.join("solution.csv");
-    write_solution(&solution, &inputs.gnss, &clean)?;
+    write_solution(&solution, &inputs.gnss, &clean, &between)?;
     files.push(solution);
     if cfg.output.kf_gins_text {
         use std::fmt::Write as _;
         let mut text = String::new();
-        for e in &clean {
-            let gps = inputs.gnss[e.index].time_s - 315_964_800.0;
+        // GNSS epochs and the rows between them, in time order.
+        let mut rows: Vec<crate::process::SolutionRow> = clean
+            .iter()
+            .map(|e| crate::process::SolutionRow {
+                time_s: inputs.gnss[e.index].time_s,
+                antenna: e.antenna,
+                velocity: e.velocity,
+                attitude: e.attitude,
+                sigma: e.sigma,
+            })
+            .chain(between.iter().copied())
+            .collect();
+        rows.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+        for e in &rows {
+            let gps = e.time_s - 315_964_800.0;
             let week = (gps / 604_800.0).floor();
             let (r, p, y) = e.attitude.euler_angles();
             let _ = writeln!(
@@ -1190,12 +1213,70 @@ pub fn process(
 }
 
 /// Write `solution.csv`: per GNSS epoch the antenna position, NED velocity,
-/// attitude, σ, NIS, δ(n), innovation and update outcome.
+/// attitude, σ, NIS, δ(n), K_eff, innovation and update outcome; merged in
+/// time order with the rows `between` the epochs (NaN where a column needs
+/// a fix, outcome 0).
 pub fn write_solution(
     path: &Path,
     gnss: &[aidnav_io::rtklib::GnssFix],
     epochs: &[crate::process::Epoch],
+    between: &[crate::process::SolutionRow],
 ) -> JobResult<()> {
+    let nan3 = [f64::NAN; 3];
+    let navigation = |time: f64,
+                      antenna: &aidnav_frames::earth::Geodetic,
+                      velocity: &nalgebra::Vector3<f64>,
+                      attitude: &nalgebra::UnitQuaternion<f64>,
+                      sigma: &nalgebra::Vector3<f64>| {
+        let (r, p, y) = attitude.euler_angles();
+        vec![
+            time,
+            antenna.latitude_rad.to_degrees(),
+            antenna.longitude_rad.to_degrees(),
+            antenna.height_m,
+            velocity.x,
+            velocity.y,
+            velocity.z,
+            r.to_degrees(),
+            p.to_degrees(),
+            y.to_degrees(),
+            sigma.x,
+            sigma.y,
+            sigma.z,
+        ]
+    };
+    let epoch_rows = epochs.iter().map(|e| {
+        let mut row = navigation(
+            gnss[e.index].time_s,
+            &e.antenna,
+            &e.velocity,
+            &e.attitude,
+            &e.sigma,
+        );
+        row.extend([e.nis, e.convergence, e.k_eff]);
+        row.extend(e.innovation.iter());
+        row.push(match e.outcome {
+            Some(Outcome::Accepted) => 1.0,
+            Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
+            Some(Outcome::Rejected) => 3.0,
+            _ => 0.0,
+        });
+        row
+    });
+    let other_rows = between.iter().map(|b| {
+        let mut row = navigation(b.time_s, &b.antenna, &b.velocity, &b.attitude, &b.sigma);
+        row.extend([f64::NAN; 3]);
+        row.extend(nan3);
+        row.push(0.0);
+        row
+    });
+    // Both are in time order: merge them as they are written.
+    let (mut a, mut b) = (epoch_rows.peekable(), other_rows.peekable());
+    let rows = std::iter::from_fn(move || match (a.peek(), b.peek()) {
+        (Some(x), Some(y)) if x[0] <= y[0] => a.next(),
+        (Some(_), None) => a.next(),
+        _ => b.next(),
+    });
     write_table(
         path,
         &[
@@ -1218,38 +1299,9 @@ pub fn write_solution(
             "innovation_n [m]",
             "innovation_e [m]",
             "innovation_d [m]",
-            "outcome (1 accepted, 2 limited, 3 rejected, 0 none)",
+            "outcome (1 accepted, 2 limited, 3 rejected, 0 no fix)",
         ],
-        epochs.iter().map(|e| {
-            let (r, p, y) = e.attitude.euler_angles();
-            vec![
-                gnss[e.index].time_s,
-                e.antenna.latitude_rad.to_degrees(),
-                e.antenna.longitude_rad.to_degrees(),
-                e.antenna.height_m,
-                e.velocity.x,
-                e.velocity.y,
-                e.velocity.z,
-                r.to_degrees(),
-                p.to_degrees(),
-                y.to_degrees(),
-                e.sigma.x,
-                e.sigma.y,
-                e.sigma.z,
-                e.nis,
-                e.convergence,
-                e.k_eff,
-                e.innovation.x,
-                e.innovation.y,
-                e.innovation.z,
-                match e.outcome {
-                    Some(Outcome::Accepted) => 1.0,
-                    Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
-                    Some(Outcome::Rejected) => 3.0,
-                    _ => 0.0,
-                },
-            ]
-        }),
+        rows,
     )?;
     Ok(())
 }

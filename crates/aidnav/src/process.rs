@@ -400,8 +400,13 @@ pub struct OutputConfig {
     pub smooth: bool,
     /// Also write navresult.txt in KF-GINS's layout (GPS week, seconds of
     /// week, lat, lon [deg], h [m], vN vE vD [m/s], roll pitch yaw [deg];
-    /// antenna position). Default false.
+    /// antenna position; the rows of solution.csv). Default false.
     pub kf_gins_text: bool,
+    /// Also write solution rows between the GNSS epochs, every this many
+    /// seconds (at the first IMU sample at or after each multiple; 0.01:
+    /// every sample of a 100 Hz IMU), so real GNSS outages have rows too
+    /// (outcome 0, no NIS). 0: one row per GNSS epoch only. Default 0.
+    pub interval_s: f64,
 }
 
 impl Default for OutputConfig {
@@ -409,6 +414,7 @@ impl Default for OutputConfig {
         Self {
             smooth: true,
             kf_gins_text: false,
+            interval_s: 0.0,
         }
     }
 }
@@ -521,6 +527,14 @@ impl Validate for ProcessConfig {
             .map_err(|e| e.within("outage_bridge"))?;
         if let Some(sg) = self.efficiency.sigma_gnss_m {
             all_positive("efficiency", &[("sigma_gnss_m", sg)])?;
+        }
+        let i = self.output.interval_s;
+        if !(i == 0.0 || (1e-3..=3600.0).contains(&i)) {
+            return Err(Invalid::new(
+                "output.interval_s",
+                i,
+                "0 (GNSS epochs only) or 0.001 ≤ interval_s ≤ 3600",
+            ));
         }
         count_in_range("outages_s", self.score.outages_s.len(), 0, 10)
             .map_err(|e| e.within("score"))?;
@@ -899,13 +913,52 @@ impl Epoch {
     }
 }
 
-/// Run the filter over the whole log under a plan and a policy.
+/// The navigation solution at a time between GNSS epochs (`output.interval_s`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolutionRow {
+    /// GPST, seconds since 1970.
+    pub time_s: f64,
+    /// Antenna position.
+    pub antenna: Geodetic,
+    /// NED velocity.
+    pub velocity: Vector3<f64>,
+    /// Attitude.
+    pub attitude: UnitQuaternion<f64>,
+    /// σ of the position error (N, E, D).
+    pub sigma: Vector3<f64>,
+}
+
+/// A run's output: one [`Epoch`] per GNSS epoch, and the rows between them
+/// at `output.interval_s` (none when it is 0).
+#[derive(Debug, Clone, Default)]
+pub struct Run {
+    /// Per GNSS epoch.
+    pub epochs: Vec<Epoch>,
+    /// Between GNSS epochs.
+    pub between: Vec<SolutionRow>,
+}
+
+/// Run the filter over the whole log under a plan and a policy: one
+/// [`Epoch`] per GNSS epoch.
 pub fn run_filter(
     cfg: &ProcessConfig,
     inputs: &Inputs,
     plan: &RunPlan,
     policy: PolicyName,
 ) -> Result<Vec<Epoch>, ProcessError> {
+    run_filter_rows(cfg, inputs, plan, policy, 0.0).map(|r| r.epochs)
+}
+
+/// [`run_filter`], also writing a [`SolutionRow`] every `interval_s` (at
+/// the first IMU sample at or after each multiple; 0: none) between the
+/// GNSS epochs — through real GNSS outages too.
+pub fn run_filter_rows(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    plan: &RunPlan,
+    policy: PolicyName,
+    interval_s: f64,
+) -> Result<Run, ProcessError> {
     let (state, gyro_bias, start) = initialise(cfg, inputs)?;
     let model = NedErrorModel {
         noise: cfg.imu.noise,
@@ -963,6 +1016,14 @@ pub fn run_filter(
         .position(|g| g.time_s > imu[start].time_s)
         .unwrap_or(gnss.len());
     let mut epochs = Vec::with_capacity(gnss.len());
+    let span = imu[imu.len() - 1].time_s - imu[start].time_s;
+    let mut between = Vec::with_capacity(if interval_s > 0.0 {
+        // Bounded: one row per IMU sample at most.
+        ((span / interval_s) as usize).min(imu.len()) + 1
+    } else {
+        0
+    });
+    let mut next_row = imu[start].time_s + interval_s;
     let in_window = |t: f64| plan.windows.iter().any(|&(a, b)| t >= a && t < b);
     let free = plan.free_ins_in_windows;
     let withheld = |t: f64| !free && in_window(t);
@@ -1005,6 +1066,23 @@ pub fn run_filter(
                 t = t_end;
                 w0 = w1;
                 f0 = f1;
+                if interval_s > 0.0 && t >= next_row {
+                    while next_row <= t {
+                        next_row += interval_s;
+                    }
+                    if !split {
+                        let (antenna, _) = filter.antenna();
+                        let sg = filter.sigmas();
+                        let solution = filter.solution();
+                        between.push(SolutionRow {
+                            time_s: t,
+                            antenna,
+                            velocity: solution.velocity,
+                            attitude: solution.attitude,
+                            sigma: Vector3::new(sg[POSITION], sg[POSITION + 1], sg[POSITION + 2]),
+                        });
+                    }
+                }
                 if nhc.non_holonomic && t >= next_nhc {
                     next_nhc += nhc_interval;
                     if filter.state().velocity.norm() > nhc.min_speed_mps {
@@ -1107,7 +1185,7 @@ pub fn run_filter(
             e.smoothed_antenna = e.record_index.map(|i| filter.antenna_of(&states[i]));
         }
     }
-    Ok(epochs)
+    Ok(Run { epochs, between })
 }
 
 /// The history of the accumulated GNSS corrections and, in an outage, the

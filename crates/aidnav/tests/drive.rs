@@ -264,3 +264,66 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
     let (ta, tb) = (run(&cfg, &inputs), run(&nmea, &again));
     assert!((ta - tb).abs() < 0.01, "{ta} vs {tb}");
 }
+
+/// A real outage (the fixes of a 30 s window removed from the log) still
+/// has solution rows with `output.interval_s`, and they are the coasting
+/// filter the outage score uses: at each withheld fix's time they agree
+/// with the scored run's epoch (extrapolated by the velocity over the
+/// < 10 ms to the nearest IMU sample).
+#[test]
+fn rows_between_fixes_cover_a_real_outage() {
+    use aidnav::process::run_filter_rows;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let config = root.join("examples/drive_0708.toml");
+    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
+    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    let first = inputs.imu[0].time_s;
+    let gap = (first + 150.0, first + 180.0);
+    let mut cut = inputs.clone();
+    cut.gnss.retain(|g| !(gap.0..gap.1).contains(&g.time_s));
+    let run = run_filter_rows(&cfg, &cut, &RunPlan::default(), PolicyName::Accept, 0.01).unwrap();
+    let inside: Vec<_> = run
+        .between
+        .iter()
+        .filter(|r| (gap.0..gap.1).contains(&r.time_s))
+        .collect();
+    // One row per 10 ms multiple, at the first IMU sample after it: about
+    // every sample (100 Hz, with jitter, so a few multiples share one).
+    let samples = inputs
+        .imu
+        .iter()
+        .filter(|s| (gap.0..gap.1).contains(&s.time_s))
+        .count();
+    assert!(
+        inside.len() <= samples && inside.len() * 100 >= samples * 97 && inside.len() <= 3001,
+        "{} rows, {samples} samples",
+        inside.len()
+    );
+    assert!(run.between.windows(2).all(|w| w[1].time_s > w[0].time_s));
+    let scored = run_filter(
+        &cfg,
+        &inputs,
+        &RunPlan {
+            windows: vec![gap],
+            ..RunPlan::default()
+        },
+        PolicyName::Accept,
+    )
+    .unwrap();
+    let mut compared = 0;
+    for e in scored
+        .iter()
+        .filter(|e| (gap.0..gap.1).contains(&inputs.gnss[e.index].time_s))
+    {
+        let t = inputs.gnss[e.index].time_s;
+        let row = inside
+            .iter()
+            .min_by(|a, b| (a.time_s - t).abs().total_cmp(&(b.time_s - t).abs()))
+            .unwrap();
+        let at_t = row.antenna.offset_by(&(row.velocity * (t - row.time_s)));
+        let d = e.antenna.ned_to(&at_t).norm();
+        assert!(d < 0.05, "t − gap start {:.2}: {d} m", t - gap.0);
+        compared += 1;
+    }
+    assert!(compared > 100, "{compared}");
+}

@@ -531,6 +531,7 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
             "attitude_deg = [0.0, 0.0, 90.0]",
         )
         .replace("kf_gins_text = false", "kf_gins_text = true")
+        .replace("interval_s = 0.0 ", "interval_s = 0.1 ")
         .replace("convergence_monitor = false", "convergence_monitor = true")
         .replace("smooth = true ", "smooth = false ");
     let c = dir.path().join("c.toml");
@@ -549,6 +550,14 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
     let first: Vec<&str> = nav.lines().next().unwrap().split_whitespace().collect();
     assert_eq!(first.len(), 11);
     assert_eq!(first[0], "2374"); // GPS week of 2025-07-08
+    // The 2197 fixes and rows every 0.1 s between them (10 per second of
+    // the 547 s drive), in time order.
+    let times: Vec<f64> = nav
+        .lines()
+        .map(|l| l.split_whitespace().nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert!((7000..8500).contains(&times.len()), "{}", times.len());
+    assert!(times.windows(2).all(|w| w[1] > w[0]));
     assert!(!out.join("smoothed.csv").exists());
     let summary = read_summary(&out);
     assert_eq!(summary["scenario"]["initial"]["attitude_deg"][2], 90.0);
