@@ -15,12 +15,18 @@ use aidnav::process::{
     tracking_rms,
 };
 
-#[test]
-fn thirty_second_outages_stay_bounded() {
+/// The example configuration, its path and the drive it reads.
+fn drive() -> (std::path::PathBuf, ProcessConfig, aidnav::process::Inputs) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let config = root.join("examples/drive_0708.toml");
     let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
     let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    (config, cfg, inputs)
+}
+
+#[test]
+fn thirty_second_outages_stay_bounded() {
+    let (_, cfg, inputs) = drive();
     assert_eq!(inputs.imu.len(), 54_858);
     let clean = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
     let tracking = tracking_rms(&inputs.gnss, &clean);
@@ -55,10 +61,7 @@ fn thirty_second_outages_stay_bounded() {
 #[test]
 fn kf_gins_files_of_the_drive_give_the_same_solution() {
     use std::fmt::Write as _;
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let config = root.join("examples/drive_0708.toml");
-    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
-    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    let (_, cfg, inputs) = drive();
     let dir = tempfile::tempdir().unwrap();
     let mut imu = String::new();
     let mut prev = inputs.imu[0].time_s - 0.01;
@@ -133,11 +136,8 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
 #[test]
 fn supervisors_on_the_drive() {
     use aidnav::process::{AdaptiveNoise, bridged_epochs, efficiency_in_windows};
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let config = root.join("examples/drive_0708.toml");
-    let (mut cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
+    let (_, mut cfg, inputs) = drive();
     cfg.efficiency.sigma_gnss_m = Some(1.5);
-    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
     let first = inputs.imu[0].time_s;
     let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
     let windows = outage_windows(&cfg.score, first, last, 30.0);
@@ -189,10 +189,7 @@ fn supervisors_on_the_drive() {
 /// practically unobserved) and rounds the horizontal one.
 #[test]
 fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let config = root.join("examples/drive_0708.toml");
-    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
-    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    let (config, cfg, inputs) = drive();
     let sentence =
         |body: String| format!("${body}*{:02X}\r\n", body.bytes().fold(0u8, |a, b| a ^ b));
     let dm = |rad: f64, pos: char, neg: char, width: usize| {
@@ -273,10 +270,7 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
 #[test]
 fn rows_between_fixes_cover_a_real_outage() {
     use aidnav::process::run_filter_rows;
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let config = root.join("examples/drive_0708.toml");
-    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
-    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    let (_, cfg, inputs) = drive();
     let first = inputs.imu[0].time_s;
     let gap = (first + 150.0, first + 180.0);
     let mut cut = inputs.clone();
