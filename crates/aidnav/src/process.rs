@@ -282,7 +282,8 @@ pub struct FilterConfig {
     /// the paper has it) or `averaged` (its mean over the last
     /// `adaptive_noise_window` normal epochs, Mohamed–Schwarz). It is added
     /// to the model's Q: replacing Q, as the paper does on its 3-state
-    /// model, leaves this 21-state P rank-deficient within seconds. An
+    /// model, made the drive fail (S not positive definite — a rank-3 term
+    /// per fix cannot keep 21 states' covariance positive). An
     /// anomalous ν (the eq. 5 detector with `gnss.anomaly_gamma`) feeds the
     /// mean term of the last normal epochs instead; the first fix after an
     /// outage feeds nothing (the gain of an epoch without a fix is zero).

@@ -378,9 +378,9 @@ impl NedFilter {
     /// the single term (eq. 3's hard feedback). When the eq. 5 detector
     /// (`gamma`) finds ν anomalous, the mean term of the last `window`
     /// normal epochs is added instead (eq. 9's guard). (The paper's term
-    /// *replaces* Q; on this 21-state filter that leaves P rank-deficient
-    /// within seconds — three new directions per fix for 21 states — so it
-    /// is added here.)
+    /// *replaces* Q; on this 21-state filter that made the recorded drive
+    /// fail with a non-positive-definite S — a rank-3 term per fix cannot
+    /// keep 21 states' covariance positive — so it is added here.)
     pub fn set_adaptive_noise(&mut self, gamma: Option<f64>, window: usize, average: bool) {
         self.adaptive = InnovationFeedbackNoise::new(
             SMatrix::zeros(),
