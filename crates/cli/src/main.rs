@@ -61,8 +61,9 @@ enum Command {
     Run(RunArgs),
     /// Process a recorded IMU + GNSS log end to end and score it.
     ///
-    /// The configuration (TOML) names the files (`[data]`: RTKLIB `.pos`,
-    /// raw IMU CSV with its RTKLIB `.tag`), the IMU mounting, smoothing and
+    /// The configuration (TOML) names the files (`[data]`: GNSS as RTKLIB
+    /// `.pos`, KF-GINS text or NMEA; IMU as raw CSV with its RTKLIB `.tag`,
+    /// KF-GINS increments or generic CSV), the IMU mounting, smoothing and
     /// noise, the initialisation and the lever arm; examples/drive_0708.toml
     /// documents every key. Writes solution.csv, instruments.csv,
     /// smoothed.csv, trajectory.svg, innovations.svg, outage_drift.svg and
