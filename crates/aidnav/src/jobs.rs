@@ -730,7 +730,7 @@ pub struct ProcessReport {
     pub gnss_epochs: usize,
     /// Policy of the GNSS updates in the main run and the outage scores.
     pub policy: crate::process::PolicyName,
-    /// RMS 3-D antenna error over RTK-fixed epochs, all GNSS used [m].
+    /// RMS 3-D antenna error over RTK-fixed epochs, all GNSS used \[m\].
     pub tracking_rms_m: f64,
     /// Updates by outcome in the clean run.
     pub outcomes: Vec<(String, usize)>,
@@ -761,7 +761,7 @@ pub struct ProcessReport {
     pub post_outage_bursts: Vec<(crate::process::PolicyName, f64, f64)>,
     /// Reader warnings.
     pub warnings: Vec<String>,
-    /// Wall time [s]: reading, one filter pass, scoring.
+    /// Wall time \[s\]: reading, one filter pass, scoring.
     pub timing_s: [f64; 3],
     /// Files written.
     pub files: Vec<PathBuf>,

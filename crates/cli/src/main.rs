@@ -120,7 +120,7 @@ struct MonteCarloOverrides {
 
 #[derive(Debug, Args)]
 struct FilterArgs {
-    /// Model file (TOML): phi, q, h, r, x0, p0 and an optional [filter] table.
+    /// Model file (TOML): phi, q, h, r, x0, p0 and an optional \[filter\] table.
     #[arg(long, value_name = "MODEL.toml")]
     model: PathBuf,
     /// Measurement file (CSV): header with optional `time` and the model's measurement names.

@@ -7,7 +7,7 @@
 //! recursing turns almost all of the work of both algorithms into products,
 //! which is what makes the information-form update of large groups
 //! ([`crate::subspace`]) run in well under a second for a thousand members.
-//! Below [`BASE`] rows the plain loops are used.
+//! Below `BASE` rows the plain loops are used.
 
 use nalgebra::{DMatrixView, DMatrixViewMut};
 

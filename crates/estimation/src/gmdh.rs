@@ -105,7 +105,7 @@ pub struct GmdhConfig {
     /// part only). Default true.
     pub refine: bool,
     /// Forecast horizon H beyond the last sample that the model is selected
-    /// for [s]. When set, the external criterion becomes the combined
+    /// for \[s\]. When set, the external criterion becomes the combined
     /// criterion `regularity + balance`, where the *balance of forecasts* is
     /// the mean squared difference, over (t_last, t_last + H], between the
     /// structure fitted on the earlier half of the samples and the same

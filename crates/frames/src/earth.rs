@@ -18,7 +18,7 @@ use crate::constants::{GM_M3_S2, OMEGA_IE_RAD_S, WGS84_A_M, WGS84_F};
 
 /// First eccentricity squared e² = f (2 − f).
 pub const WGS84_E2: f64 = WGS84_F * (2.0 - WGS84_F);
-/// Semi-minor axis b = a (1 − f) [m].
+/// Semi-minor axis b = a (1 − f) \[m\].
 pub const WGS84_B_M: f64 = WGS84_A_M * (1.0 - WGS84_F);
 /// Normal gravity at the equator γ_e [m/s²].
 pub const GAMMA_EQUATOR: f64 = 9.780_325_335_9;
@@ -28,16 +28,16 @@ pub const SOMIGLIANA_K: f64 = 0.001_931_852_652_41;
 /// Geodetic position on WGS-84.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Geodetic {
-    /// Latitude φ [rad].
+    /// Latitude φ \[rad\].
     pub latitude_rad: f64,
-    /// Longitude λ [rad].
+    /// Longitude λ \[rad\].
     pub longitude_rad: f64,
-    /// Height above the ellipsoid h [m].
+    /// Height above the ellipsoid h \[m\].
     pub height_m: f64,
 }
 
 /// Meridian (north–south) and transverse (east–west, prime vertical) radii
-/// of curvature (R_M, R_N) at latitude φ [m].
+/// of curvature (R_M, R_N) at latitude φ \[m\].
 pub fn radii(latitude_rad: f64) -> (f64, f64) {
     let s2 = latitude_rad.sin().powi(2);
     let w = (1.0 - WGS84_E2 * s2).sqrt();
@@ -72,7 +72,7 @@ pub fn transport_rate_ned(p: &Geodetic, v: &Vector3<f64>) -> Vector3<f64> {
 }
 
 impl Geodetic {
-    /// Earth-centred, Earth-fixed coordinates [m].
+    /// Earth-centred, Earth-fixed coordinates \[m\].
     pub fn to_ecef(&self) -> Vector3<f64> {
         let (_, rn) = radii(self.latitude_rad);
         let (sp, cp) = self.latitude_rad.sin_cos();

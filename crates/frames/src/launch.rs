@@ -24,7 +24,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::constants::{EARTH_MEAN_RADIUS_M, GM_M3_S2};
 
-/// Yaw ψ, pitch ϑ, roll γ of the body in the launch frame [rad].
+/// Yaw ψ, pitch ϑ, roll γ of the body in the launch frame \[rad\].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LaunchAttitude {
     /// Yaw ψ (a course φ corresponds to ψ = −φ).

@@ -30,7 +30,7 @@ pub struct LaunchInstrumentErrors {
     pub accel_bias: Vector3<f64>,
     /// Accelerometer scale-factor errors K (X1, Y1, Z1).
     pub accel_scale: Vector3<f64>,
-    /// Angle offsets Δb0 (ψ, ϑ, γ) [rad].
+    /// Angle offsets Δb0 (ψ, ϑ, γ) \[rad\].
     pub angle_offset: Vector3<f64>,
     /// Angle drifts ω_b (ψ, ϑ, γ) [rad/s].
     pub angle_drift: Vector3<f64>,
@@ -125,7 +125,7 @@ impl LaunchInstrumentErrors {
 /// Position and velocity of the launch-frame INS.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LaunchIns {
-    /// Position in the launch frame [m].
+    /// Position in the launch frame \[m\].
     pub position: Vector3<f64>,
     /// Velocity [m/s].
     pub velocity: Vector3<f64>,

@@ -36,7 +36,7 @@ pub const GRAVITY_ENU: Vector3<f64> = Vector3::new(0.0, 0.0, -STANDARD_GRAVITY_M
 /// Position, velocity (local ENU) and attitude (body FLU → ENU) of one INS.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LocalLevelState {
-    /// Position [m].
+    /// Position \[m\].
     pub position: Vector3<f64>,
     /// Velocity [m/s].
     pub velocity: Vector3<f64>,

@@ -48,9 +48,9 @@ pub struct NedState {
 /// One IMU sample as increments over `dt_s` (body frame).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ImuIncrement {
-    /// Interval [s].
+    /// Interval \[s\].
     pub dt_s: f64,
-    /// Angle increment Δθ [rad].
+    /// Angle increment Δθ \[rad\].
     pub delta_angle: Vector3<f64>,
     /// Velocity increment Δv (integrated specific force) [m/s].
     pub delta_velocity: Vector3<f64>,

@@ -407,7 +407,7 @@ impl NedFilter {
         &self.fed_back
     }
 
-    /// Interval of the covariance propagation [s] (default 0.05; 0: every sample).
+    /// Interval of the covariance propagation \[s\] (default 0.05; 0: every sample).
     pub fn set_covariance_interval(&mut self, seconds: f64) {
         self.covariance_interval_s = seconds.max(0.0);
     }

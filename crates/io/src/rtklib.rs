@@ -29,7 +29,7 @@ pub struct GnssFix {
     pub quality: u8,
     /// Number of satellites.
     pub satellites: u32,
-    /// σ of north, east, up position [m].
+    /// σ of north, east, up position \[m\].
     pub position_sigma_neu: Vector3<f64>,
     /// NED velocity [m/s], when the file has velocity columns.
     pub velocity_ned: Option<Vector3<f64>>,

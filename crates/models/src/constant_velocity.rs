@@ -21,14 +21,14 @@ pub struct ConstantVelocity {
 }
 
 impl ConstantVelocity {
-    /// Sampling period `dt_s` > 0 [s] and acceleration PSD `accel_psd` ≥ 0 [m²/s³].
+    /// Sampling period `dt_s` > 0 \[s\] and acceleration PSD `accel_psd` ≥ 0 [m²/s³].
     /// Returns `None` for a non-positive or non-finite period or a negative PSD.
     pub fn new(dt_s: f64, accel_psd: f64) -> Option<Self> {
         (dt_s.is_finite() && dt_s > 0.0 && accel_psd.is_finite() && accel_psd >= 0.0)
             .then_some(Self { dt_s, accel_psd })
     }
 
-    /// Sampling period [s].
+    /// Sampling period \[s\].
     pub fn dt_s(&self) -> f64 {
         self.dt_s
     }

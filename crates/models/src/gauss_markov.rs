@@ -20,13 +20,13 @@ pub struct GaussMarkov {
 }
 
 impl GaussMarkov {
-    /// Correlation time `tau_s` > 0 [s] and stationary σ ≥ 0 (in the unit of x).
+    /// Correlation time `tau_s` > 0 \[s\] and stationary σ ≥ 0 (in the unit of x).
     pub fn new(tau_s: f64, sigma: f64) -> Option<Self> {
         (tau_s.is_finite() && tau_s > 0.0 && sigma.is_finite() && sigma >= 0.0)
             .then_some(Self { tau_s, sigma })
     }
 
-    /// Correlation time [s].
+    /// Correlation time \[s\].
     pub fn tau_s(&self) -> f64 {
         self.tau_s
     }

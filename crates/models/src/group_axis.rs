@@ -30,15 +30,15 @@ use serde::{Deserialize, Serialize};
 pub struct AxisGroup {
     /// Number of members M ≥ 1. Default 1.
     pub members: usize,
-    /// Step T [s]. Default 1.
+    /// Step T \[s\]. Default 1.
     pub dt_s: f64,
     /// Acceleration disturbance a_R [m/s²]. Default 1.
     pub accel_sigma_m_s2: f64,
-    /// σ of each member's own position fix [m]. Default 10.
+    /// σ of each member's own position fix \[m\]. Default 10.
     pub own_position_sigma_m: f64,
     /// σ of each member's own velocity fix [m/s]; none: not observed. Default none.
     pub own_velocity_sigma_mps: Option<f64>,
-    /// σ of each relative position [m]; none: no relative sensors. Default none.
+    /// σ of each relative position \[m\]; none: no relative sensors. Default none.
     pub relative_sigma_m: Option<f64>,
 }
 

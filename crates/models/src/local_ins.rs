@@ -60,11 +60,11 @@ pub type Matrix6 = SMatrix<f64, 6, 6>;
 pub struct ImuGrade {
     /// σ of each accelerometer bias [m/s²]. Default 5e-3 (≈ 0.5 mg).
     pub accel_bias_sigma_m_s2: f64,
-    /// Correlation time of the accelerometer biases [s]. Default 3600.
+    /// Correlation time of the accelerometer biases \[s\]. Default 3600.
     pub accel_bias_correlation_s: f64,
     /// σ of each gyro bias [rad/s]. Default 4.85e-5 (10 °/h).
     pub gyro_bias_sigma_rad_s: f64,
-    /// Correlation time of the gyro biases [s]. Default 3600.
+    /// Correlation time of the gyro biases \[s\]. Default 3600.
     pub gyro_bias_correlation_s: f64,
     /// Velocity random walk [m/s/√s]. Default 1e-3 (0.06 m/s/√h).
     pub velocity_random_walk: f64,
@@ -89,17 +89,17 @@ impl Default for ImuGrade {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct GnssErrors {
-    /// σ of the correlated horizontal position error, per axis [m]. Default 2.
+    /// σ of the correlated horizontal position error, per axis \[m\]. Default 2.
     pub position_horizontal_sigma_m: f64,
-    /// σ of the correlated vertical position error [m]. Default 4.
+    /// σ of the correlated vertical position error \[m\]. Default 4.
     pub position_vertical_sigma_m: f64,
-    /// Correlation time of the position error [s]. Default 300.
+    /// Correlation time of the position error \[s\]. Default 300.
     pub position_correlation_s: f64,
-    /// σ of the white position error, per axis [m]. Default 0.5.
+    /// σ of the white position error, per axis \[m\]. Default 0.5.
     pub position_white_sigma_m: f64,
     /// σ of the correlated velocity error, per axis [m/s]. Default 0.05.
     pub velocity_sigma_mps: f64,
-    /// Correlation time of the velocity error [s]. Default 60.
+    /// Correlation time of the velocity error \[s\]. Default 60.
     pub velocity_correlation_s: f64,
     /// σ of the white velocity error, per axis [m/s]. Default 0.05.
     pub velocity_white_sigma_mps: f64,

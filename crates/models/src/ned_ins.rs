@@ -66,13 +66,13 @@ pub struct ImuNoise {
     pub vrw_mps_per_sqrt_h: f64,
     /// Gyro bias instability σ [deg/h]. Default 50.
     pub gyro_bias_deg_per_h: f64,
-    /// Accelerometer bias instability σ [mg]. Default 2.
+    /// Accelerometer bias instability σ \[mg\]. Default 2.
     pub accel_bias_mg: f64,
-    /// Gyro scale-factor σ [ppm]. Default 1000.
+    /// Gyro scale-factor σ \[ppm\]. Default 1000.
     pub gyro_scale_ppm: f64,
-    /// Accelerometer scale-factor σ [ppm]. Default 1000.
+    /// Accelerometer scale-factor σ \[ppm\]. Default 1000.
     pub accel_scale_ppm: f64,
-    /// Correlation time of every bias and scale factor [s]. Default 3600.
+    /// Correlation time of every bias and scale factor \[s\]. Default 3600.
     pub correlation_s: f64,
 }
 

@@ -1,7 +1,7 @@
 //! Spec 20's test model: one horizontal channel of a platform INS, corrected
 //! by GNSS velocity (seed 004, the dissertation's experiments).
 //!
-//! State `x = (δV, φ, ε)`: velocity error [m/s], platform tilt [rad], gyro
+//! State `x = (δV, φ, ε)`: velocity error [m/s], platform tilt \[rad\], gyro
 //! drift rate [rad/s]. With sampling period T:
 //!
 //! ```text
@@ -37,7 +37,7 @@ pub const PLATFORM_G_M_S2: f64 = 9.81;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlatformChannel {
-    /// Sampling period T [s]. Default 1.
+    /// Sampling period T \[s\]. Default 1.
     pub dt_s: f64,
     /// Mean frequency β of the drift's random change [1/s]. Default 1/3600.
     pub beta_per_s: f64,
@@ -51,7 +51,7 @@ pub struct PlatformChannel {
     /// truth only. Default 2e-3 (a 1e-3 scale factor under 2 m/s² of
     /// manoeuvring; 0 gives the constant-B truth).
     pub accel_bias_variation_m_s2: f64,
-    /// Correlation time τ_b of b(t) [s], > 0. Default 300 (a manoeuvre's time scale).
+    /// Correlation time τ_b of b(t) \[s\], > 0. Default 300 (a manoeuvre's time scale).
     pub accel_bias_correlation_s: f64,
 }
 
@@ -121,7 +121,7 @@ impl PlatformChannel {
         ))
     }
 
-    /// The tilt B/g that absorbs a constant accelerometer bias exactly [rad].
+    /// The tilt B/g that absorbs a constant accelerometer bias exactly \[rad\].
     pub fn equivalent_tilt_rad(&self) -> f64 {
         self.accel_bias_m_s2 / PLATFORM_G_M_S2
     }
@@ -134,7 +134,7 @@ impl PlatformChannel {
         )
     }
 
-    /// Schuler period 2π √(R/g) [s] (≈ 84.4 min), the natural run length.
+    /// Schuler period 2π √(R/g) \[s\] (≈ 84.4 min), the natural run length.
     pub fn schuler_period_s() -> f64 {
         2.0 * std::f64::consts::PI * (EARTH_MEAN_RADIUS_M / PLATFORM_G_M_S2).sqrt()
     }

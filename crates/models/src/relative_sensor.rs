@@ -5,7 +5,7 @@
 //!
 //! The conversion makes independent polar errors correlated across the
 //! Cartesian axes, with a size that grows with range (D σ_α across the line of
-//! sight against σ_D along it): [`converted_covariance`] gives the
+//! sight against σ_D along it): \[`converted_covariance`\] gives the
 //! first-order covariance `J diag(σ_D², σ_α², σ_β²) Jᵀ`, which the paper's
 //! axis-decoupled fusion can only use through its diagonal.
 //!
@@ -28,11 +28,11 @@ use serde::{Deserialize, Serialize};
 /// Range, bearing, elevation of a vector in some frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Polar {
-    /// Slant range D [m].
+    /// Slant range D \[m\].
     pub range_m: f64,
-    /// Bearing α = atan2(y, x) [rad], in (−π, π].
+    /// Bearing α = atan2(y, x) \[rad\], in (−π, π].
     pub bearing_rad: f64,
-    /// Elevation β = asin(z / D) [rad].
+    /// Elevation β = asin(z / D) \[rad\].
     pub elevation_rad: f64,
 }
 
@@ -107,13 +107,13 @@ pub fn wrap_angle(a: f64) -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RelativeSensor {
-    /// σ of the slant range [m]. Default 0.5.
+    /// σ of the slant range \[m\]. Default 0.5.
     pub range_sigma_m: f64,
-    /// σ of the bearing [rad]. Default 2e-3 (0.11°).
+    /// σ of the bearing \[rad\]. Default 2e-3 (0.11°).
     pub bearing_sigma_rad: f64,
-    /// σ of the elevation [rad]. Default 2e-3.
+    /// σ of the elevation \[rad\]. Default 2e-3.
     pub elevation_sigma_rad: f64,
-    /// Members farther than this are not measured [m]. Default 2000.
+    /// Members farther than this are not measured \[m\]. Default 2000.
     pub range_limit_m: f64,
 }
 

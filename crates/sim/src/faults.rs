@@ -37,9 +37,9 @@ pub enum FaultSpec {
     Bursts {
         /// Number of bursts.
         count: usize,
-        /// Shortest burst [epochs].
+        /// Shortest burst \[epochs\].
         min_length: usize,
-        /// Longest burst [epochs].
+        /// Longest burst \[epochs\].
         max_length: usize,
         /// Magnitude range.
         magnitude: SigmaRange,
@@ -63,7 +63,7 @@ pub enum FaultSpec {
     },
     /// A burst of `length` epochs starting right after each outage ends.
     AfterOutage {
-        /// Burst length [epochs].
+        /// Burst length \[epochs\].
         length: usize,
         /// Magnitude range.
         magnitude: SigmaRange,

@@ -33,20 +33,20 @@ const G0: f64 = 9.806_65;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LaunchTarget {
-    /// Time of arrival t_B [s].
+    /// Time of arrival t_B \[s\].
     pub t_b_s: f64,
-    /// Course φ [deg].
+    /// Course φ \[deg\].
     pub course_deg: f64,
-    /// Target x [km].
+    /// Target x \[km\].
     pub x_km: f64,
-    /// Target y (altitude) [km].
+    /// Target y (altitude) \[km\].
     pub y_km: f64,
-    /// Target z [km].
+    /// Target z \[km\].
     pub z_km: f64,
 }
 
 impl LaunchTarget {
-    /// Target position [m].
+    /// Target position \[m\].
     pub fn position(&self) -> Vector3<f64> {
         Vector3::new(self.x_km, self.y_km, self.z_km) * 1e3
     }
@@ -79,7 +79,7 @@ pub const TABLE1: [LaunchTarget; 9] = [
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LaunchProgram {
-    /// Vertical rise [s]. Default 10.
+    /// Vertical rise \[s\]. Default 10.
     pub vertical_s: f64,
     /// Specific force at t_B over that at lift-off. Default 3.
     pub accel_ratio: f64,
@@ -105,7 +105,7 @@ pub enum TrajectoryError {
         "the guidance solution did not converge (miss {miss_m:.1} m after {iterations} iterations)"
     )]
     NoConvergence {
-        /// Remaining miss distance [m].
+        /// Remaining miss distance \[m\].
         miss_m: f64,
         /// Iterations made.
         iterations: usize,
@@ -115,9 +115,9 @@ pub enum TrajectoryError {
         "the solution needs {lift_off_g:.2} g at lift-off and {final_g:.2} g at t_B (allowed 1 … 6 g)"
     )]
     Infeasible {
-        /// Specific force at lift-off [g].
+        /// Specific force at lift-off \[g\].
         lift_off_g: f64,
-        /// Specific force at t_B [g].
+        /// Specific force at t_B \[g\].
         final_g: f64,
     },
     /// Inputs out of range.
@@ -134,11 +134,11 @@ pub struct LaunchTrajectory {
     pub program: LaunchProgram,
     /// Specific force at lift-off [m/s²].
     pub lift_off_accel_m_s2: f64,
-    /// Pitch at t_B [rad].
+    /// Pitch at t_B \[rad\].
     pub final_pitch_rad: f64,
-    /// Sample interval [s].
+    /// Sample interval \[s\].
     pub dt_s: f64,
-    /// Position at t = k dt [m].
+    /// Position at t = k dt \[m\].
     pub positions: Vec<Vector3<f64>>,
     /// Velocity at t = k dt [m/s].
     pub velocities: Vec<Vector3<f64>>,
@@ -341,7 +341,7 @@ impl LaunchTrajectory {
         self.positions.len()
     }
 
-    /// Distance from the target at t_B [m].
+    /// Distance from the target at t_B \[m\].
     pub fn miss_m(&self) -> f64 {
         (self.positions[self.positions.len() - 1] - self.target.position()).norm()
     }

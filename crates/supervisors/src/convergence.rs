@@ -66,11 +66,11 @@ where
 pub struct SwitchRule {
     /// δ_thr. Default 0.03.
     pub threshold: f64,
-    /// Not before this fusion time [s]. Default 0.
+    /// Not before this fusion time \[s\]. Default 0.
     pub arm_after_s: f64,
     /// Only after δ has once exceeded the threshold. Default false.
     pub require_rise: bool,
-    /// Only once δ has not increased for this long [s] (0: no such
+    /// Only once δ has not increased for this long \[s\] (0: no such
     /// condition). Default 0.
     pub falling_s: f64,
     /// Consecutive epochs with δ ≤ δ_thr needed. Default 5.

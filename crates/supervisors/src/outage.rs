@@ -83,9 +83,9 @@ impl RelaySchedule {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BridgeConfig {
-    /// History used by the trend [s].
+    /// History used by the trend \[s\].
     pub trend_window_s: f64,
-    /// History used by the self-organising model [s].
+    /// History used by the self-organising model \[s\].
     pub model_window_s: f64,
     /// Use every n-th sample of the model window for the selection (speed;
     /// the last sample is always used). Default 1.

@@ -129,7 +129,7 @@ pub struct AnomaliesScenario {
     pub faults: Vec<FaultSpec>,
     /// Prior σ of δV [m/s]. Default 1.
     pub initial_velocity_sigma_mps: f64,
-    /// Prior σ of the tilt [rad]. Default 1e-3.
+    /// Prior σ of the tilt \[rad\]. Default 1e-3.
     pub initial_tilt_sigma_rad: f64,
     /// `kf_wrong_stats` believes the model's Q (no forcing noise) × this. Default 1.
     pub wrong_q_scale: f64,
@@ -160,7 +160,7 @@ pub struct Illustration {
     pub at_epoch: usize,
     /// Signed magnitude in units of the GNSS σ. Default 30.
     pub sigmas: f64,
-    /// Burst length [epochs], ≥ 1. Default 20.
+    /// Burst length \[epochs\], ≥ 1. Default 20.
     pub burst_length: usize,
 }
 
@@ -280,7 +280,7 @@ pub struct EstimatorScore {
 pub struct ExampleRun {
     /// True δV per epoch [m/s].
     pub truth: Vec<f64>,
-    /// True tilt per epoch [rad].
+    /// True tilt per epoch \[rad\].
     pub tilt: Vec<f64>,
     /// Whether the fix at each epoch was anomalous.
     pub anomalous: Vec<bool>,

@@ -31,13 +31,13 @@ pub struct ConsistencyScenario {
     pub runs: usize,
     /// Epochs per run, 2 … 1 000 000. Default 300.
     pub epochs: usize,
-    /// Sampling period [s], > 0. Default 1.
+    /// Sampling period \[s\], > 0. Default 1.
     pub dt_s: f64,
     /// White-acceleration power spectral density [m²/s³], > 0. Default 0.05.
     pub accel_psd: f64,
-    /// Position measurement noise σ [m], > 0. Default 2.
+    /// Position measurement noise σ \[m\], > 0. Default 2.
     pub position_sigma_m: f64,
-    /// Initial position σ [m], > 0. Default 10.
+    /// Initial position σ \[m\], > 0. Default 10.
     pub initial_position_sigma_m: f64,
     /// Initial velocity σ [m/s], > 0. Default 1.
     pub initial_velocity_sigma_mps: f64,
@@ -110,9 +110,9 @@ pub struct VariantResult {
     pub fraction_epochs_nees_inside: f64,
     /// Verdict: NIS inside and at least [`MIN_FRACTION_INSIDE`] of epochs' NEES inside.
     pub consistent: bool,
-    /// RMS position error over all runs and epochs [m].
+    /// RMS position error over all runs and epochs \[m\].
     pub rms_position_error_m: f64,
-    /// Filter's own position σ, RMS over runs and epochs [m].
+    /// Filter's own position σ, RMS over runs and epochs \[m\].
     pub rms_position_sigma_m: f64,
     /// Run-averaged NEES per epoch.
     #[serde(skip)]

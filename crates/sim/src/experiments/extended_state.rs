@@ -50,13 +50,13 @@ pub struct ExtendedStateScenario {
     pub seed: u64,
     /// Monte Carlo runs per trajectory, 1 … 100 000. Default 100.
     pub runs: usize,
-    /// INS and truth step [s] (≤ 0.01 s: 100 Hz or faster). Default 0.01.
+    /// INS and truth step \[s\] (≤ 0.01 s: 100 Hz or faster). Default 0.01.
     pub imu_dt_s: f64,
-    /// Interval between fixes Δt [s] (a whole number of steps). Default 0.15.
+    /// Interval between fixes Δt \[s\] (a whole number of steps). Default 0.15.
     pub fix_interval_s: f64,
-    /// Flight time of the first fix [s]. Default 20.
+    /// Flight time of the first fix \[s\]. Default 20.
     pub fusion_start_s: f64,
-    /// σ of the fixes' position noise [m] (R = σ² I). Default 10.
+    /// σ of the fixes' position noise \[m\] (R = σ² I). Default 10.
     pub position_sigma_m: f64,
     /// σ of the fixes' velocity noise [m/s]. Default 10.
     pub velocity_sigma_mps: f64,
@@ -217,7 +217,7 @@ struct Snapshot {
 /// Per-epoch record of the filter pass (for the figures).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct FilterHistory {
-    /// Flight time of each fix [s].
+    /// Flight time of each fix \[s\].
     pub time_s: Vec<f64>,
     /// δ(n).
     pub delta: Vec<f64>,
@@ -227,7 +227,7 @@ pub struct FilterHistory {
     pub instrument_sigma: Vec<[f64; INSTRUMENTS]>,
     /// Cramér–Rao σ of the 8 instrument errors.
     pub instrument_bound: Vec<[f64; INSTRUMENTS]>,
-    /// |Δx| of the closed-loop INS after each fix [m].
+    /// |Δx| of the closed-loop INS after each fix \[m\].
     pub position_error_m: Vec<f64>,
     /// Smallest eigenvalue of P − P_Γ after each fix, in the basis scaled by
     /// P's σ (≥ 0 up to rounding: the bound holds).
@@ -246,25 +246,25 @@ struct ThresholdRun {
 /// Result per (trajectory, threshold), medians over runs.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CaseResult {
-    /// t_B [s].
+    /// t_B \[s\].
     pub t_b_s: f64,
-    /// Course [deg].
+    /// Course \[deg\].
     pub course_deg: f64,
     /// δ_thr.
     pub delta_threshold: f64,
-    /// Switch time (flight time) [s], median.
+    /// Switch time (flight time) \[s\], median.
     pub switch_time_s: f64,
-    /// Switch time, 10 % and 90 % quantiles [s].
+    /// Switch time, 10 % and 90 % quantiles \[s\].
     pub switch_time_p10_p90_s: [f64; 2],
     /// Runs in which the switch never fired (these use t_B as switch time).
     pub never_switched: usize,
-    /// |Δx(t_B)| of the free INS [m], median.
+    /// |Δx(t_B)| of the free INS \[m\], median.
     pub error_free_ins_m: f64,
-    /// Outputs only [m], median.
+    /// Outputs only \[m\], median.
     pub error_outputs_only_m: f64,
-    /// Proposed [m], median.
+    /// Proposed \[m\], median.
     pub error_proposed_m: f64,
-    /// Oracle [m], median.
+    /// Oracle \[m\], median.
     pub error_oracle_m: f64,
     /// Ratio outputs-only / proposed, median over runs.
     pub ratio_median: f64,
@@ -277,7 +277,7 @@ pub struct CaseResult {
 /// The forced-switch sweep of the figure trajectory.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SweepPoint {
-    /// Forced switch time (flight time) [s].
+    /// Forced switch time (flight time) \[s\].
     pub switch_time_s: f64,
     /// Ratio outputs-only / proposed: median, p10, p90.
     pub ratio: [f64; 3],
@@ -293,11 +293,11 @@ pub struct ExtendedStateResult {
     /// |Δx(t)| on the figure trajectory, run 0: time and, per threshold,
     /// (proposed, outputs only); and the free INS.
     pub error_time_s: Vec<f64>,
-    /// Per threshold: |Δx(t)| proposed, run 0 [m].
+    /// Per threshold: |Δx(t)| proposed, run 0 \[m\].
     pub error_proposed: Vec<Vec<f64>>,
-    /// Per threshold: |Δx(t)| outputs only, run 0 [m].
+    /// Per threshold: |Δx(t)| outputs only, run 0 \[m\].
     pub error_outputs_only: Vec<Vec<f64>>,
-    /// |Δx(t)| of the free INS, run 0 [m].
+    /// |Δx(t)| of the free INS, run 0 \[m\].
     pub error_free: Vec<f64>,
     /// Forced-switch sweep on the figure trajectory.
     pub sweep: Vec<SweepPoint>,

@@ -54,9 +54,9 @@ pub const SOLUTIONS: [&str; 3] = ["gnss_ins", "paper", "ekf"];
 pub struct Denial {
     /// Members (0-based) that lose GNSS.
     pub members: Vec<usize>,
-    /// Start of the denial [s].
+    /// Start of the denial \[s\].
     pub start_s: f64,
-    /// End of the denial [s].
+    /// End of the denial \[s\].
     pub end_s: f64,
 }
 
@@ -70,13 +70,13 @@ impl Denial {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct InitialErrors {
-    /// Position σ per axis [m]. Default 3.
+    /// Position σ per axis \[m\]. Default 3.
     pub position_sigma_m: f64,
     /// Velocity σ per axis [m/s]. Default 0.2.
     pub velocity_sigma_mps: f64,
-    /// Roll and pitch σ [rad]. Default 1e-3.
+    /// Roll and pitch σ \[rad\]. Default 1e-3.
     pub tilt_sigma_rad: f64,
-    /// Heading σ [rad]. Default 5e-3.
+    /// Heading σ \[rad\]. Default 5e-3.
     pub heading_sigma_rad: f64,
 }
 
@@ -101,29 +101,29 @@ pub struct FormationScenario {
     pub runs: usize,
     /// Members M, 1 … 50. Default 5.
     pub members: usize,
-    /// Flight duration [s], at most 36 000. Default 600.
+    /// Flight duration \[s\], at most 36 000. Default 600.
     pub duration_s: f64,
-    /// IMU sample interval [s] (≤ 0.02). Default 0.01.
+    /// IMU sample interval \[s\] (≤ 0.02). Default 0.01.
     pub imu_dt_s: f64,
-    /// Stage-1 filter time-update interval [s]. Default 0.1.
+    /// Stage-1 filter time-update interval \[s\]. Default 0.1.
     pub filter_dt_s: f64,
-    /// GNSS fix, relative measurement and stage-2 interval [s]. Default 1.
+    /// GNSS fix, relative measurement and stage-2 interval \[s\]. Default 1.
     pub fix_interval_s: f64,
-    /// Errors are scored from this time on [s]. Default 60.
+    /// Errors are scored from this time on \[s\]. Default 60.
     pub settle_s: f64,
     /// Leader ground speed [m/s]. Default 60.
     pub speed_mps: f64,
-    /// Initial altitude [m]. Default 1000.
+    /// Initial altitude \[m\]. Default 1000.
     pub altitude_m: f64,
-    /// Lateral weave amplitude of the leader [m]. Default 800.
+    /// Lateral weave amplitude of the leader \[m\]. Default 800.
     pub weave_amplitude_m: f64,
-    /// Weave period [s]. Default 240.
+    /// Weave period \[s\]. Default 240.
     pub weave_period_s: f64,
-    /// Climb/descent amplitude [m]. Default 50.
+    /// Climb/descent amplitude \[m\]. Default 50.
     pub climb_amplitude_m: f64,
-    /// Climb period [s]. Default 180.
+    /// Climb period \[s\]. Default 180.
     pub climb_period_s: f64,
-    /// Distance between neighbours in the V [m]. Default 150.
+    /// Distance between neighbours in the V \[m\]. Default 150.
     pub spacing_m: f64,
     /// Stage-2 acceleration disturbance a_R [m/s²]. Default 1.
     pub group_accel_sigma_m_s2: f64,
@@ -381,15 +381,15 @@ pub struct MemberScore {
     pub member: usize,
     /// Whether the member is denied GNSS at some time.
     pub denied: bool,
-    /// 3-D position error RMS [m], per solution in [`SOLUTIONS`] order.
+    /// 3-D position error RMS \[m\], per solution in [`SOLUTIONS`] order.
     pub position_rms_m: [f64; 3],
     /// 3-D velocity error RMS [m/s], per solution.
     pub velocity_rms_mps: [f64; 3],
-    /// Filter's predicted 3-D position σ (√ trace), mean over epochs [m].
+    /// Filter's predicted 3-D position σ (√ trace), mean over epochs \[m\].
     pub position_sigma_m: [f64; 3],
-    /// During its denial: mean over runs of the largest 3-D position error [m].
+    /// During its denial: mean over runs of the largest 3-D position error \[m\].
     pub denial_max_error_m: Option<[f64; 3]>,
-    /// At the end of its denial: RMS over runs of the 3-D position error [m].
+    /// At the end of its denial: RMS over runs of the 3-D position error \[m\].
     pub denial_end_error_m: Option<[f64; 3]>,
 }
 
@@ -398,9 +398,9 @@ pub struct MemberScore {
 pub struct FormationResult {
     /// Per member.
     pub members: Vec<MemberScore>,
-    /// Epoch times [s].
+    /// Epoch times \[s\].
     pub time_s: Vec<f64>,
-    /// Per epoch, per member, per solution: RMS over runs of the 3-D position error [m].
+    /// Per epoch, per member, per solution: RMS over runs of the 3-D position error \[m\].
     pub error_by_epoch: Vec<Vec<[f64; 3]>>,
     /// Relative measurements per epoch (mean over epochs and runs).
     pub relative_per_epoch: f64,

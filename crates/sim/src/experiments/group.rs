@@ -37,7 +37,7 @@ pub struct GroupScenario {
     pub runs: usize,
     /// Epochs per run (T each), 2 … 100 000. Default 31 (the paper's ≈ 30 s).
     pub epochs: usize,
-    /// Averages start at this time [s] (the paper's filter settles in ≈ 10 s). Default 10.
+    /// Averages start at this time \[s\] (the paper's filter settles in ≈ 10 s). Default 10.
     pub settle_s: f64,
     /// Prior σ of each member's velocity [m/s]. Default 10.
     pub initial_velocity_sigma_mps: f64,
@@ -142,21 +142,21 @@ pub struct CaseScore {
     pub name: String,
     /// Members.
     pub members: usize,
-    /// Filter σ of position, mean over members and settled epochs [m].
+    /// Filter σ of position, mean over members and settled epochs \[m\].
     pub position_sigma_m: f64,
-    /// Monte Carlo RMS of the position error, members × settled epochs × runs [m].
+    /// Monte Carlo RMS of the position error, members × settled epochs × runs \[m\].
     pub position_rms_m: f64,
     /// Filter σ of velocity [m/s].
     pub velocity_sigma_mps: f64,
     /// Monte Carlo RMS of the velocity error [m/s].
     pub velocity_rms_mps: f64,
-    /// Steady-state filtered σ of position (Riccati), mean over members [m].
+    /// Steady-state filtered σ of position (Riccati), mean over members \[m\].
     pub steady_position_sigma_m: f64,
     /// Steady-state filtered σ of velocity [m/s].
     pub steady_velocity_sigma_mps: f64,
-    /// Per epoch: filter σ of position, mean over members [m].
+    /// Per epoch: filter σ of position, mean over members \[m\].
     pub sigma_by_epoch: Vec<f64>,
-    /// Per epoch: RMS position error over members and runs [m].
+    /// Per epoch: RMS position error over members and runs \[m\].
     pub rms_by_epoch: Vec<f64>,
 }
 

@@ -61,17 +61,17 @@ pub struct OutagesScenario {
     pub platform: PlatformChannel,
     /// Prior σ of δV [m/s]. Default 1.
     pub initial_velocity_sigma_mps: f64,
-    /// Prior σ of the tilt [rad]. Default 1e-3.
+    /// Prior σ of the tilt \[rad\]. Default 1e-3.
     pub initial_tilt_sigma_rad: f64,
-    /// GNSS lost at this time [s]. Default 3000.
+    /// GNSS lost at this time \[s\]. Default 3000.
     pub outage_start_s: f64,
-    /// Short outage length [s]. Default 200.
+    /// Short outage length \[s\]. Default 200.
     pub short_outage_s: f64,
-    /// Long outage length [s]. Default 3000.
+    /// Long outage length \[s\]. Default 3000.
     pub long_outage_s: f64,
     /// Predictors and relay schedule.
     pub bridge: BridgeConfig,
-    /// GNSS is back for this long after the long outage [s] (efficiency criterion phase). Default 600.
+    /// GNSS is back for this long after the long outage \[s\] (efficiency criterion phase). Default 600.
     pub recovery_s: f64,
     /// Faults on the returning GNSS (the paper stresses bursts right after an outage).
     pub recovery_faults: Vec<FaultSpec>,
@@ -210,7 +210,7 @@ pub struct PredictorScore {
 /// Scores for one outage length.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutageScores {
-    /// Outage length [s].
+    /// Outage length \[s\].
     pub length_s: f64,
     /// RMS of the uncorrected INS velocity error over the outage [m/s].
     pub uncorrected_rms_mps: f64,
@@ -221,7 +221,7 @@ pub struct OutageScores {
 /// Run 0's long outage, for plots: truth and each predictor.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct OutageExample {
-    /// Times [s] from the outage start.
+    /// Times \[s\] from the outage start.
     pub age_s: Vec<f64>,
     /// True δV.
     pub truth: Vec<f64>,
@@ -232,7 +232,7 @@ pub struct OutageExample {
 /// Navigation error after the outage by source (spec 20 Fig. 10).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct EfficiencyScores {
-    /// Recovery phase length [s].
+    /// Recovery phase length \[s\].
     pub length_s: f64,
     /// RMS velocity error navigating on GNSS alone [m/s].
     pub rms_always_gnss_mps: f64,
@@ -259,7 +259,7 @@ pub struct EfficiencyScores {
 /// Run 0's K_eff from the outage start to the end of recovery.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct EfficiencyExample {
-    /// Time since the outage started [s].
+    /// Time since the outage started \[s\].
     pub age_s: Vec<f64>,
     /// K_eff = σ_GNSS / σ_KOI.
     pub k_eff: Vec<f64>,

@@ -1,0 +1,620 @@
+//! The configuration file of `aidnav process` and its validation.
+
+use std::path::PathBuf;
+
+use aidnav_estimation::{
+    AcceptAll, Chi2Gate, Huber, MeasurementPolicy, RecoveringChi2Gate,
+    adaptive::{
+        AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain, Limiting, Rejection,
+    },
+    gmdh::GmdhConfig,
+    nalgebra::U3,
+};
+use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_range, non_negative};
+use aidnav_supervisors::outage::{BridgeConfig, Predictor, RelaySchedule};
+use serde::{Deserialize, Serialize};
+
+/// Format of the IMU file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImuFormat {
+    /// Raw CSV (g, deg/s, tick ms) with an RTKLIB `.tag` file (`imu_tags`).
+    #[default]
+    RtklibTagged,
+    /// KF-GINS text: time, angle and velocity increments, body frame.
+    KfGins,
+    /// aidnav's generic CSV (see `aidnav_io::kfgins`).
+    GenericCsv,
+}
+
+/// Format of the GNSS file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GnssFormat {
+    /// RTKLIB `.pos` (latitude/longitude/height).
+    #[default]
+    RtklibPos,
+    /// KF-GINS text: time, lat, lon, h, σN σE σD [, velocity and σ].
+    KfGins,
+    /// NMEA 0183: GGA + RMC (+ GST for σ), see `aidnav_io::nmea`.
+    Nmea,
+}
+
+/// Where the data are.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataFiles {
+    /// Directory of the files (relative: to the configuration file).
+    pub dir: PathBuf,
+    /// IMU file.
+    pub imu: PathBuf,
+    /// Its format. Default `rtklib_tagged`.
+    #[serde(default)]
+    pub imu_format: ImuFormat,
+    /// RTKLIB time-tag file of the IMU (for `rtklib_tagged`).
+    #[serde(default)]
+    pub imu_tags: Option<PathBuf>,
+    /// GNSS file.
+    pub gnss: PathBuf,
+    /// Its format. Default `rtklib_pos`.
+    #[serde(default)]
+    pub gnss_format: GnssFormat,
+}
+
+/// IMU handling.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImuConfig {
+    /// Added to the IMU time \[s\] (logging delay). Default −0.125.
+    pub time_offset_s: f64,
+    /// Sensor → body rotation as (roll, pitch, yaw) \[deg\], Groves'
+    /// Euler_to_CTM: `f_body = C(roll, pitch, yaw) f_sensor`. Default the
+    /// data set's [180, −6.79, 185.35].
+    pub mounting_deg: [f64; 3],
+    /// Zero-phase moving-average window \[s\] (0: none). Default 0.1
+    /// (the data set's gyros carry a strong vibration line).
+    pub smoothing_s: f64,
+    /// Noise terms of the filter model.
+    pub noise: aidnav_models::ned_ins::ImuNoise,
+}
+
+impl Default for ImuConfig {
+    fn default() -> Self {
+        Self {
+            time_offset_s: -0.125,
+            mounting_deg: [180.0, -6.79, 185.35],
+            smoothing_s: 0.1,
+            noise: aidnav_models::ned_ins::ImuNoise::default(),
+        }
+    }
+}
+
+/// Initialisation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InitialConfig {
+    /// Static period at the start used for levelling and gyro bias \[s\]. Default 5.
+    pub static_s: f64,
+    /// GNSS speed above which the course gives the heading [m/s]. Default 2.
+    pub heading_speed_mps: f64,
+    /// Prior σ of the heading \[deg\]. Default 5.
+    pub heading_sigma_deg: f64,
+    /// Prior σ of roll and pitch \[deg\]. Default 0.5.
+    pub tilt_sigma_deg: f64,
+    /// A given initial attitude (roll, pitch, yaw) \[deg\] instead of
+    /// levelling and the GNSS course; the gyro bias then starts at zero.
+    /// Default none.
+    pub attitude_deg: Option<[f64; 3]>,
+    /// A given initial NED velocity [m/s] (default: at rest).
+    pub velocity_ned_mps: Option<[f64; 3]>,
+}
+
+impl Default for InitialConfig {
+    fn default() -> Self {
+        Self {
+            static_s: 5.0,
+            heading_speed_mps: 2.0,
+            heading_sigma_deg: 5.0,
+            tilt_sigma_deg: 0.5,
+            attitude_deg: None,
+            velocity_ned_mps: None,
+        }
+    }
+}
+
+/// GNSS use.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GnssConfig {
+    /// Lever arm IMU → antenna in the body frame (forward, right, down) \[m\].
+    /// Default the data set's [0, −0.05, 0].
+    pub lever_arm_m: [f64; 3],
+    /// Use the velocity columns. Default true.
+    pub use_velocity: bool,
+    /// Floor on the position σ from the file \[m\]. Default 0.01.
+    pub min_position_sigma_m: f64,
+    /// Floor on the velocity σ [m/s]. Default 0.02.
+    pub min_velocity_sigma_mps: f64,
+    /// Measurement policy of the GNSS updates (main run and outage scores):
+    /// `accept`, `chi2_gate`, `recovering_gate`, `huber`, `rejection` or
+    /// `limiting` (spec 20's detector with rejection or limiting). Default `accept`
+    /// (as KF-GINS). Choose `huber` when the stream may hold outliers: on the
+    /// recorded drive it costs about 1 cm on clean data and keeps 5–50 m
+    /// outliers on 30 % of the epochs to 8 cm (the anomaly table). Also
+    /// `adaptive_gain` (spec 20 eq. 4), `limited_adaptive_gain` (eq. 4 + 5 +
+    /// 8) and `developed` (eq. 9: limiting with the eq. 3 adaptive noise,
+    /// guarded by the detector).
+    pub policy: PolicyName,
+    /// Anomaly level γ of spec 20's detector (eq. 5: νᵀν > γ tr S) in
+    /// `rejection`, `limiting`, `limited_adaptive_gain`, `developed` and the
+    /// adaptive noise's guard. Default 9.
+    pub anomaly_gamma: f64,
+    /// Innovations in eq. 4's sliding window (`adaptive_gain`,
+    /// `limited_adaptive_gain`). Default 20 (5 s at 4 Hz).
+    pub adaptive_window: usize,
+}
+
+/// Vehicle constraints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ConstraintConfig {
+    /// Non-holonomic constraint (zero lateral and vertical body velocity)
+    /// for a land vehicle. Default false.
+    pub non_holonomic: bool,
+    /// Its σ [m/s] (the IMU is not at the wheel contact; turns and bumps
+    /// break the constraint by this much). Default 0.1.
+    pub non_holonomic_sigma_mps: f64,
+    /// Its rate \[Hz\]. Default 10.
+    pub non_holonomic_rate_hz: f64,
+    /// Not applied below this speed [m/s]. Default 1.
+    pub min_speed_mps: f64,
+}
+
+impl Default for ConstraintConfig {
+    fn default() -> Self {
+        Self {
+            non_holonomic: false,
+            non_holonomic_sigma_mps: 0.1,
+            non_holonomic_rate_hz: 10.0,
+            min_speed_mps: 1.0,
+        }
+    }
+}
+
+impl Default for GnssConfig {
+    fn default() -> Self {
+        Self {
+            lever_arm_m: [0.0, -0.05, 0.0],
+            use_velocity: true,
+            min_position_sigma_m: 0.01,
+            min_velocity_sigma_mps: 0.02,
+            policy: PolicyName::Accept,
+            anomaly_gamma: 9.0,
+            adaptive_window: 20,
+        }
+    }
+}
+
+/// Outage scoring (spec 40's default schedule).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ScoreConfig {
+    /// Outage lengths L \[s\]. Default [10, 30, 60].
+    pub outages_s: Vec<f64>,
+    /// First window starts this long after the first IMU sample \[s\]. Default 60.
+    pub lead_s: f64,
+    /// GNSS between windows \[s\]. Default 30.
+    pub gap_s: f64,
+    /// Fractions of epochs given an outlier. Default [0.1, 0.3].
+    pub outlier_fractions: Vec<f64>,
+    /// Outlier size range \[m\]. Default [5, 50].
+    pub outlier_m: [f64; 2],
+    /// Seed of the injected outliers. Default 20261123.
+    pub seed: u64,
+    /// Burst after every 30 s outage: this long after GNSS returns, the
+    /// fixes carry one common 5–50 m jump (a bad re-acquisition) \[s\]; 0: no
+    /// burst run. Default 2.5 (10 epochs at 4 Hz).
+    pub post_outage_burst_s: f64,
+}
+
+impl Default for ScoreConfig {
+    fn default() -> Self {
+        Self {
+            outages_s: vec![10.0, 30.0, 60.0],
+            lead_s: 60.0,
+            gap_s: 30.0,
+            outlier_fractions: vec![0.1, 0.3],
+            outlier_m: [5.0, 50.0],
+            seed: 20261123,
+            post_outage_burst_s: 2.5,
+        }
+    }
+}
+
+/// How the estimates reach the INS.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Feedback {
+    /// Closed loop (seed 000): every estimate is fed back into the INS and
+    /// the instrument corrections.
+    #[default]
+    Closed,
+    /// Open loop (seed 004): the INS runs free, the output is corrected.
+    Open,
+}
+
+/// The filter.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FilterConfig {
+    /// `closed` (default) or `open`. Open loop cannot be smoothed.
+    pub feedback: Feedback,
+    /// Run spec 10's Cramér–Rao convergence measure δ(n) on the instrument
+    /// states (a Fisher recursion beside the filter, +0.2 s per pass on the
+    /// drive) and report when the rule declares them converged. Note that
+    /// the bound assumes constant instrument errors; with Gauss–Markov
+    /// instruments (Q > 0) P_M stays above it and δ rises late in a log.
+    /// Default false.
+    pub convergence_monitor: bool,
+    /// Spec 20 eq. 3's adaptive process noise on the position updates:
+    /// `off`, `hard` (the term `K_{k−1} ν_k ν_kᵀ K_{k−1}ᵀ` of each epoch, as
+    /// the paper has it) or `averaged` (its mean over the last
+    /// `adaptive_noise_window` normal epochs, Mohamed–Schwarz). It is added
+    /// to the model's Q: replacing Q, as the paper does on its 3-state
+    /// model, made the drive fail (S not positive definite — a rank-3 term
+    /// per fix cannot keep 21 states' covariance positive). An
+    /// anomalous ν (the eq. 5 detector with `gnss.anomaly_gamma`) feeds the
+    /// mean term of the last normal epochs instead; the first fix after an
+    /// outage feeds nothing (the gain of an epoch without a fix is zero).
+    /// Default `off` (`developed` uses `hard` unless this says otherwise).
+    pub adaptive_noise: AdaptiveNoise,
+    /// Window of the averaged term and of the guard's mean. Default 10.
+    pub adaptive_noise_window: usize,
+}
+
+impl Default for FilterConfig {
+    fn default() -> Self {
+        Self {
+            feedback: Feedback::Closed,
+            convergence_monitor: false,
+            adaptive_noise: AdaptiveNoise::Off,
+            adaptive_noise_window: 10,
+        }
+    }
+}
+
+/// Spec 20 eq. 3 on the NED filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AdaptiveNoise {
+    /// The model's Q only.
+    #[default]
+    Off,
+    /// Plus each epoch's K ν νᵀ Kᵀ (eq. 3's hard feedback).
+    Hard,
+    /// Plus its mean over the last window of normal epochs.
+    Averaged,
+}
+
+/// Outage bridging (spec 20's predictors on real data). In closed loop the
+/// filter's estimates are fed back and reset, so the series the predictors
+/// extrapolate is the *accumulated GNSS correction* of position and
+/// velocity (NED): what the INS needed, per axis, up to the outage. In an
+/// outage each predictor continues it from the outage start; the bridged
+/// output is the coasting filter's minus the predicted position increment
+/// plus the integral of the predicted velocity increment. (Holding the last
+/// estimate adds nothing in closed loop: that is the coasting filter, the
+/// a-priori model predictor.)
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutageBridgeConfig {
+    /// Score the bridged outputs in `aidnav process`'s outage table. Default true.
+    pub enabled: bool,
+    /// History of the trend \[s\]. Default 30.
+    pub trend_window_s: f64,
+    /// History of the self-organising model \[s\]. Default 60.
+    pub model_window_s: f64,
+    /// Every n-th epoch of the model history is used. Default 2.
+    pub model_decimation: usize,
+    /// Relay switch ages \[s\] (hold, trend, combined trend, model). Default
+    /// 1 / 10 / 30 s: a car's outage of a minute is "long".
+    pub relay: RelaySchedule,
+    /// Model selection (candidates, split). Default polynomials up to t²
+    /// (no harmonics: a minute holds no Schuler period).
+    pub gmdh: GmdhConfig,
+}
+
+impl Default for OutageBridgeConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            trend_window_s: 30.0,
+            model_window_s: 60.0,
+            model_decimation: 2,
+            relay: RelaySchedule {
+                t1_s: 1.0,
+                t2_s: 10.0,
+                t3_s: 30.0,
+            },
+            gmdh: GmdhConfig::default(),
+        }
+    }
+}
+
+impl OutageBridgeConfig {
+    pub(crate) fn bridge(&self) -> BridgeConfig {
+        BridgeConfig {
+            trend_window_s: self.trend_window_s,
+            model_window_s: self.model_window_s,
+            model_decimation: self.model_decimation,
+            relay: self.relay,
+            gmdh: self.gmdh.clone(),
+        }
+    }
+}
+
+/// The predictors scored, in the order of \[`Epoch::bridged`\].
+pub const BRIDGE_PREDICTORS: [Predictor; 4] = [
+    Predictor::Trend,
+    Predictor::CombinedTrend,
+    Predictor::Gmdh,
+    Predictor::Relay,
+];
+
+/// Spec 20's efficiency criterion K_eff = σ_GNSS / σ_KOI on the 3-D antenna
+/// position.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EfficiencyConfig {
+    /// σ_GNSS, prior data [m, 3-D]. Default none: each fix's own σ (with
+    /// the `gnss` floors) — in an outage the withheld fix's.
+    pub sigma_gnss_m: Option<f64>,
+}
+
+/// Outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputConfig {
+    /// Also run the Rauch–Tung–Striebel smoother (post-processing) and
+    /// write smoothed.csv and the smoothed scores. Default true.
+    pub smooth: bool,
+    /// Also write navresult.txt in KF-GINS's layout (GPS week, seconds of
+    /// week, lat, lon \[deg\], h \[m\], vN vE vD [m/s], roll pitch yaw \[deg\];
+    /// antenna position; the rows of solution.csv). Default false.
+    pub kf_gins_text: bool,
+    /// Also write solution rows between the GNSS epochs, every this many
+    /// seconds (at the first IMU sample at or after each multiple; 0.01:
+    /// every sample of a 100 Hz IMU), so real GNSS outages have rows too
+    /// (outcome 0, no NIS). 0: one row per GNSS epoch only. Default 0.
+    pub interval_s: f64,
+}
+
+impl Default for OutputConfig {
+    fn default() -> Self {
+        Self {
+            smooth: true,
+            kf_gins_text: false,
+            interval_s: 0.0,
+        }
+    }
+}
+
+/// The configuration file of `aidnav process`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProcessConfig {
+    /// Input files.
+    pub data: DataFiles,
+    /// IMU handling.
+    #[serde(default)]
+    pub imu: ImuConfig,
+    /// Initialisation.
+    #[serde(default)]
+    pub initial: InitialConfig,
+    /// GNSS use.
+    #[serde(default)]
+    pub gnss: GnssConfig,
+    /// Vehicle constraints.
+    #[serde(default)]
+    pub constraints: ConstraintConfig,
+    /// The filter.
+    #[serde(default)]
+    pub filter: FilterConfig,
+    /// Outage bridging by spec 20's predictors.
+    #[serde(default)]
+    pub outage_bridge: OutageBridgeConfig,
+    /// Spec 20's efficiency criterion.
+    #[serde(default)]
+    pub efficiency: EfficiencyConfig,
+    /// Scoring.
+    #[serde(default)]
+    pub score: ScoreConfig,
+    /// Outputs.
+    #[serde(default)]
+    pub output: OutputConfig,
+}
+
+impl Validate for ProcessConfig {
+    fn validate(&self) -> Result<(), Invalid> {
+        if self.data.imu_format == ImuFormat::RtklibTagged && self.data.imu_tags.is_none() {
+            return Err(Invalid::new(
+                "data.imu_tags",
+                "(missing)",
+                "the RTKLIB .tag file of the IMU CSV (imu_format = \"rtklib_tagged\")",
+            ));
+        }
+        in_range("time_offset_s", self.imu.time_offset_s, -10.0, 10.0)
+            .map_err(|e| e.within("imu"))?;
+        in_range("smoothing_s", self.imu.smoothing_s, 0.0, 5.0).map_err(|e| e.within("imu"))?;
+        let n = &self.imu.noise;
+        all_positive(
+            "imu.noise",
+            &[
+                ("arw_deg_per_sqrt_h", n.arw_deg_per_sqrt_h),
+                ("vrw_mps_per_sqrt_h", n.vrw_mps_per_sqrt_h),
+                ("gyro_bias_deg_per_h", n.gyro_bias_deg_per_h),
+                ("accel_bias_mg", n.accel_bias_mg),
+                ("gyro_scale_ppm", n.gyro_scale_ppm),
+                ("accel_scale_ppm", n.accel_scale_ppm),
+                ("correlation_s", n.correlation_s),
+            ],
+        )?;
+        all_positive(
+            "initial",
+            &[
+                ("static_s", self.initial.static_s),
+                ("heading_speed_mps", self.initial.heading_speed_mps),
+                ("heading_sigma_deg", self.initial.heading_sigma_deg),
+                ("tilt_sigma_deg", self.initial.tilt_sigma_deg),
+            ],
+        )?;
+        all_positive(
+            "gnss",
+            &[
+                ("min_position_sigma_m", self.gnss.min_position_sigma_m),
+                ("min_velocity_sigma_mps", self.gnss.min_velocity_sigma_mps),
+            ],
+        )?;
+        in_range("anomaly_gamma", self.gnss.anomaly_gamma, 1.0, 1e4)
+            .map_err(|e| e.within("gnss"))?;
+        count_in_range("adaptive_window", self.gnss.adaptive_window, 1, 10_000)
+            .map_err(|e| e.within("gnss"))?;
+        count_in_range(
+            "adaptive_noise_window",
+            self.filter.adaptive_noise_window,
+            1,
+            10_000,
+        )
+        .map_err(|e| e.within("filter"))?;
+        let b = &self.outage_bridge;
+        all_positive(
+            "outage_bridge",
+            &[
+                ("trend_window_s", b.trend_window_s),
+                ("model_window_s", b.model_window_s),
+                ("relay.t1_s", b.relay.t1_s),
+            ],
+        )?;
+        if !(b.relay.t1_s < b.relay.t2_s && b.relay.t2_s < b.relay.t3_s && b.relay.t3_s.is_finite())
+        {
+            return Err(Invalid::new(
+                "outage_bridge.relay",
+                format!("[{}, {}, {}]", b.relay.t1_s, b.relay.t2_s, b.relay.t3_s),
+                "0 < t1_s < t2_s < t3_s",
+            ));
+        }
+        count_in_range("model_decimation", b.model_decimation, 1, 1000)
+            .map_err(|e| e.within("outage_bridge"))?;
+        if let Some(sg) = self.efficiency.sigma_gnss_m {
+            all_positive("efficiency", &[("sigma_gnss_m", sg)])?;
+        }
+        let i = self.output.interval_s;
+        if !(i == 0.0 || (1e-3..=3600.0).contains(&i)) {
+            return Err(Invalid::new(
+                "output.interval_s",
+                i,
+                "0 (GNSS epochs only) or 0.001 ≤ interval_s ≤ 3600",
+            ));
+        }
+        count_in_range("outages_s", self.score.outages_s.len(), 0, 10)
+            .map_err(|e| e.within("score"))?;
+        for l in &self.score.outages_s {
+            in_range("outages_s", *l, 1.0, 3600.0).map_err(|e| e.within("score"))?;
+        }
+        non_negative("lead_s", self.score.lead_s).map_err(|e| e.within("score"))?;
+        non_negative("gap_s", self.score.gap_s).map_err(|e| e.within("score"))?;
+        in_range(
+            "post_outage_burst_s",
+            self.score.post_outage_burst_s,
+            0.0,
+            60.0,
+        )
+        .map_err(|e| e.within("score"))?;
+        for f in &self.score.outlier_fractions {
+            in_range("outlier_fractions", *f, 0.0, 1.0).map_err(|e| e.within("score"))?;
+        }
+        let [lo, hi] = self.score.outlier_m;
+        if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
+            return Err(Invalid::new(
+                "score.outlier_m",
+                format!("[{lo}, {hi}]"),
+                "0 ≤ low ≤ high",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Measurement policy of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PolicyName {
+    /// Accept every fix (what KF-GINS does).
+    Accept,
+    /// χ² gate at 0.999 (a plain gate locks out on this drive).
+    Chi2Gate,
+    /// χ² gate at 0.999 that accepts again after 20 rejections in a row (5 s).
+    RecoveringGate,
+    /// Huber re-weighting, k = 1.345.
+    Huber,
+    /// Spec 20 eq. 5 detector (νᵀν > γ tr S, γ = 9) with eq. 6 rejection.
+    Rejection,
+    /// Spec 20 eq. 5 detector with eq. 8 limiting (the innovation clipped to
+    /// the gate, its direction kept).
+    Limiting,
+    /// Spec 20 eq. 4: the gain from the empirical innovation covariance of
+    /// the last `gnss.adaptive_window` epochs when it exceeds the model's.
+    AdaptiveGain,
+    /// Eq. 4's gain with the eq. 5 detector and eq. 8 limiting.
+    LimitedAdaptiveGain,
+    /// Spec 20 eq. 9, the developed algorithm: eq. 8 limiting with the eq. 3
+    /// adaptive process noise (`filter.adaptive_noise`, `hard` when that is
+    /// `off`), the noise fed by normal innovations only.
+    Developed,
+}
+
+impl PolicyName {
+    /// Every policy, in the order of the anomaly table.
+    pub const ALL: [PolicyName; 9] = [
+        PolicyName::Accept,
+        PolicyName::Chi2Gate,
+        PolicyName::RecoveringGate,
+        PolicyName::Huber,
+        PolicyName::Rejection,
+        PolicyName::Limiting,
+        PolicyName::AdaptiveGain,
+        PolicyName::LimitedAdaptiveGain,
+        PolicyName::Developed,
+    ];
+
+    pub(crate) fn policy(self, gnss: &GnssConfig) -> Box<dyn MeasurementPolicy<U3>> {
+        let detector = AnomalyDetector {
+            gamma: gnss.anomaly_gamma,
+        };
+        let window = || {
+            AdaptiveGain::new(gnss.adaptive_window, DiagonalRule::All)
+                .unwrap_or_else(|| unreachable!("adaptive_window ≥ 1 is validated"))
+        };
+        match self {
+            PolicyName::Accept => Box::new(AcceptAll),
+            PolicyName::Chi2Gate => Box::new(Chi2Gate { probability: 0.999 }),
+            PolicyName::RecoveringGate => Box::new(RecoveringChi2Gate::new(0.999, 20)),
+            PolicyName::Huber => Box::new(Huber { k: 1.345 }),
+            PolicyName::Rejection => Box::new(Rejection { detector }),
+            PolicyName::Limiting | PolicyName::Developed => Box::new(Limiting { detector }),
+            PolicyName::AdaptiveGain => Box::new(window()),
+            PolicyName::LimitedAdaptiveGain => Box::new(LimitedAdaptiveGain {
+                gain: window(),
+                detector,
+            }),
+        }
+    }
+
+    /// The name in configuration files and tables.
+    pub fn name(self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default()
+    }
+}
