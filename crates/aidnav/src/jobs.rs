@@ -829,19 +829,12 @@ pub fn process(
         use std::fmt::Write as _;
         let mut text = String::new();
         // GNSS epochs and the rows between them, in time order.
-        let mut rows: Vec<crate::process::SolutionRow> = clean
-            .iter()
-            .map(|e| crate::process::SolutionRow {
-                time_s: inputs.gnss[e.index].time_s,
-                antenna: e.antenna,
-                velocity: e.velocity,
-                attitude: e.attitude,
-                sigma: e.sigma,
-            })
-            .chain(between.iter().copied())
-            .collect();
-        rows.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
-        for e in &rows {
+        let rows = merge_in_time(
+            clean.iter().map(|e| e.row(&inputs.gnss)),
+            between.iter().copied(),
+            |r| r.time_s,
+        );
+        for e in rows {
             let gps = e.time_s - 315_964_800.0;
             let week = (gps / 604_800.0).floor();
             let (r, p, y) = e.attitude.euler_angles();
@@ -989,11 +982,16 @@ pub fn process(
     if score {
         let first = inputs.imu[0].time_s;
         let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
-        let plans: Vec<(f64, bool)> = cfg
+        // (L, free INS?, the windows of L)
+        type Plan = (f64, bool, Vec<(f64, f64)>);
+        let plans: Vec<Plan> = cfg
             .score
             .outages_s
             .iter()
-            .flat_map(|&l| [(l, false), (l, true)])
+            .flat_map(|&l| {
+                let windows = outage_windows(&cfg.score, first, last, l);
+                [(l, false, windows.clone()), (l, true, windows)]
+            })
             .collect();
         // (L, free INS?, score, score of the smoothed solution, epochs)
         type Scored = (
@@ -1005,8 +1003,8 @@ pub fn process(
         );
         let scored: Vec<Scored> = plans
             .par_iter()
-            .map(|&(l, free)| {
-                let windows = outage_windows(&cfg.score, first, last, l);
+            .map(|(l, free, windows)| {
+                let (l, free) = (*l, *free);
                 let plan = RunPlan {
                     windows: windows.clone(),
                     free_ins_in_windows: free,
@@ -1020,9 +1018,9 @@ pub fn process(
                 Ok((
                     l,
                     free,
-                    score_windows(&inputs.gnss, &epochs, &windows, l),
+                    score_windows(&inputs.gnss, &epochs, windows, l),
                     (!smoothed.is_empty())
-                        .then(|| score_windows(&inputs.gnss, &smoothed, &windows, l)),
+                        .then(|| score_windows(&inputs.gnss, &smoothed, windows, l)),
                     epochs,
                 ))
             })
@@ -1038,18 +1036,19 @@ pub fn process(
                 })
                 .collect();
         }
-        for (i, (l, free, s, smoothed, epochs)) in scored.into_iter().enumerate() {
+        for (i, ((l, free, s, smoothed, epochs), (_, _, windows))) in
+            scored.into_iter().zip(&plans).enumerate()
+        {
             if !free {
-                let windows = outage_windows(&cfg.score, first, last, l);
                 for (k, b) in outages_bridged.iter_mut().enumerate() {
                     let bridged = crate::process::bridged_epochs(&epochs, k);
                     b.scores
-                        .push(score_windows(&inputs.gnss, &bridged, &windows, l));
+                        .push(score_windows(&inputs.gnss, &bridged, windows, l));
                 }
                 efficiency.push(crate::process::efficiency_in_windows(
                     &inputs.gnss,
                     &epochs,
-                    &windows,
+                    windows,
                     l,
                 ));
                 drift_series.push(Series {
@@ -1222,37 +1221,26 @@ pub fn write_solution(
     epochs: &[crate::process::Epoch],
     between: &[crate::process::SolutionRow],
 ) -> JobResult<()> {
-    let nan3 = [f64::NAN; 3];
-    let navigation = |time: f64,
-                      antenna: &aidnav_frames::earth::Geodetic,
-                      velocity: &nalgebra::Vector3<f64>,
-                      attitude: &nalgebra::UnitQuaternion<f64>,
-                      sigma: &nalgebra::Vector3<f64>| {
-        let (r, p, y) = attitude.euler_angles();
+    let navigation = |row: &crate::process::SolutionRow| {
+        let (r, p, y) = row.attitude.euler_angles();
         vec![
-            time,
-            antenna.latitude_rad.to_degrees(),
-            antenna.longitude_rad.to_degrees(),
-            antenna.height_m,
-            velocity.x,
-            velocity.y,
-            velocity.z,
+            row.time_s,
+            row.antenna.latitude_rad.to_degrees(),
+            row.antenna.longitude_rad.to_degrees(),
+            row.antenna.height_m,
+            row.velocity.x,
+            row.velocity.y,
+            row.velocity.z,
             r.to_degrees(),
             p.to_degrees(),
             y.to_degrees(),
-            sigma.x,
-            sigma.y,
-            sigma.z,
+            row.sigma.x,
+            row.sigma.y,
+            row.sigma.z,
         ]
     };
     let epoch_rows = epochs.iter().map(|e| {
-        let mut row = navigation(
-            gnss[e.index].time_s,
-            &e.antenna,
-            &e.velocity,
-            &e.attitude,
-            &e.sigma,
-        );
+        let mut row = navigation(&e.row(gnss));
         row.extend([e.nis, e.convergence, e.k_eff]);
         row.extend(e.innovation.iter());
         row.push(match e.outcome {
@@ -1264,19 +1252,13 @@ pub fn write_solution(
         row
     });
     let other_rows = between.iter().map(|b| {
-        let mut row = navigation(b.time_s, &b.antenna, &b.velocity, &b.attitude, &b.sigma);
-        row.extend([f64::NAN; 3]);
-        row.extend(nan3);
+        let mut row = navigation(b);
+        // No fix: NIS, δ, K_eff, innovation are NaN, outcome 0.
+        row.extend([f64::NAN; 6]);
         row.push(0.0);
         row
     });
-    // Both are in time order: merge them as they are written.
-    let (mut a, mut b) = (epoch_rows.peekable(), other_rows.peekable());
-    let rows = std::iter::from_fn(move || match (a.peek(), b.peek()) {
-        (Some(x), Some(y)) if x[0] <= y[0] => a.next(),
-        (Some(_), None) => a.next(),
-        _ => b.next(),
-    });
+    let rows = merge_in_time(epoch_rows, other_rows, |row| row[0]);
     write_table(
         path,
         &[
@@ -1304,6 +1286,21 @@ pub fn write_solution(
         rows,
     )?;
     Ok(())
+}
+
+/// Two sequences, each in time order, merged in time order (the first's
+/// item first on equal times) as they are consumed.
+fn merge_in_time<T>(
+    a: impl Iterator<Item = T>,
+    b: impl Iterator<Item = T>,
+    time: impl Fn(&T) -> f64,
+) -> impl Iterator<Item = T> {
+    let (mut a, mut b) = (a.peekable(), b.peekable());
+    std::iter::from_fn(move || match (a.peek(), b.peek()) {
+        (Some(x), Some(y)) if time(x) <= time(y) => a.next(),
+        (Some(_), None) => a.next(),
+        _ => b.next(),
+    })
 }
 
 fn process_error(e: crate::process::ProcessError) -> JobError {

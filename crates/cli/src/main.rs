@@ -445,10 +445,7 @@ fn run_process(a: ProcessArgs) -> Result<()> {
                 .collect();
             println!(
                 "  {:<15} {}",
-                serde_json::to_value(b.predictor)
-                    .ok()
-                    .and_then(|v| v.as_str().map(str::to_string))
-                    .unwrap_or_default(),
+                aidnav::process::config_name(&b.predictor),
                 cells.join("   ")
             );
         }

@@ -127,10 +127,40 @@ pub struct AdaptiveGain<M: Dim>
 where
     DefaultAllocator: Allocator<M, M>,
 {
-    window: Vec<OMatrix<f64, M, M>>,
+    window: Ring<OMatrix<f64, M, M>>,
+    rule: DiagonalRule,
+}
+
+/// The last `capacity` values, oldest overwritten first (storage allocated
+/// once): the sliding windows of eqs. 3 and 4.
+#[derive(Debug, Clone)]
+struct Ring<T> {
+    items: Vec<T>,
     capacity: usize,
     next: usize,
-    rule: DiagonalRule,
+}
+
+impl<T> Ring<T> {
+    fn new(capacity: usize) -> Self {
+        Self {
+            items: Vec::with_capacity(capacity),
+            capacity,
+            next: 0,
+        }
+    }
+
+    fn push(&mut self, item: T) {
+        if self.items.len() < self.capacity {
+            self.items.push(item);
+        } else {
+            self.items[self.next] = item;
+        }
+        self.next = (self.next + 1) % self.capacity;
+    }
+
+    fn is_full(&self) -> bool {
+        self.items.len() == self.capacity
+    }
 }
 
 impl<M: Dim> AdaptiveGain<M>
@@ -140,32 +170,22 @@ where
     /// A window of `n ≥ 1` innovations.
     pub fn new(n: usize, rule: DiagonalRule) -> Option<Self> {
         (n >= 1).then(|| Self {
-            window: Vec::with_capacity(n),
-            capacity: n,
-            next: 0,
+            window: Ring::new(n),
             rule,
         })
     }
 
     /// The empirical innovation covariance M̂ (None until the window is full).
     pub fn empirical_covariance(&self) -> Option<OMatrix<f64, M, M>> {
-        if self.window.len() < self.capacity {
+        if !self.window.is_full() {
             return None;
         }
-        let mut sum = self.window[0].clone();
-        for m in &self.window[1..] {
+        let items = &self.window.items;
+        let mut sum = items[0].clone();
+        for m in &items[1..] {
             sum += m;
         }
-        Some(sum / self.capacity as f64)
-    }
-
-    fn push(&mut self, outer: OMatrix<f64, M, M>) {
-        if self.window.len() < self.capacity {
-            self.window.push(outer);
-        } else {
-            self.window[self.next] = outer;
-        }
-        self.next = (self.next + 1) % self.capacity;
+        Some(sum / items.len() as f64)
     }
 
     /// Record the innovation ν and return eq. 4's gain covariance: M̂ when its
@@ -179,7 +199,7 @@ where
         let (md, _) = hph.shape_generic();
         let mut outer = OMatrix::<f64, M, M>::zeros_generic(md, md);
         outer.ger(1.0, residual, residual, 0.0);
-        self.push(outer);
+        self.window.push(outer);
         let m_hat = self.empirical_covariance()?;
         let exceeds = (0..residual.len()).map(|i| m_hat[(i, i)] > hph[(i, i)]);
         let use_empirical = match self.rule {
@@ -279,9 +299,7 @@ where
 {
     gain: OMatrix<f64, N, M>,
     detector: Option<AnomalyDetector>,
-    stable: Vec<OMatrix<f64, N, N>>,
-    capacity: usize,
-    next: usize,
+    stable: Ring<OMatrix<f64, N, N>>,
     average: bool,
 }
 
@@ -300,9 +318,7 @@ where
         (stable_window >= 1).then(|| Self {
             gain,
             detector,
-            stable: Vec::with_capacity(stable_window),
-            capacity: stable_window,
-            next: 0,
+            stable: Ring::new(stable_window),
             average: false,
         })
     }
@@ -334,12 +350,7 @@ where
             return self.stable_mean();
         }
         let q = innovation_feedback_q(&self.gain, residual);
-        if self.stable.len() < self.capacity {
-            self.stable.push(q.clone());
-        } else {
-            self.stable[self.next].copy_from(&q);
-        }
-        self.next = (self.next + 1) % self.capacity;
+        self.stable.push(q.clone());
         if self.average { self.stable_mean() } else { q }
     }
 
@@ -347,11 +358,12 @@ where
     pub fn stable_mean(&self) -> OMatrix<f64, N, N> {
         let (nd, _) = self.gain.shape_generic();
         let mut mean = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
-        for q in &self.stable {
+        let items = &self.stable.items;
+        for q in items {
             mean += q;
         }
-        if !self.stable.is_empty() {
-            mean /= self.stable.len() as f64;
+        if !items.is_empty() {
+            mean /= items.len() as f64;
         }
         mean
     }

@@ -84,6 +84,11 @@ impl LaunchInstrumentErrors {
         ]
     }
 
+    /// Angle errors (yaw, pitch, roll) at time t: offset plus drift.
+    fn angle_error(&self, t: f64) -> Vector3<f64> {
+        self.angle_offset + self.angle_drift * t
+    }
+
     /// Instrument outputs for the true attitude and specific force at time t.
     pub fn measure(
         &self,
@@ -91,12 +96,12 @@ impl LaunchInstrumentErrors {
         attitude: &LaunchAttitude,
         force: &Vector3<f64>,
     ) -> (LaunchAttitude, Vector3<f64>) {
-        let angle = |i: usize| self.angle_offset[i] + self.angle_drift[i] * t;
+        let angle = self.angle_error(t);
         (
             LaunchAttitude {
-                yaw: attitude.yaw + angle(0),
-                pitch: attitude.pitch + angle(1),
-                roll: attitude.roll + angle(2),
+                yaw: attitude.yaw + angle[0],
+                pitch: attitude.pitch + angle[1],
+                roll: attitude.roll + angle[2],
             },
             force + self.accel_bias + self.accel_scale.component_mul(force),
         )
@@ -110,12 +115,12 @@ impl LaunchInstrumentErrors {
         attitude: &LaunchAttitude,
         force: &Vector3<f64>,
     ) -> (LaunchAttitude, Vector3<f64>) {
-        let angle = |i: usize| self.angle_offset[i] + self.angle_drift[i] * t;
+        let angle = self.angle_error(t);
         (
             LaunchAttitude {
-                yaw: attitude.yaw - angle(0),
-                pitch: attitude.pitch - angle(1),
-                roll: attitude.roll - angle(2),
+                yaw: attitude.yaw - angle[0],
+                pitch: attitude.pitch - angle[1],
+                roll: attitude.roll - angle[2],
             },
             (force - self.accel_bias).component_div(&(Vector3::repeat(1.0) + self.accel_scale)),
         )

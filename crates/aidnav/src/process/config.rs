@@ -612,9 +612,15 @@ impl PolicyName {
 
     /// The name in configuration files and tables.
     pub fn name(self) -> String {
-        serde_json::to_value(self)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default()
+        config_name(&self)
     }
+}
+
+/// The name a unit enum value has in configuration files and
+/// `summary.json` (its serde name, e.g. `combined_trend`).
+pub fn config_name<T: Serialize>(value: &T) -> String {
+    serde_json::to_value(value)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default()
 }

@@ -4,6 +4,7 @@ use aidnav_estimation::{EstimationError, Outcome};
 use aidnav_frames::earth::Geodetic;
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::ned_filter::NedFilter;
+use aidnav_io::rtklib::GnssFix;
 use aidnav_models::ned_ins::{
     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, VELOCITY,
     Vector21,
@@ -73,6 +74,17 @@ pub struct Epoch {
 }
 
 impl Epoch {
+    /// The navigation part of this epoch as a row at its fix's time.
+    pub fn row(&self, gnss: &[GnssFix]) -> SolutionRow {
+        SolutionRow {
+            time_s: gnss[self.index].time_s,
+            antenna: self.antenna,
+            velocity: self.velocity,
+            attitude: self.attitude,
+            sigma: self.sigma,
+        }
+    }
+
     /// This epoch with the smoothed antenna position in place of the filtered one.
     pub fn smoothed(&self) -> Option<Epoch> {
         self.smoothed_antenna
@@ -93,6 +105,23 @@ pub struct SolutionRow {
     pub attitude: UnitQuaternion<f64>,
     /// σ of the position error (N, E, D).
     pub sigma: Vector3<f64>,
+}
+
+impl SolutionRow {
+    /// The filter's navigation solution at `time_s`: antenna position, the
+    /// solution's velocity and attitude, position σ.
+    fn of(filter: &NedFilter, time_s: f64) -> Self {
+        let (antenna, _) = filter.antenna();
+        let solution = filter.solution();
+        let s = filter.sigmas();
+        Self {
+            time_s,
+            antenna,
+            velocity: solution.velocity,
+            attitude: solution.attitude,
+            sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
+        }
+    }
 }
 
 /// A run's output: one [`Epoch`] per GNSS epoch, and the rows between them
@@ -238,16 +267,7 @@ pub fn run_filter_rows(
                         next_row += interval_s;
                     }
                     if !split {
-                        let (antenna, _) = filter.antenna();
-                        let sg = filter.sigmas();
-                        let solution = filter.solution();
-                        between.push(SolutionRow {
-                            time_s: t,
-                            antenna,
-                            velocity: solution.velocity,
-                            attitude: solution.attitude,
-                            sigma: Vector3::new(sg[POSITION], sg[POSITION + 1], sg[POSITION + 2]),
-                        });
+                        between.push(SolutionRow::of(&filter, t));
                     }
                 }
                 if nhc.non_holonomic && t >= next_nhc {
@@ -296,18 +316,15 @@ pub fn run_filter_rows(
                     Some(f) if in_window(g.time_s) => f,
                     _ => &filter,
                 };
-                let (antenna, _) = reporting.antenna();
-                let s = reporting.sigmas();
-                let st = &reporting.solution();
+                let row = SolutionRow::of(reporting, g.time_s);
                 let bridged = if !bridging {
                     None
                 } else if withheld(g.time_s) {
-                    bridge.bridged(g.time_s, &antenna, &bridge_cfg)
+                    bridge.bridged(g.time_s, &row.antenna, &bridge_cfg)
                 } else {
                     bridge.record(g.time_s, &(filter.fed_back() - fed_back_before));
                     None
                 };
-                let sigma = Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]);
                 let sigma_gnss = cfg.efficiency.sigma_gnss_m.unwrap_or_else(|| {
                     g.position_sigma_neu
                         .map(|v| v.max(cfg.gnss.min_position_sigma_m))
@@ -315,10 +332,10 @@ pub fn run_filter_rows(
                 });
                 epochs.push(Epoch {
                     index: next,
-                    antenna,
-                    velocity: st.velocity,
-                    attitude: st.attitude,
-                    sigma,
+                    antenna: row.antenna,
+                    velocity: row.velocity,
+                    attitude: row.attitude,
+                    sigma: row.sigma,
                     nis,
                     innovation,
                     outcome,
@@ -326,7 +343,7 @@ pub fn run_filter_rows(
                     smoothed_antenna: None,
                     convergence,
                     k_eff: aidnav_supervisors::efficiency::EfficiencyCriterion { sigma_gnss }
-                        .coefficient(sigma.norm()),
+                        .coefficient(row.sigma.norm()),
                     bridged,
                     record_index: filter.recorded_epoch(),
                 });
@@ -359,9 +376,9 @@ pub fn run_filter_rows(
 /// predictors built from it (see [`OutageBridgeConfig`]).
 #[derive(Debug, Default)]
 struct BridgeState {
-    /// Accumulated GNSS correction: position (NED, m), velocity (NED, m/s).
-    total: [f64; 6],
     times: Vec<f64>,
+    /// Accumulated GNSS correction at each time: position (NED, m),
+    /// velocity (NED, m/s).
     history: [Vec<f64>; 6],
     active: Option<ActiveBridge>,
 }
@@ -388,8 +405,8 @@ impl BridgeState {
             } else {
                 VELOCITY + c - 3
             };
-            self.total[c] += fed_back[i];
-            h.push(self.total[c]);
+            let total = h.last().copied().unwrap_or(0.0);
+            h.push(total + fed_back[i]);
         }
         self.times.push(t);
     }
