@@ -10,8 +10,6 @@
 pub mod instrument;
 pub mod launch;
 pub mod local_level;
-pub mod loosely_coupled;
 pub mod ned;
-pub mod ned_filter;
 
 pub use instrument::AxisError;

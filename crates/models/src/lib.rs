@@ -11,7 +11,6 @@ pub mod constant_velocity;
 pub mod extended_state;
 pub mod gauss_markov;
 pub mod group_axis;
-pub mod group_scale;
 pub mod local_ins;
 pub mod ned_ins;
 pub mod platform;

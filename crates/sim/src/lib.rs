@@ -16,7 +16,6 @@
 //! assert_eq!(draws, mc.run(|_run, rng| rng.random::<f64>()));
 //! ```
 
-pub mod experiments;
 pub mod faults;
 pub mod linear;
 pub mod monte_carlo;

@@ -1,5 +1,5 @@
 //! Spec 40: process a recorded IMU + GNSS log end to end with the NED
-//! filter ([`aidnav_ins::ned_filter`]) and score it with simulated GNSS
+//! filter ([`aidnav_integration::ned`]) and score it with simulated GNSS
 //! outages and injected anomalies.
 //!
 //! Pipeline: read (GNSS: RTKLIB `.pos`, KF-GINS text, NMEA; IMU: raw CSV +

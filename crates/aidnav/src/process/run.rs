@@ -3,7 +3,7 @@
 use aidnav_estimation::{EstimationError, Outcome};
 use aidnav_frames::earth::Geodetic;
 use aidnav_ins::ned::ImuIncrement;
-use aidnav_ins::ned_filter::NedFilter;
+use aidnav_integration::ned::NedFilter;
 use aidnav_io::rtklib::GnssFix;
 use aidnav_models::ned_ins::{
     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, VELOCITY,
@@ -57,7 +57,7 @@ pub struct Epoch {
     /// What the update did (None: withheld).
     pub outcome: Option<Outcome>,
     /// The instrument corrections after the epoch.
-    pub instruments: aidnav_ins::ned_filter::InstrumentEstimate,
+    pub instruments: aidnav_integration::ned::InstrumentEstimate,
     /// RTS-smoothed antenna position (runs with `RunPlan::smooth`).
     pub smoothed_antenna: Option<Geodetic>,
     /// Spec 10's δ(n) on the instrument states (runs with
@@ -362,7 +362,7 @@ pub fn run_filter_rows(
         let states = filter.smoothed_states()?.ok_or_else(|| {
             ProcessError::Data(format!(
                 "the log is too long to smooth: more than {MAX_RECORDED_EPOCHS} covariance epochs ({} MB)",
-                (MAX_RECORDED_EPOCHS * aidnav_ins::ned_filter::BYTES_PER_RECORDED_EPOCH) >> 20
+                (MAX_RECORDED_EPOCHS * aidnav_integration::ned::BYTES_PER_RECORDED_EPOCH) >> 20
             ))
         })?;
         for e in &mut epochs {
@@ -446,7 +446,8 @@ impl BridgeState {
 
 /// Most covariance epochs a smoothing run keeps (≈ 4 GiB; about five hours
 /// at the 20 Hz covariance rate plus updates).
-pub const MAX_RECORDED_EPOCHS: usize = (4 << 30) / aidnav_ins::ned_filter::BYTES_PER_RECORDED_EPOCH;
+pub const MAX_RECORDED_EPOCHS: usize =
+    (4 << 30) / aidnav_integration::ned::BYTES_PER_RECORDED_EPOCH;
 
 #[cfg(test)]
 mod tests {

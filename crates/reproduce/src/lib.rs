@@ -1,10 +1,13 @@
-//! Experiments: each one a scenario struct (TOML, documented defaults), a
-//! pure function that runs it, and a result struct the CLI prints and writes.
-//! The paper reproductions of spec 10–30 land here as their issues do.
+//! The reproductions of the three source papers (specs 10–30) and the
+//! consistency demonstration: each one a scenario struct (TOML, documented
+//! defaults), a pure function that runs it by seeded Monte Carlo
+//! ([`aidnav_sim::MonteCarlo`]), a result struct the CLI prints and writes,
+//! and its figures ([`figures`]).
 
 pub mod anomalies;
 pub mod consistency;
 pub mod extended_state;
+pub mod figures;
 pub mod formation;
 pub mod group;
 pub mod outages;

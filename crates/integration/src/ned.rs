@@ -1,5 +1,5 @@
 //! Spec 40's loosely coupled GNSS/INS filter: the WGS-84 NED mechanization
-//! ([`crate::ned`]), the 21-state error model
+//! ([`aidnav_ins::ned`]), the 21-state error model
 //! ([`aidnav_models::ned_ins`]), GNSS position and velocity updates with the
 //! antenna lever arm, closed-loop feedback into the INS and into the
 //! instrument corrections (`ω = (ω̃ − b_g) / (1 + s_g)`, likewise f), and
@@ -19,7 +19,7 @@ use aidnav_models::ned_ins::{
 };
 use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
 
-use crate::ned::{ImuIncrement, NedMechanization, NedState};
+use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState};
 
 /// The instrument corrections in use.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -45,9 +45,9 @@ use aidnav_models::{PlatformChannel, PlatformTruth};
 use nalgebra::{Matrix1, Matrix3, Vector1, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::faults::{FaultSpec, SigmaRange, plan};
-use crate::monte_carlo::MonteCarlo;
-use crate::rng::{channel_rng, standard_normal};
+use aidnav_sim::faults::{FaultSpec, SigmaRange, plan};
+use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::rng::{channel_rng, standard_normal};
 
 /// One row of the experiment: which filter, on which data, with which statistics.
 struct Row {
@@ -468,9 +468,9 @@ fn setups(sc: &AnomaliesScenario) -> (Setup, Setup) {
 fn one_run(
     sc: &AnomaliesScenario,
     (setup, wrong): (&Setup, &Setup),
-    faults: &crate::faults::FaultPlan,
+    faults: &aidnav_sim::faults::FaultPlan,
     epochs: usize,
-    rng: &mut crate::rng::RunRng,
+    rng: &mut aidnav_sim::rng::RunRng,
     keep: bool,
 ) -> Result<RunOut, EstimationError> {
     let sigma = sc.platform.gnss_velocity_sigma_mps;
@@ -541,7 +541,7 @@ pub fn illustrate(
         sc.platform.gnss_velocity_sigma_mps,
         &mut fault_rng,
     );
-    let mut rng = crate::rng::run_rng(sc.seed, 0);
+    let mut rng = aidnav_sim::rng::run_rng(sc.seed, 0);
     let out = one_run(sc, (&setup, &wrong), &plan, epochs, &mut rng, true)?;
     Ok(out.example.unwrap_or_default())
 }
@@ -604,7 +604,7 @@ pub(crate) fn initial_truth(
     platform: &PlatformChannel,
     velocity_sigma: f64,
     tilt_sigma: f64,
-    rng: &mut crate::rng::RunRng,
+    rng: &mut aidnav_sim::rng::RunRng,
 ) -> PlatformTruth {
     let x0 = Vector3::new(
         velocity_sigma * standard_normal(rng),

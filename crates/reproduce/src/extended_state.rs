@@ -28,9 +28,11 @@ use aidnav_supervisors::convergence::{ConvergenceSwitch, SwitchRule, cramer_rao_
 use nalgebra::{SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::monte_carlo::MonteCarlo;
-use crate::rng::{RngExt, RunRng, channel_rng, standard_normal};
-use crate::trajectory::{LaunchProgram, LaunchTarget, LaunchTrajectory, TABLE1, TrajectoryError};
+use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::rng::{RngExt, RunRng, channel_rng, standard_normal};
+use aidnav_sim::trajectory::{
+    LaunchProgram, LaunchTarget, LaunchTrajectory, TABLE1, TrajectoryError,
+};
 
 /// Signs of the true instrument errors.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

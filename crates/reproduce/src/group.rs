@@ -21,8 +21,8 @@ use aidnav_models::AxisGroup;
 use nalgebra::{DMatrix, DVector, Dyn};
 use serde::{Deserialize, Serialize};
 
-use crate::monte_carlo::MonteCarlo;
-use crate::rng::standard_normal;
+use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::rng::standard_normal;
 
 /// Case keys, in table order (`summary.json` uses these).
 pub const CASES: [&str; 3] = ["single", "group_low", "group_high"];

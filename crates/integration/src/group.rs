@@ -9,7 +9,7 @@
 //! interleaved order for the small reproduction.
 //!
 //! ```
-//! use aidnav_models::group_scale::GroupAxisFilter;
+//! use aidnav_integration::group::GroupAxisFilter;
 //! let mut f = GroupAxisFilter::new(3, 1.0, 1.0, false, &[0.0; 3], &[0.0; 3], 10.0, 5.0).unwrap();
 //! f.predict();
 //! f.observe_own_position(0, 2.0, 10.0).unwrap();
@@ -224,8 +224,8 @@ pub fn within_range(positions: &[Vector3<f64>], range_m: f64) -> Vec<Vec<usize>>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::AxisGroup;
     use aidnav_estimation::KalmanFilter;
+    use aidnav_models::AxisGroup;
 
     /// The sparse filter with every ordered pair observed equals the paper's
     /// dense model run through the engine's Joseph-form filter.

@@ -6,11 +6,11 @@
 
 use std::path::Path;
 
+use crate::anomalies::{AnomaliesResult, ESTIMATORS, ExampleRun};
+use crate::extended_state::{ExtendedStateResult, ExtendedStateScenario};
+use crate::outages::EfficiencyExample;
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
-use aidnav_sim::experiments::anomalies::{AnomaliesResult, ESTIMATORS, ExampleRun};
-use aidnav_sim::experiments::extended_state::{ExtendedStateResult, ExtendedStateScenario};
-use aidnav_sim::experiments::outages::EfficiencyExample;
 
 /// The estimators drawn against the truth in Figs. 3–8.
 const DRAWN: [&str; 3] = ["kf_plain", "kf_reject", "developed"];
@@ -87,7 +87,7 @@ fn estimate_chart(
 }
 
 /// Figs. 3–8 into `out`; returns the file names written.
-pub(crate) fn anomaly_figures(
+pub fn anomaly_figures(
     result: &AnomaliesResult,
     at_epoch: usize,
     dt: f64,
@@ -157,7 +157,7 @@ pub(crate) fn anomaly_figures(
 
 /// Fig. 10's navigation errors after the outage: GNSS alone, INS + filter,
 /// and the source chosen by K_eff (σ_KOI = √P⁻).
-pub(crate) fn recovery_figure(ex: &EfficiencyExample, out: &Path) -> Result<&'static str, IoError> {
+pub fn recovery_figure(ex: &EfficiencyExample, out: &Path) -> Result<&'static str, IoError> {
     let name = "fig10_recovery_errors.svg";
     // The recovery epochs are the last ones of `age_s`.
     let recovery_age = &ex.age_s[ex.age_s.len().saturating_sub(ex.gnss_error.len())..];
@@ -201,7 +201,7 @@ pub(crate) fn recovery_figure(ex: &EfficiencyExample, out: &Path) -> Result<&'st
 /// Spec 10's figures for the scenario's figure trajectory (run 0): Fig. 1
 /// (estimation error of Δẍ10 and K_ẍ1 with ±σ), Fig. 2 (δ(n)), Fig. 3
 /// (|Δx(t)| for each threshold) and the ratio against a forced switch time.
-pub(crate) fn extended_state_figures(
+pub fn extended_state_figures(
     sc: &ExtendedStateScenario,
     r: &ExtendedStateResult,
     out: &Path,

@@ -1,7 +1,7 @@
 //! Spec 30's full pipeline: M vehicles flying a 3-D formation, each with its
 //! own INS and GNSS receiver (GNSS errors first-order Gauss–Markov plus
 //! white) fused by the stage-1 loosely coupled filter
-//! ([`aidnav_ins::loosely_coupled`]); inter-vehicle sensors measuring slant
+//! ([`aidnav_integration::local_level`]); inter-vehicle sensors measuring slant
 //! range, bearing and elevation in the observer's body frame
 //! ([`aidnav_models::relative_sensor`]), exchanged over the network; and the
 //! stage-2 group filter in two forms:
@@ -31,19 +31,19 @@
 
 use aidnav_estimation::{DynKalmanFilter, EstimationError};
 use aidnav_ins::local_level::{LocalLevelState, ideal_imu};
-use aidnav_ins::loosely_coupled::LooselyCoupled;
+use aidnav_integration::group::GroupAxisFilter;
+use aidnav_integration::local_level::LooselyCoupled;
 use aidnav_io::config::{
     Invalid, Validate, all_positive, count_in_range, in_range, non_negative, positive,
 };
 use aidnav_models::GaussMarkov;
-use aidnav_models::group_scale::GroupAxisFilter;
 use aidnav_models::local_ins::{LocalInsModel, Matrix6};
 use aidnav_models::relative_sensor::{Polar, RelativeSensor, wrap_angle};
 use nalgebra::{DMatrix, DVector, Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::monte_carlo::MonteCarlo;
-use crate::rng::{RunRng, channel_rng, standard_normal};
+use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::rng::{RunRng, channel_rng, standard_normal};
 
 /// Names of the three solutions compared per member.
 pub const SOLUTIONS: [&str; 3] = ["gnss_ins", "paper", "ekf"];

@@ -11,7 +11,7 @@
 
 use std::hint::black_box;
 
-use aidnav_models::group_scale::{GroupAxisFilter, k_nearest};
+use aidnav_integration::group::{GroupAxisFilter, k_nearest};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
 

@@ -30,14 +30,14 @@ use aidnav_supervisors::efficiency::{
 /// Innovations averaged by the adaptive σ_KOI (eq. 15's M[θ²]).
 const ADAPTIVE_VARIANCE_WINDOW: usize = 10;
 
-use crate::experiments::anomalies::{initial_truth, percentile};
-use crate::faults::{FaultSpec, Outage, SigmaRange, plan};
-use crate::rng::channel_rng;
+use crate::anomalies::{initial_truth, percentile};
+use aidnav_sim::faults::{FaultSpec, Outage, SigmaRange, plan};
+use aidnav_sim::rng::channel_rng;
 
 /// Stream of the recovery faults (0 is truth and fix noise).
 const CHANNEL_RECOVERY_FAULTS: u64 = 1;
-use crate::monte_carlo::MonteCarlo;
-use crate::rng::standard_normal;
+use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::rng::standard_normal;
 
 /// Predictor keys, in table order (`summary.json` uses these).
 pub const PREDICTORS: [&str; 6] = [

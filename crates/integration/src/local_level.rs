@@ -16,7 +16,7 @@ use aidnav_models::local_ins::{
 };
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
-use crate::local_level::LocalLevelState;
+use aidnav_ins::local_level::LocalLevelState;
 
 /// INS + 21-state loosely coupled filter, closed loop.
 #[derive(Debug, Clone)]
@@ -148,7 +148,7 @@ impl LooselyCoupled {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::local_level::GRAVITY_ENU;
+    use aidnav_ins::local_level::GRAVITY_ENU;
 
     /// Static INS with a vertical accelerometer bias (observable: no tilt
     /// can mimic it) and error-free fixes: the filter finds the bias and

@@ -13,8 +13,8 @@ use aidnav_models::ConstantVelocity;
 use nalgebra::{Matrix2, Vector1, Vector2};
 use serde::{Deserialize, Serialize};
 
-use crate::monte_carlo::MonteCarlo;
-use crate::rng::standard_normal;
+use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::rng::standard_normal;
 
 /// Fraction of epochs whose run-averaged NEES must fall inside its interval
 /// for the verdict "consistent": with a 95 % interval a consistent filter

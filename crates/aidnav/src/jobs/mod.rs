@@ -1,0 +1,213 @@
+//! The jobs behind the CLI's subcommands: each reads its inputs, runs the
+//! library, writes its outputs and returns a report for the CLI to print.
+//! The CLI itself only parses arguments and prints.
+
+use std::path::{Path, PathBuf};
+
+use aidnav_estimation::{Chi2Mean, EpochRecord, EstimationError, Observer, Outcome, rts_smooth};
+use aidnav_io::IoError;
+use aidnav_io::measurements::read_measurements;
+use aidnav_io::model_file::load_model;
+use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
+use aidnav_io::writers::{FilterCsvWriter, Summary, write_smoothed, write_table};
+use aidnav_reproduce::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
+use aidnav_reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
+use aidnav_reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
+use aidnav_reproduce::formation::{FormationResult, FormationScenario, SOLUTIONS};
+use aidnav_reproduce::group::{GroupResult, GroupScenario};
+use aidnav_reproduce::outages::{OutagesResult, OutagesScenario, PREDICTORS};
+use aidnav_sim::MonteCarlo;
+use serde::Serialize;
+
+use crate::VERSION;
+
+mod process;
+mod reproduce;
+
+pub use process::*;
+pub use reproduce::*;
+
+/// Anything a job can fail with.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum JobError {
+    /// Reading or writing files.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// The estimation engine (with the file that fed it).
+    #[error("{context}: {source}")]
+    Estimation {
+        /// What was being processed.
+        context: String,
+        /// The engine's error.
+        source: EstimationError,
+    },
+    /// The extended-state experiment (guidance solution or filter).
+    #[error("extended-state experiment: {0}")]
+    ExtendedState(#[from] aidnav_reproduce::extended_state::ExtendedStateError),
+    /// The outages experiment (its filter or its model selection).
+    #[error("outages experiment: {0}")]
+    Outages(#[from] aidnav_reproduce::outages::OutagesError),
+    /// The job refuses the request (size limits and the like).
+    #[error("{0}")]
+    Refused(String),
+}
+
+/// Result alias of the jobs.
+pub type JobResult<T> = Result<T, JobError>;
+
+/// Wrap an engine error with what was being computed.
+fn estimation(context: &str) -> impl FnOnce(EstimationError) -> JobError + '_ {
+    move |source| JobError::Estimation {
+        context: context.into(),
+        source,
+    }
+}
+
+/// Memory the RTS smoother may use for the stored forward pass before the job
+/// refuses (two n×n matrices and two n-vectors per epoch).
+pub const MAX_SMOOTHER_BYTES: usize = 4 << 30;
+
+/// Inputs of `aidnav filter`.
+#[derive(Debug, Clone)]
+pub struct FilterJob {
+    /// Model TOML.
+    pub model: PathBuf,
+    /// Measurement CSV.
+    pub measurements: PathBuf,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Also run the RTS smoother.
+    pub smooth: bool,
+    /// Also write the full covariance per epoch.
+    pub full_covariance: bool,
+    /// Cap on epochs read.
+    pub max_epochs: usize,
+}
+
+/// What `aidnav filter` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct FilterReport {
+    /// Epochs processed.
+    pub epochs: usize,
+    /// State names.
+    pub states: Vec<String>,
+    /// Final estimate.
+    pub final_state: Vec<f64>,
+    /// Final 1σ.
+    pub final_sigma: Vec<f64>,
+    /// Mean NIS over the updates (per degree of freedom: 1 when consistent).
+    pub mean_nis_per_dof: f64,
+    /// Updates by outcome.
+    pub outcomes: std::collections::BTreeMap<String, usize>,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Accumulates the NIS and outcome counts of a run.
+#[derive(Default)]
+struct RunStats {
+    nis: Chi2Mean,
+    outcomes: std::collections::BTreeMap<String, usize>,
+}
+
+impl Observer for RunStats {
+    fn observe_epoch(&mut self, r: &EpochRecord) {
+        if r.outcome != Outcome::Missing && r.nis.is_finite() {
+            self.nis.push(r.nis, r.dof);
+        }
+        *self
+            .outcomes
+            .entry(r.outcome.as_str().to_string())
+            .or_default() += 1;
+    }
+}
+
+/// Run a linear Kalman filter from a model file over a measurement CSV.
+pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
+    let loaded = load_model(&job.model)?;
+    let table = read_measurements(&job.measurements, &loaded.measurement_names, job.max_epochs)?;
+    let n = loaded.model.states();
+    if job.smooth {
+        let per_epoch = (2 * n * n + 2 * n) * std::mem::size_of::<f64>();
+        if per_epoch.saturating_mul(table.len()) > MAX_SMOOTHER_BYTES {
+            return Err(JobError::Refused(format!(
+                "{}: smoothing {} epochs of {n} states needs {} MiB for the forward pass, over the {} MiB limit; split the file",
+                job.measurements.display(),
+                table.len(),
+                per_epoch.saturating_mul(table.len()) >> 20,
+                MAX_SMOOTHER_BYTES >> 20
+            )));
+        }
+    }
+    let mut writer = FilterCsvWriter::create(
+        &job.out,
+        &loaded.state_names,
+        &loaded.measurement_names,
+        job.full_covariance,
+    )?;
+    let mut stats = RunStats::default();
+    let mut options = loaded.options;
+    options.keep_covariance = job.full_covariance;
+    options.keep_forward_pass = job.smooth;
+    let out = {
+        let mut both = (&mut writer, &mut stats);
+        loaded
+            .model
+            .run(table.epochs(), &options, &mut both)
+            .map_err(|source| JobError::Estimation {
+                context: format!(
+                    "{} with {}",
+                    job.model.display(),
+                    job.measurements.display()
+                ),
+                source,
+            })?
+    };
+    writer.finish()?;
+    let mut files = vec![
+        job.out.join("estimates.csv"),
+        job.out.join("innovations.csv"),
+    ];
+    if job.full_covariance {
+        files.push(job.out.join("covariance.csv"));
+    }
+    if job.smooth {
+        let smoothed = rts_smooth(&out.forward).map_err(|source| JobError::Estimation {
+            context: format!("smoothing {}", job.measurements.display()),
+            source,
+        })?;
+        files.push(write_smoothed(
+            &job.out,
+            &loaded.state_names,
+            &table.times,
+            &smoothed,
+        )?);
+    }
+    let report = FilterReport {
+        epochs: out.epochs,
+        states: loaded.state_names.clone(),
+        final_state: out.final_state.iter().copied().collect(),
+        final_sigma: out
+            .final_covariance
+            .diagonal()
+            .iter()
+            .map(|v| v.max(0.0).sqrt())
+            .collect(),
+        mean_nis_per_dof: stats.nis.mean_per_dof(),
+        outcomes: stats.outcomes,
+        files: files.clone(),
+    };
+    let mut summary = Summary::new("filter", VERSION, None, &loaded.file);
+    summary.insert("model_file", job.model.display().to_string());
+    summary.insert("measurement_file", job.measurements.display().to_string());
+    summary.insert("smooth", job.smooth);
+    summary.insert("epochs", report.epochs);
+    summary.insert("final_state", &report.final_state);
+    summary.insert("final_sigma", &report.final_sigma);
+    summary.insert("mean_nis_per_dof", report.mean_nis_per_dof);
+    summary.insert("outcomes", &report.outcomes);
+    let mut report = report;
+    report.files.push(summary.write(&job.out)?);
+    Ok(report)
+}

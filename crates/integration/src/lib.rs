@@ -1,0 +1,16 @@
+//! The integration layer of aidnav (spec 00): the aided-INS filters that
+//! join a mechanization ([`aidnav_ins`]) to an error model
+//! ([`aidnav_models`]) through the estimation engine
+//! ([`aidnav_estimation`]), and their supervision ([`aidnav_supervisors`]).
+//! One module per system, named as in the other layers:
+//!
+//! - [`ned`]: spec 40's 21-state closed-loop GNSS/INS filter on the WGS-84
+//!   NED mechanization;
+//! - [`local_level`]: spec 30's stage 1, the loosely coupled filter on the
+//!   flat local-level INS;
+//! - [`group`]: spec 30's stage 2 at scale, one axis of a large group in
+//!   information form.
+
+pub mod group;
+pub mod local_level;
+pub mod ned;

@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Byte-for-byte comparison of aidnav's outputs between a base revision and
+# the working tree: builds both, runs `reproduce all` and the recorded drive
+# (`process examples/drive_0708.toml`) with each, and compares every CSV,
+# text and JSON file they write. SVG plots are compared too but reported
+# apart (they carry the same numbers, drawn).
+#
+#   scripts/compare-outputs.sh [BASE_REV]      (default: HEAD)
+#   DATA=/path/to/drive_0708 scripts/compare-outputs.sh HEAD~3
+#
+# The base is built in a git worktree under target/compare/ with its own
+# target directory (nothing is written into the source tree); exit status 0
+# when every file is identical, 1 otherwise.
+set -euo pipefail
+top=$(git rev-parse --show-toplevel)
+cd "$top"
+base_rev=${1:-HEAD}
+base_sha=$(git rev-parse --verify "$base_rev^{commit}")
+work="$top/target/compare"
+mkdir -p "$work"
+tree="$work/base-tree"
+if [ -d "$tree" ]; then
+  git worktree remove --force "$tree" 2>/dev/null || rm -rf "$tree"
+fi
+git worktree prune
+git worktree add --detach "$tree" "$base_sha" >/dev/null
+data=${DATA:-}
+if [ -z "$data" ]; then
+  for d in "$top/examples/data/drive_0708" "$top/../shared/data/rtklibexplorer-gnss-imu/drive_0708"; do
+    if [ -d "$d" ]; then data=$(cd "$d" && pwd); break; fi
+  done
+fi
+[ -n "$data" ] || { echo "no drive_0708 data found: set DATA=" >&2; exit 2; }
+
+echo "building base $base_sha ..."
+(cd "$tree" && CARGO_TARGET_DIR="$work/target-base" cargo build --release -q -p aidnav-cli)
+echo "building the working tree ..."
+cargo build --release -q -p aidnav-cli
+base_bin="$work/target-base/release/aidnav"
+new_bin="$top/target/release/aidnav"
+
+run() { # BIN CONFIG_ROOT OUT
+  local bin=$1 root=$2 out=$3
+  rm -rf "$out"
+  mkdir -p "$out"
+  CI=true "$bin" reproduce all --out "$out/reproduce" >"$out/reproduce.log" 2>&1
+  CI=true "$bin" process "$root/examples/drive_0708.toml" --data "$data" --out "$out/drive" >"$out/drive.log" 2>&1
+}
+echo "running base ..."
+run "$base_bin" "$tree" "$work/out-base"
+echo "running working tree ..."
+run "$new_bin" "$top" "$work/out-new"
+
+status=0
+compared=0
+while IFS= read -r f; do
+  rel=${f#"$work/out-base/"}
+  case "$rel" in *.log) continue ;; esac
+  compared=$((compared + 1))
+  if [ ! -f "$work/out-new/$rel" ]; then
+    echo "MISSING  $rel"; status=1
+  elif ! cmp -s "$f" "$work/out-new/$rel"; then
+    echo "DIFFERS  $rel"; status=1
+  fi
+done < <(find "$work/out-base" -type f | sort)
+while IFS= read -r f; do
+  rel=${f#"$work/out-new/"}
+  case "$rel" in *.log) continue ;; esac
+  [ -f "$work/out-base/$rel" ] || { echo "NEW      $rel"; status=1; }
+done < <(find "$work/out-new" -type f | sort)
+if [ $status -eq 0 ]; then
+  echo "identical: $compared files (reproduce all + drive) against $base_sha"
+else
+  echo "outputs differ from $base_sha (outputs under $work/out-base and $work/out-new)"
+fi
+git worktree remove --force "$tree"
+exit $status
