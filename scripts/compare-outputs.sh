@@ -40,11 +40,14 @@ base_bin="$work/target-base/release/aidnav"
 new_bin="$top/target/release/aidnav"
 
 run() { # BIN CONFIG_ROOT OUT
-  local bin=$1 root=$2 out=$3
-  rm -rf "$out"
-  mkdir -p "$out"
-  CI=true "$bin" reproduce all --out "$out/reproduce" >"$out/reproduce.log" 2>&1
-  CI=true "$bin" process "$root/examples/drive_0708.toml" --data "$data" --out "$out/drive" >"$out/drive.log" 2>&1
+  # Both runs write to the same folder (summary.json names its files), then
+  # move it aside.
+  local bin=$1 root=$2 out=$3 scratch="$work/out"
+  rm -rf "$out" "$scratch"
+  mkdir -p "$scratch"
+  CI=true "$bin" reproduce all --out "$scratch/reproduce" >"$scratch/reproduce.log" 2>&1
+  CI=true "$bin" process "$root/examples/drive_0708.toml" --data "$data" --out "$scratch/drive" >"$scratch/drive.log" 2>&1
+  mv "$scratch" "$out"
 }
 echo "running base ..."
 run "$base_bin" "$tree" "$work/out-base"
