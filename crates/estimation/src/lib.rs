@@ -52,6 +52,7 @@ pub mod linear;
 pub mod observer;
 pub mod policy;
 pub mod riccati;
+pub mod scheme;
 pub mod smoother;
 pub mod subspace;
 
@@ -69,6 +70,7 @@ pub use policy::{
     RecoveringChi2Gate,
 };
 pub use riccati::{SteadyState, steady_state_covariance};
+pub use scheme::{NoiseRule, Scheme, SchemeParameters, SchemePolicy};
 pub use smoother::{ForwardEpoch, SmoothedEpoch, rts_smooth};
 pub use subspace::{SparseInformation, SubspaceUpdate};
 

@@ -35,11 +35,10 @@
 //! window"), so `adaptive_reject` and `adaptive_limit` differ only in
 //! rejecting vs limiting.
 
-use aidnav_estimation::adaptive::{
-    AdaptiveGain, AnomalyDetector, DiagonalRule, InnovationFeedbackNoise, LimitedAdaptiveGain,
-    Limiting, Rejection,
+use aidnav_estimation::adaptive::{AnomalyDetector, InnovationFeedbackNoise};
+use aidnav_estimation::{
+    EstimationError, KalmanFilter, NoiseRule, Scheme, SchemeParameters, SchemePolicy,
 };
-use aidnav_estimation::{AcceptAll, Chi2Gate, EstimationError, Huber, KalmanFilter};
 use aidnav_io::config::{Invalid, Validate, count_in_range, positive, probability};
 use aidnav_models::{PlatformChannel, PlatformTruth};
 use nalgebra::{Matrix1, Matrix3, Vector1, Vector3};
@@ -49,49 +48,73 @@ use aidnav_sim::faults::{FaultSpec, SigmaRange, plan};
 use aidnav_sim::monte_carlo::MonteCarlo;
 use aidnav_sim::rng::{channel_rng, standard_normal};
 
-/// One row of the experiment: which filter, on which data, with which statistics.
+/// One row of the experiment: which scheme (measurement policy and
+/// process-noise rule, from the engine's registry), on which data, with
+/// which statistics.
 struct Row {
     name: &'static str,
-    kind: Kind,
+    scheme: Scheme,
+    noise: NoiseRule,
     /// Runs on the fixes without anomalies.
     clean_data: bool,
     /// Believes the scenario's wrong Q and R.
     wrong_statistics: bool,
 }
 
-const fn row(name: &'static str, kind: Kind) -> Row {
+/// A row running `scheme` as the registry defines it.
+const fn row(name: &'static str, scheme: Scheme) -> Row {
     Row {
         name,
-        kind,
+        scheme,
+        noise: scheme.noise_rule(),
         clean_data: false,
         wrong_statistics: false,
     }
 }
 
-/// The estimators, in table order: the single source of their names, kinds,
-/// data and statistics.
+/// Eq. 3's innovation feedback without the detector's guard: every
+/// innovation feeds Q.
+const FEEDBACK: NoiseRule = NoiseRule::Feedback { detector: false };
+/// Eq. 3's feedback guarded by eq. 5's detector.
+const GUARDED_FEEDBACK: NoiseRule = NoiseRule::Feedback { detector: true };
+
+/// The estimators, in table order: the single source of their names,
+/// schemes, data and statistics.
 const ROWS: [Row; 12] = [
     Row {
         clean_data: true,
-        ..row("kf_known_clean", Kind::Plain)
+        ..row("kf_known_clean", Scheme::Accept)
     },
-    row("kf_plain", Kind::Plain),
+    row("kf_plain", Scheme::Accept),
     Row {
         wrong_statistics: true,
-        ..row("kf_wrong_stats", Kind::Plain)
+        ..row("kf_wrong_stats", Scheme::Accept)
     },
-    row("kf_reject", Kind::Reject),
-    row("adaptive", Kind::Adaptive),
+    row("kf_reject", Scheme::Rejection),
     Row {
-        clean_data: true,
-        ..row("adaptive_clean", Kind::Adaptive)
+        noise: FEEDBACK,
+        ..row("adaptive", Scheme::Accept)
     },
-    row("adaptive_gain", Kind::AdaptiveGain),
-    row("adaptive_reject", Kind::AdaptiveReject),
-    row("developed", Kind::Developed),
-    row("developed_eq4", Kind::DevelopedEq4),
-    row("chi2_gate", Kind::Chi2),
-    row("huber", Kind::Huber),
+    Row {
+        noise: FEEDBACK,
+        clean_data: true,
+        ..row("adaptive_clean", Scheme::Accept)
+    },
+    Row {
+        noise: FEEDBACK,
+        ..row("adaptive_gain", Scheme::AdaptiveGain)
+    },
+    Row {
+        noise: GUARDED_FEEDBACK,
+        ..row("adaptive_reject", Scheme::Rejection)
+    },
+    row("developed", Scheme::Developed),
+    Row {
+        noise: GUARDED_FEEDBACK,
+        ..row("developed_eq4", Scheme::LimitedAdaptiveGain)
+    },
+    row("chi2_gate", Scheme::Chi2Gate),
+    row("huber", Scheme::Huber),
 ];
 
 /// Names of the estimators, in table order.
@@ -314,28 +337,12 @@ const CHANNEL_FAULTS: u64 = 1;
 /// The state of one estimator through a run.
 struct Estimator {
     kf: KalmanFilter<nalgebra::Const<3>>,
-    kind: Kind,
-    /// Eq. 3's feedback term (previous gain, ring of the last stable terms).
+    /// Eq. 3's feedback term (previous gain, ring of the last stable
+    /// terms), used when the row's noise rule is feedback.
     noise: InnovationFeedbackNoise<nalgebra::U3, nalgebra::U1>,
-    /// Eq. 4's window with eq. 5's detector (used by the eq. 4 kinds).
-    limited_gain: LimitedAdaptiveGain<nalgebra::U1>,
-}
-
-#[derive(Clone, Copy, PartialEq)]
-enum Kind {
-    Plain,
-    Reject,
-    /// Eq. 3 alone: every innovation feeds Q, every fix is accepted.
-    Adaptive,
-    /// Eq. 3 + eq. 4, no detector.
-    AdaptiveGain,
-    AdaptiveReject,
-    /// Eq. 3 + 5 + 8 (spec 20's developed algorithm).
-    Developed,
-    /// Eq. 9 as printed (eq. 4's gain).
-    DevelopedEq4,
-    Chi2,
-    Huber,
+    adaptive: bool,
+    /// The scheme's measurement policy (its eq. 4 window, if any, lives here).
+    policy: SchemePolicy<nalgebra::U1>,
 }
 
 #[derive(Clone, Copy)]
@@ -348,45 +355,31 @@ struct Setup {
 }
 
 impl Estimator {
-    fn new(kind: Kind, p0: Matrix3<f64>, sc: &AnomaliesScenario) -> Result<Self, EstimationError> {
+    fn new(row: &Row, p0: Matrix3<f64>, sc: &AnomaliesScenario) -> Result<Self, EstimationError> {
+        let parameters = SchemeParameters {
+            chi2_probability: sc.chi2_probability,
+            huber_k: sc.huber_k,
+            anomaly_gamma: sc.gamma,
+            adaptive_window: sc.gain_window,
+            ..SchemeParameters::default()
+        };
         Ok(Self {
             kf: KalmanFilter::new(Vector3::zeros(), p0)?,
-            kind,
-            // Eqs. 3 and 3 + 4 alone have no detector: every innovation feeds Q.
             noise: InnovationFeedbackNoise::new(
                 nalgebra::Matrix3x1::zeros(),
-                (!matches!(kind, Kind::Adaptive | Kind::AdaptiveGain))
-                    .then_some(AnomalyDetector { gamma: sc.gamma }),
+                (row.noise == GUARDED_FEEDBACK).then_some(AnomalyDetector { gamma: sc.gamma }),
                 sc.stable_window,
             )
             .unwrap_or_else(|| unreachable!("stable_window ≥ 1 is validated")),
-            limited_gain: LimitedAdaptiveGain {
-                gain: AdaptiveGain::new(sc.gain_window, DiagonalRule::All)
-                    .unwrap_or_else(|| unreachable!("gain_window ≥ 1 is validated")),
-                detector: AnomalyDetector { gamma: sc.gamma },
-            },
+            adaptive: row.noise != NoiseRule::Fixed,
+            policy: row.scheme.policy(&parameters),
         })
     }
 
     /// One epoch: predict, then update with `z` when present.
-    fn step(
-        &mut self,
-        s: &Setup,
-        sc: &AnomaliesScenario,
-        z: Option<f64>,
-        first: bool,
-    ) -> Result<(), EstimationError> {
-        let detector = AnomalyDetector { gamma: sc.gamma };
-        let adaptive = matches!(
-            self.kind,
-            Kind::Adaptive
-                | Kind::AdaptiveGain
-                | Kind::AdaptiveReject
-                | Kind::Developed
-                | Kind::DevelopedEq4
-        );
+    fn step(&mut self, s: &Setup, z: Option<f64>, first: bool) -> Result<(), EstimationError> {
         if !first {
-            if adaptive {
+            if self.adaptive {
                 self.kf.predict_state(&s.phi)?;
                 let q = match z {
                     Some(z) => {
@@ -401,32 +394,9 @@ impl Estimator {
             }
         }
         let Some(z) = z else { return Ok(()) };
-        let zv = Vector1::new(z);
-        let rec = match self.kind {
-            Kind::Plain | Kind::Adaptive => self.kf.update_with(&zv, &s.h, &s.r, &mut AcceptAll),
-            Kind::AdaptiveGain => self
-                .kf
-                .update_with(&zv, &s.h, &s.r, &mut self.limited_gain.gain),
-            Kind::Reject | Kind::AdaptiveReject => {
-                self.kf
-                    .update_with(&zv, &s.h, &s.r, &mut Rejection { detector })
-            }
-            Kind::Developed => self
-                .kf
-                .update_with(&zv, &s.h, &s.r, &mut Limiting { detector }),
-            Kind::DevelopedEq4 => self.kf.update_with(&zv, &s.h, &s.r, &mut self.limited_gain),
-            Kind::Chi2 => self.kf.update_with(
-                &zv,
-                &s.h,
-                &s.r,
-                &mut Chi2Gate {
-                    probability: sc.chi2_probability,
-                },
-            ),
-            Kind::Huber => self
-                .kf
-                .update_with(&zv, &s.h, &s.r, &mut Huber { k: sc.huber_k }),
-        }?;
+        let rec = self
+            .kf
+            .update_with(&Vector1::new(z), &s.h, &s.r, &mut self.policy)?;
         self.noise.record_gain(&rec.gain);
         Ok(())
     }
@@ -484,7 +454,7 @@ fn one_run(
         .iter()
         .map(|row| {
             let s = if row.wrong_statistics { wrong } else { setup };
-            Estimator::new(row.kind, s.p0, sc)
+            Estimator::new(row, s.p0, sc)
         })
         .collect::<Result<_, _>>()?;
     let mut sq = vec![0.0; ESTIMATORS.len()];
@@ -503,8 +473,7 @@ fn one_run(
         for (i, (es, row)) in est.iter_mut().zip(&ROWS).enumerate() {
             let z = if row.clean_data { clean } else { faulty };
             let s = if row.wrong_statistics { wrong } else { setup };
-            es.step(s, sc, Some(z), e == 0)
-                .map_err(|err| err.at_epoch(e))?;
+            es.step(s, Some(z), e == 0).map_err(|err| err.at_epoch(e))?;
             sq[i] += (es.kf.state()[0] - x[0]).powi(2);
             if keep {
                 example.estimates[i].push(es.kf.state()[0]);

@@ -2,14 +2,8 @@
 
 use std::path::PathBuf;
 
-use aidnav_estimation::{
-    AcceptAll, Chi2Gate, Huber, MeasurementPolicy, RecoveringChi2Gate,
-    adaptive::{
-        AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain, Limiting, Rejection,
-    },
-    gmdh::GmdhConfig,
-    nalgebra::U3,
-};
+use aidnav_estimation::gmdh::GmdhConfig;
+use aidnav_estimation::{Scheme, SchemeParameters};
 use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_range, non_negative};
 use aidnav_supervisors::outage::{BridgeConfig, Predictor, RelaySchedule};
 use serde::{Deserialize, Serialize};
@@ -545,74 +539,22 @@ impl Validate for ProcessConfig {
     }
 }
 
-/// Measurement policy of a run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PolicyName {
-    /// Accept every fix (what KF-GINS does).
-    Accept,
-    /// χ² gate at 0.999 (a plain gate locks out on this drive).
-    Chi2Gate,
-    /// χ² gate at 0.999 that accepts again after 20 rejections in a row (5 s).
-    RecoveringGate,
-    /// Huber re-weighting, k = 1.345.
-    Huber,
-    /// Spec 20 eq. 5 detector (νᵀν > γ tr S, γ = 9) with eq. 6 rejection.
-    Rejection,
-    /// Spec 20 eq. 5 detector with eq. 8 limiting (the innovation clipped to
-    /// the gate, its direction kept).
-    Limiting,
-    /// Spec 20 eq. 4: the gain from the empirical innovation covariance of
-    /// the last `gnss.adaptive_window` epochs when it exceeds the model's.
-    AdaptiveGain,
-    /// Eq. 4's gain with the eq. 5 detector and eq. 8 limiting.
-    LimitedAdaptiveGain,
-    /// Spec 20 eq. 9, the developed algorithm: eq. 8 limiting with the eq. 3
-    /// adaptive process noise (`filter.adaptive_noise`, `hard` when that is
-    /// `off`), the noise fed by normal innovations only.
-    Developed,
-}
+/// Measurement policy of a run: a scheme of the engine's registry
+/// ([`Scheme`]; its serde names are the configuration's).
+pub type PolicyName = Scheme;
 
-impl PolicyName {
-    /// Every policy, in the order of the anomaly table.
-    pub const ALL: [PolicyName; 9] = [
-        PolicyName::Accept,
-        PolicyName::Chi2Gate,
-        PolicyName::RecoveringGate,
-        PolicyName::Huber,
-        PolicyName::Rejection,
-        PolicyName::Limiting,
-        PolicyName::AdaptiveGain,
-        PolicyName::LimitedAdaptiveGain,
-        PolicyName::Developed,
-    ];
-
-    pub(crate) fn policy(self, gnss: &GnssConfig) -> Box<dyn MeasurementPolicy<U3>> {
-        let detector = AnomalyDetector {
-            gamma: gnss.anomaly_gamma,
-        };
-        let window = || {
-            AdaptiveGain::new(gnss.adaptive_window, DiagonalRule::All)
-                .unwrap_or_else(|| unreachable!("adaptive_window ≥ 1 is validated"))
-        };
-        match self {
-            PolicyName::Accept => Box::new(AcceptAll),
-            PolicyName::Chi2Gate => Box::new(Chi2Gate { probability: 0.999 }),
-            PolicyName::RecoveringGate => Box::new(RecoveringChi2Gate::new(0.999, 20)),
-            PolicyName::Huber => Box::new(Huber { k: 1.345 }),
-            PolicyName::Rejection => Box::new(Rejection { detector }),
-            PolicyName::Limiting | PolicyName::Developed => Box::new(Limiting { detector }),
-            PolicyName::AdaptiveGain => Box::new(window()),
-            PolicyName::LimitedAdaptiveGain => Box::new(LimitedAdaptiveGain {
-                gain: window(),
-                detector,
-            }),
+impl GnssConfig {
+    /// The registry's tuning constants for the GNSS updates: χ² gates at
+    /// 0.999 (the recovering one accepts again after 20 rejections, 5 s at
+    /// 4 Hz), Huber k = 1.345, and this table's γ and eq. 4 window.
+    pub fn scheme_parameters(&self) -> SchemeParameters {
+        SchemeParameters {
+            chi2_probability: 0.999,
+            recovering_after: 20,
+            huber_k: 1.345,
+            anomaly_gamma: self.anomaly_gamma,
+            adaptive_window: self.adaptive_window,
         }
-    }
-
-    /// The name in configuration files and tables.
-    pub fn name(self) -> String {
-        config_name(&self)
     }
 }
 

@@ -1,6 +1,6 @@
 //! One filter pass over a log under a plan and a measurement policy.
 
-use aidnav_estimation::{EstimationError, Outcome};
+use aidnav_estimation::{EstimationError, NoiseRule, Outcome};
 use aidnav_frames::earth::Geodetic;
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_integration::ned::NedFilter;
@@ -187,10 +187,12 @@ pub fn run_filter_rows(
     if plan.monitor {
         filter.start_convergence_monitor()?;
     }
-    let adaptive = match (cfg.filter.adaptive_noise, policy) {
-        (AdaptiveNoise::Off, PolicyName::Developed) | (AdaptiveNoise::Hard, _) => Some(false),
+    // A scheme that adapts Q (eq. 3) gets it `hard` when the configuration
+    // has it off.
+    let adaptive = match (cfg.filter.adaptive_noise, policy.noise_rule()) {
+        (AdaptiveNoise::Off, NoiseRule::Feedback { .. }) | (AdaptiveNoise::Hard, _) => Some(false),
         (AdaptiveNoise::Averaged, _) => Some(true),
-        (AdaptiveNoise::Off, _) => None,
+        (AdaptiveNoise::Off, NoiseRule::Fixed) => None,
     };
     if let Some(average) = adaptive {
         filter.set_adaptive_noise(
@@ -199,8 +201,8 @@ pub fn run_filter_rows(
             average,
         );
     }
-    let mut position_policy = policy.policy(&cfg.gnss);
-    let mut velocity_policy = policy.policy(&cfg.gnss);
+    let mut position_policy = policy.policy(&cfg.gnss.scheme_parameters());
+    let mut velocity_policy = policy.policy(&cfg.gnss.scheme_parameters());
     let bridging =
         plan.bridge && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed;
     let bridge_cfg = cfg.outage_bridge.bridge();
@@ -295,8 +297,7 @@ pub fn run_filter_rows(
                     let s = g.position_sigma_neu;
                     let sigma =
                         Vector3::new(s.x, s.y, s.z).map(|v| v.max(cfg.gnss.min_position_sigma_m));
-                    let rec =
-                        filter.update_position_with(&fix, &sigma, position_policy.as_mut())?;
+                    let rec = filter.update_position_with(&fix, &sigma, &mut position_policy)?;
                     nis = rec.nis;
                     outcome = Some(rec.outcome);
                     innovation = rec.residual;
@@ -304,7 +305,7 @@ pub fn run_filter_rows(
                         && let (Some(v), Some(sv)) = (g.velocity_ned, g.velocity_sigma_neu)
                     {
                         let sv = sv.map(|x| x.max(cfg.gnss.min_velocity_sigma_mps));
-                        filter.update_velocity_with(&v, &sv, velocity_policy.as_mut())?;
+                        filter.update_velocity_with(&v, &sv, &mut velocity_policy)?;
                     }
                 } else {
                     filter.position_fix_missing()?;
@@ -508,13 +509,16 @@ mod tests {
 
     #[test]
     fn policy_names_are_the_configuration_names() {
-        let names: Vec<String> = PolicyName::ALL.iter().map(|p| p.name()).collect();
+        let names: Vec<String> = PolicyName::ALL
+            .iter()
+            .map(|p| p.name().to_string())
+            .collect();
         assert_eq!(names[0], "accept");
         assert_eq!(names[8], "developed");
         for n in &names {
             let p: PolicyName =
                 serde_json::from_value(serde_json::Value::String(n.clone())).unwrap();
-            assert_eq!(&p.name(), n);
+            assert_eq!(p.name(), n);
         }
     }
 }
