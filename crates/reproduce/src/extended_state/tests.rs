@@ -1,0 +1,134 @@
+//! Tests of the extended-state experiment.
+
+use super::*;
+use aidnav_sim::trajectory::{LaunchProgram, LaunchTarget, TABLE1};
+
+fn quick(targets: Vec<LaunchTarget>) -> ExtendedStateScenario {
+    ExtendedStateScenario {
+        runs: 4,
+        targets,
+        figure_target: 0,
+        sweep_runs: 2,
+        sweep_step_s: 60.0,
+        ..ExtendedStateScenario::default()
+    }
+}
+
+/// The 14-state linear model against the nonlinear INS: small instrument
+/// errors (1 % of Table 2) propagated for 100 s from launch through
+/// both give the same position and velocity errors within 1 %.
+#[test]
+fn linear_error_model_matches_the_nonlinear_ins() {
+    let traj = LaunchTrajectory::solve(&TABLE1[0], &LaunchProgram::default(), 0.01).unwrap();
+    let mut errors = LaunchInstrumentErrors::table2(1.0);
+    errors.accel_bias *= 0.01;
+    errors.accel_scale *= 0.01;
+    errors.angle_offset *= 0.01;
+    errors.angle_drift *= 0.01;
+    let steps = 10_000; // 100 s
+    let mut x = SVector::<f64, STATES>::zeros();
+    let m = errors.estimated_components();
+    for i in 0..ESTIMATED {
+        x[NAVIGATION + i] = m[i];
+    }
+    let mut ins = LaunchIns::default();
+    for k in 0..steps {
+        let t = k as f64 * 0.01;
+        let (att, f) = raw_outputs(&traj, &errors, t + 0.005);
+        let a = ExtendedStateModel::continuous(t + 0.005, &att, &f);
+        x = ExtendedStateModel::transition(&a, 0.01, TransitionForm::Exact) * x;
+        ins.step(t, 0.01, |tau| raw_outputs(&traj, &errors, tau));
+    }
+    let dr = ins.position - traj.positions[steps];
+    let dv = ins.velocity - traj.velocities[steps];
+    let lr = Vector3::new(x[0], x[1], x[2]);
+    let lv = Vector3::new(x[3], x[4], x[5]);
+    assert!((dr - lr).norm() < 0.01 * dr.norm(), "{dr} vs {lr}");
+    assert!((dv - lv).norm() < 0.01 * dv.norm(), "{dv} vs {lv}");
+    assert!(dr.norm() > 10.0); // the comparison is not vacuous
+}
+
+/// Noise-free fixes: the filter recovers the eight instrument errors
+/// within 5 % (errors at 0.1 % of Table 2, where the neglected
+/// second-order attitude term f Δb²/2 is below 1 % of the accelerometer
+/// bias; at full size it is as large as the bias itself).
+#[test]
+fn noise_free_fixes_recover_the_instrument_errors() {
+    let sc = quick(vec![TABLE1[0]]);
+    let traj = LaunchTrajectory::solve(&TABLE1[0], &sc.program, sc.imu_dt_s).unwrap();
+    let mut errors = LaunchInstrumentErrors::table2(1.0);
+    errors.accel_bias *= 0.001;
+    errors.accel_scale *= 0.001;
+    errors.angle_offset *= 0.001;
+    errors.angle_drift *= 0.001;
+    let mut history = FilterHistory::default();
+    let mut rng = channel_rng(1, 0, 0);
+    let exact = ExtendedStateScenario {
+        fix_noise_scale: 0.0,
+        ..sc.clone()
+    };
+    filter_pass(&exact, &traj, &errors, &mut rng, &[], Some(&mut history)).unwrap();
+    let last = history.instrument_error.last().unwrap();
+    let truth = errors.estimated_components();
+    for i in 0..ESTIMATED {
+        assert!(
+            last[i].abs() < 0.05 * truth[i].abs(),
+            "component {i}: error {} of {}",
+            last[i],
+            truth[i]
+        );
+    }
+}
+
+/// With Q = 0 the filter covariance never drops below the Cramér–Rao
+/// bound (P − P_Γ ⪰ 0 up to rounding), with Q > 0 it stays above it;
+/// and δ(n) falls after the transient.
+#[test]
+fn covariance_respects_the_bound_and_delta_falls() {
+    for q in [0.0, 1e-4] {
+        let sc = ExtendedStateScenario {
+            velocity_process_noise: q,
+            ..quick(vec![TABLE1[0]])
+        };
+        let traj = LaunchTrajectory::solve(&TABLE1[0], &sc.program, sc.imu_dt_s).unwrap();
+        let errors = LaunchInstrumentErrors::table2(1.0);
+        let mut history = FilterHistory::default();
+        let mut rng = channel_rng(2, 0, 0);
+        filter_pass(&sc, &traj, &errors, &mut rng, &[], Some(&mut history)).unwrap();
+        let worst = history
+            .bound_gap
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        // With Q = 0, P and P_Γ are equal in exact arithmetic; in σ-scaled
+        // coordinates their computed difference is rounding of the order
+        // of 1e-5 (median here; F's condition number is ~1e15), so the
+        // tolerance is 1e-3 — far below a real violation (order 1).
+        assert!(worst > -1e-3, "Q = {q}: P − P_Γ has eigenvalue {worst:e}");
+        if q == 0.0 {
+            // δ after 100 s of fusion is below its value at 60 s and
+            // below half its transient peak.
+            let at = |s: f64| {
+                let k = history.time_s.iter().position(|&t| t >= s).unwrap();
+                history.delta[k]
+            };
+            let peak = history.delta.iter().copied().fold(0.0, f64::max);
+            assert!(at(200.0) < at(80.0) && at(200.0) < 0.5 * peak);
+        }
+    }
+}
+
+/// Reduced run of the reproduction: every trajectory, both thresholds,
+/// the proposed correction beats outputs-only in the median.
+#[test]
+fn reduced_reproduction_improves_every_case() {
+    let sc = quick(TABLE1.to_vec());
+    let r = run(&sc, &MonteCarlo::new(sc.runs, sc.seed).quiet()).unwrap();
+    assert_eq!(r.cases.len(), 18);
+    for c in &r.cases {
+        assert_eq!(c.never_switched, 0, "{c:?}");
+        assert!(c.ratio_median > 1.0, "{c:?}");
+        assert!(c.error_oracle_m < c.error_proposed_m, "{c:?}");
+        assert!(c.error_outputs_only_m < c.error_free_ins_m, "{c:?}");
+    }
+}
