@@ -5,14 +5,13 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use aidnav::io::config::load_toml;
 use aidnav::io::measurements::DEFAULT_MAX_EPOCHS;
 use aidnav::jobs::{self, FilterJob};
 use aidnav::reproduce::MonteCarloScenario;
 use aidnav::reproduce::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
 use aidnav::reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
-use aidnav::reproduce::formation::{FormationFile, FormationResult, FormationScenario};
+use aidnav::reproduce::formation::{FormationResult, FormationScenario};
 use aidnav::reproduce::group::{GroupResult, GroupScenario};
 use aidnav::reproduce::outages::{OutageScores, OutagesResult, OutagesScenario};
 use anyhow::{Context, Result};
@@ -122,6 +121,16 @@ struct MonteCarloOverrides {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+}
+
+impl MonteCarloOverrides {
+    fn overrides(&self) -> jobs::ScenarioOverrides {
+        jobs::ScenarioOverrides {
+            runs: self.runs,
+            seed: self.seed,
+            max_runs: None,
+        }
+    }
 }
 
 #[derive(Debug, Args)]
@@ -243,28 +252,11 @@ fn scenario_and_out<S>(a: &ReproduceArgs, root: &Path, name: &str) -> Result<(S,
 where
     S: Default + serde::de::DeserializeOwned + aidnav::io::Validate + MonteCarloScenario,
 {
-    let mut s = match &a.scenario {
-        Some(p) => load_toml::<S>(p)?.0,
-        None => S::default(),
+    let overrides = jobs::ScenarioOverrides {
+        max_runs: (a.experiment == Experiment::All).then_some(QUICK_RUNS),
+        ..a.mc.overrides()
     };
-    if a.experiment == Experiment::All {
-        let runs = s.runs_mut();
-        *runs = (*runs).min(QUICK_RUNS);
-    }
-    if let Some(r) = a.mc.runs {
-        *s.runs_mut() = r;
-    }
-    if let Some(seed) = a.mc.seed {
-        *s.seed_mut() = seed;
-    }
-    s.validate().map_err(|inv| {
-        anyhow::anyhow!(
-            "{}: {} is out of range: allowed {}",
-            inv.key,
-            inv.value,
-            inv.allowed
-        )
-    })?;
+    let s = jobs::load_scenario::<S>(a.scenario.as_deref(), &overrides)?;
     let out = if a.experiment == Experiment::All || a.out.is_none() {
         root.join(name)
     } else {
@@ -356,22 +348,7 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
 }
 
 fn run_scenario(a: RunArgs) -> Result<()> {
-    let mut file = load_toml::<FormationFile>(&a.scenario)?.0;
-    let s = &mut file.formation;
-    if let Some(r) = a.mc.runs {
-        s.runs = r;
-    }
-    if let Some(seed) = a.mc.seed {
-        s.seed = seed;
-    }
-    aidnav::io::Validate::validate(&file).map_err(|inv| {
-        anyhow::anyhow!(
-            "{}: {} is out of range: allowed {}",
-            inv.key,
-            inv.value,
-            inv.allowed
-        )
-    })?;
+    let file = jobs::load_formation_file(&a.scenario, &a.mc.overrides())?;
     let stem = a
         .scenario
         .file_stem()

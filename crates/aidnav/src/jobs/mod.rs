@@ -211,3 +211,71 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
     report.files.push(summary.write(&job.out)?);
     Ok(report)
 }
+
+/// Monte Carlo settings given beside a scenario (the CLI's `--runs`,
+/// `--seed`, and `reproduce all`'s quick run count).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ScenarioOverrides {
+    /// Number of runs, replacing the scenario's.
+    pub runs: Option<usize>,
+    /// Master seed, replacing the scenario's.
+    pub seed: Option<u64>,
+    /// Cap on the scenario's own run count (applied before `runs`).
+    pub max_runs: Option<usize>,
+}
+
+impl ScenarioOverrides {
+    /// Apply to a scenario: the cap first, then the explicit values.
+    pub fn apply<S: aidnav_reproduce::MonteCarloScenario>(&self, s: &mut S) {
+        if let Some(cap) = self.max_runs {
+            let runs = s.runs_mut();
+            *runs = (*runs).min(cap);
+        }
+        if let Some(r) = self.runs {
+            *s.runs_mut() = r;
+        }
+        if let Some(seed) = self.seed {
+            *s.seed_mut() = seed;
+        }
+    }
+}
+
+/// The scenario of an experiment — from its TOML file, or the defaults
+/// without one — with the overrides applied, then validated (an override
+/// out of range is refused with the key, the value and what is allowed).
+pub fn load_scenario<S>(path: Option<&Path>, overrides: &ScenarioOverrides) -> JobResult<S>
+where
+    S: Default
+        + serde::de::DeserializeOwned
+        + aidnav_io::Validate
+        + aidnav_reproduce::MonteCarloScenario,
+{
+    let mut s = match path {
+        Some(p) => aidnav_io::load_toml::<S>(p)?.0,
+        None => S::default(),
+    };
+    overrides.apply(&mut s);
+    validated(s)
+}
+
+/// A formation scenario file (`aidnav run`), with the overrides applied to
+/// its `[formation]` table, validated.
+pub fn load_formation_file(
+    path: &Path,
+    overrides: &ScenarioOverrides,
+) -> JobResult<aidnav_reproduce::formation::FormationFile> {
+    let mut file = aidnav_io::load_toml::<aidnav_reproduce::formation::FormationFile>(path)?.0;
+    overrides.apply(&mut file.formation);
+    validated(file)
+}
+
+/// `value` if it validates, else the refusal naming the key.
+fn validated<T: aidnav_io::Validate>(value: T) -> JobResult<T> {
+    value.validate().map_err(|inv| {
+        JobError::Refused(format!(
+            "{}: {} is out of range: allowed {}",
+            inv.key, inv.value, inv.allowed
+        ))
+    })?;
+    Ok(value)
+}
