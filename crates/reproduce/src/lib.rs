@@ -36,6 +36,20 @@ pub(crate) fn validate_platform(p: &PlatformChannel) -> Result<(), Invalid> {
     Ok(())
 }
 
+/// Range checks of a scenario's list of fault specs (`[[faults]]`,
+/// `[[recovery_faults]]`): sim's [`aidnav_sim::faults::InvalidFault`] as a
+/// scenario [`Invalid`] under the list's key.
+pub(crate) fn validate_faults(
+    key: &str,
+    faults: &[aidnav_sim::faults::FaultSpec],
+) -> Result<(), Invalid> {
+    for f in faults {
+        f.validate()
+            .map_err(|e| Invalid::new(e.key, e.value, e.allowed).within(key))?;
+    }
+    Ok(())
+}
+
 /// What every Monte Carlo scenario has: a run count and a master seed, so
 /// the CLI can override both the same way for every experiment.
 pub trait MonteCarloScenario {

@@ -179,9 +179,7 @@ impl Validate for OutagesScenario {
             ));
         }
         positive("recovery_s", self.recovery_s)?;
-        for f in &self.recovery_faults {
-            f.validate().map_err(|e| e.within("recovery_faults"))?;
-        }
+        crate::validate_faults("recovery_faults", &self.recovery_faults)?;
         positive("efficiency_sigma_gnss_mps", self.efficiency_sigma_gnss_mps)?;
         positive("recovery_gamma", self.recovery_gamma)?;
         Ok(())
