@@ -2,7 +2,8 @@
 //! consistency demonstration: each one a scenario struct (TOML, documented
 //! defaults), a pure function that runs it by seeded Monte Carlo
 //! ([`aidnav_sim::MonteCarlo`]), a result struct the CLI prints and writes,
-//! and its figures ([`figures`]).
+//! and its figures ([`figures`]). The papers' published numbers they are
+//! compared with are in [`published`].
 
 pub mod anomalies;
 pub mod consistency;
@@ -11,6 +12,7 @@ pub mod figures;
 pub mod formation;
 pub mod group;
 pub mod outages;
+pub mod published;
 
 use aidnav_io::config::{Invalid, non_negative, positive};
 use aidnav_models::PlatformChannel;
