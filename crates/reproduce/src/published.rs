@@ -195,7 +195,10 @@ mod tests {
 
     #[test]
     fn ranges_print_as_the_papers_do() {
-        assert_eq!(extended_state_error_ratio(400.0).unwrap().to_string(), "3–8");
+        assert_eq!(
+            extended_state_error_ratio(400.0).unwrap().to_string(),
+            "3–8"
+        );
         assert_eq!(extended_state_error_ratio(450.0), None);
         assert_eq!(ANOMALIES_ADAPTIVE_VS_KF_PERCENT.to_string(), "3–5");
         assert_eq!(OUTAGES_SHORT_TREND_PERCENT.to_string(), "75");
