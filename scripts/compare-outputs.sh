@@ -16,7 +16,7 @@ top=$(git rev-parse --show-toplevel)
 cd "$top"
 base_rev=${1:-HEAD}
 base_sha=$(git rev-parse --verify "$base_rev^{commit}")
-work="$top/target/compare"
+work="${COMPARE_WORK:-$top/target/compare}"
 mkdir -p "$work"
 tree="$work/base-tree"
 if [ -d "$tree" ]; then
