@@ -15,9 +15,17 @@ pub fn extended_state_figures(
     r: &ExtendedStateResult,
     out: &Path,
 ) -> Result<(), IoError> {
-    let h = &r.history;
     let target = &sc.targets[sc.figure_target];
     let name = format!("t_B = {:.0} s, φ = {:.0}°", target.t_b_s, target.course_deg);
+    fig1_instrument_errors(r, &name, out)?;
+    fig2_delta(sc, r, &name, out)?;
+    fig3_position_error(sc, r, &name, out)?;
+    switch_sweep(sc, r, &name, out)
+}
+
+/// Fig. 1: estimation error of Δẍ10 and K_ẍ1 with the filter's ±σ.
+fn fig1_instrument_errors(r: &ExtendedStateResult, name: &str, out: &Path) -> Result<(), IoError> {
+    let h = &r.history;
     for (index, file, label, unit_scale, unit) in [
         (0, "fig1_accel_bias_error.svg", "Δẍ10", 1.0, "m/s²"),
         (3, "fig1_scale_factor_error.svg", "K_ẍ1", 1.0, "—"),
@@ -57,6 +65,18 @@ pub fn extended_state_figures(
         }
         .write_svg(&out.join(file))?;
     }
+    Ok(())
+}
+
+/// Fig. 2: δ(n) since fixes started, with the thresholds.
+fn fig2_delta(
+    sc: &ExtendedStateScenario,
+    r: &ExtendedStateResult,
+    name: &str,
+    out: &Path,
+) -> Result<(), IoError> {
+    let h = &r.history;
+    let target = &sc.targets[sc.figure_target];
     let fusion: Vec<(f64, f64)> = h
         .time_s
         .iter()
@@ -87,6 +107,17 @@ pub fn extended_state_figures(
         log_y: true,
     }
     .write_svg(&out.join("fig2_delta.svg"))?;
+    Ok(())
+}
+
+/// Fig. 3: |Δx(t)| of the free INS, the corrected one, and each threshold.
+fn fig3_position_error(
+    sc: &ExtendedStateScenario,
+    r: &ExtendedStateResult,
+    name: &str,
+    out: &Path,
+) -> Result<(), IoError> {
+    let h = &r.history;
     let curve = |v: &[f64]| -> Vec<(f64, f64)> {
         r.error_time_s
             .iter()
@@ -136,6 +167,17 @@ pub fn extended_state_figures(
         log_y: true,
     }
     .write_svg(&out.join("fig3_position_error.svg"))?;
+    Ok(())
+}
+
+/// The ratio at t_B against a forced switch time, and the criterion's switches.
+fn switch_sweep(
+    sc: &ExtendedStateScenario,
+    r: &ExtendedStateResult,
+    name: &str,
+    out: &Path,
+) -> Result<(), IoError> {
+    let target = &sc.targets[sc.figure_target];
     let sweep = |k: usize| -> Vec<(f64, f64)> {
         r.sweep
             .iter()
