@@ -1,6 +1,7 @@
 //! The reproductions' tables as the CLI prints them.
 
 use super::*;
+use aidnav::reproduce::published;
 
 pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &Path) {
     println!(
@@ -67,14 +68,9 @@ pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &
     );
 }
 
-/// The paper's headline range of the ratio for a t_B (seed 000).
-fn paper_ratio(t_b_s: f64) -> &'static str {
-    match t_b_s.round() as i64 {
-        300 => "2–5",
-        400 => "3–8",
-        500 => "4–10",
-        _ => "—",
-    }
+/// The paper's headline range of the ratio for a t_B, or a dash.
+fn paper_ratio(t_b_s: f64) -> String {
+    published::extended_state_error_ratio(t_b_s).map_or_else(|| "—".into(), |r| r.to_string())
 }
 
 pub(crate) fn print_extended_state(s: &ExtendedStateScenario, r: &ExtendedStateResult, out: &Path) {
@@ -125,8 +121,9 @@ pub(crate) fn print_extended_state(s: &ExtendedStateScenario, r: &ExtendedStateR
         }
     }
     println!(
-        "errors |Δx(t_B)| are medians over runs (outputs only / proposed in km, oracle in m); switch = flight time (fixes from {} s; paper: steady state 65–70 s after fixes start)",
-        s.fusion_start_s
+        "errors |Δx(t_B)| are medians over runs (outputs only / proposed in km, oracle in m); switch = flight time (fixes from {} s; paper: steady state {} s after fixes start)",
+        s.fusion_start_s,
+        published::EXTENDED_STATE_STEADY_STATE_S
     );
     println!(
         "wrote {}/{{extended_state.csv, fig1_accel_bias_error.svg, fig1_scale_factor_error.svg, fig2_delta.svg, fig3_position_error.svg, switch_sweep.svg, summary.json}}",
@@ -134,14 +131,9 @@ pub(crate) fn print_extended_state(s: &ExtendedStateScenario, r: &ExtendedStateR
     );
 }
 
-/// The paper's table (seed 002): mean position and velocity error per case.
+/// The paper's table: mean position and velocity error per case (NaN where none).
 fn paper_group(name: &str) -> (f64, f64) {
-    match name {
-        "single" => (6.05, 3.63),
-        "group_low" => (3.57, 1.62),
-        "group_high" => (1.17, 0.05),
-        _ => (f64::NAN, f64::NAN),
-    }
+    published::group_case(name).map_or((f64::NAN, f64::NAN), |c| (c.position_m, c.velocity_mps))
 }
 
 pub(crate) fn print_group(s: &GroupScenario, r: &GroupResult, out: &Path) {
@@ -186,9 +178,13 @@ pub(crate) fn print_group(s: &GroupScenario, r: &GroupResult, out: &Path) {
         (r.case("single"), r.case("group_low"), r.case("group_high"))
     {
         println!(
-            "gain M=1 / M=5 in position RMS: low-grade {:.2}×, high-grade {:.2}× (paper 1.6–1.7×, 4.5–5×; from its table 1.69×, 5.17×)",
+            "gain M=1 / M=5 in position RMS: low-grade {:.2}×, high-grade {:.2}× (paper {}×, {}×; from its table {:.2}×, {:.2}×)",
             single.position_rms_m / low.position_rms_m,
-            single.position_rms_m / high.position_rms_m
+            single.position_rms_m / high.position_rms_m,
+            published::GROUP_GAIN_LOW_GRADE,
+            published::GROUP_GAIN_HIGH_GRADE,
+            published::GROUP_SINGLE.position_m / published::GROUP_LOW_GRADE.position_m,
+            published::GROUP_SINGLE.position_m / published::GROUP_HIGH_GRADE.position_m
         );
     }
     println!(
@@ -247,14 +243,21 @@ pub(crate) fn print_consistency(s: &ConsistencyScenario, r: &ConsistencyResult, 
     );
 }
 
-/// The paper's figure for an estimator, where it gives one (seed 004).
-fn paper_anomalies(name: &str) -> &'static str {
+/// The paper's figure for an estimator, where it gives one.
+fn paper_anomalies(name: &str) -> String {
     match name {
-        "developed" | "developed_eq4" => "8–10 % better than KF, 5 % better than adaptive",
-        "kf_plain" | "kf_reject" => "reference (\"Kalman filter\")",
-        "adaptive" | "adaptive_reject" => "reference (\"adaptive\"), ≈ 3–5 % better than KF",
-        "adaptive_clean" => "better than KF (model error, no anomalies)",
-        _ => "—",
+        "developed" | "developed_eq4" => format!(
+            "{} % better than KF, {} % better than adaptive",
+            published::ANOMALIES_DEVELOPED_VS_KF_PERCENT,
+            published::ANOMALIES_DEVELOPED_VS_ADAPTIVE_PERCENT
+        ),
+        "kf_plain" | "kf_reject" => "reference (\"Kalman filter\")".into(),
+        "adaptive" | "adaptive_reject" => format!(
+            "reference (\"adaptive\"), ≈ {} % better than KF",
+            published::ANOMALIES_ADAPTIVE_VS_KF_PERCENT
+        ),
+        "adaptive_clean" => "better than KF (model error, no anomalies)".into(),
+        _ => "—".into(),
     }
 }
 
@@ -288,17 +291,18 @@ pub(crate) fn print_anomalies(s: &AnomaliesScenario, r: &AnomaliesResult, out: &
     );
 }
 
-/// The paper's improvement over the uncorrected INS (seed 004), where given.
-fn paper_outages(long: bool, name: &str) -> &'static str {
+/// The paper's improvement over the uncorrected INS, where given.
+fn paper_outages(long: bool, name: &str) -> String {
+    let percent = |r: published::Range| format!("+{r} %");
     match (long, name) {
-        (false, "apriori") => "+60 %",
-        (false, "trend") => "+75 %",
-        (false, "gmdh") => "+70–80 %",
-        (true, "apriori") | (true, "trend") => "unusable",
-        (true, "gmdh") => "+75 %",
-        (true, "combined_trend") => "= gmdh at the end",
-        (_, "relay") => "follows the best stage",
-        _ => "—",
+        (false, "apriori") => percent(published::OUTAGES_SHORT_APRIORI_PERCENT),
+        (false, "trend") => percent(published::OUTAGES_SHORT_TREND_PERCENT),
+        (false, "gmdh") => percent(published::OUTAGES_SHORT_GMDH_PERCENT),
+        (true, "apriori") | (true, "trend") => published::OUTAGES_LONG_APRIORI_AND_TREND.into(),
+        (true, "gmdh") => percent(published::OUTAGES_LONG_GMDH_PERCENT),
+        (true, "combined_trend") => published::OUTAGES_LONG_COMBINED_TREND.into(),
+        (_, "relay") => published::OUTAGES_RELAY.into(),
+        _ => "—".into(),
     }
 }
 

@@ -8,8 +8,9 @@
 //!   NED mechanization;
 //! - [`local_level`]: spec 30's stage 1, the loosely coupled filter on the
 //!   flat local-level INS;
-//! - [`group`]: spec 30's stage 2 at scale, one axis of a large group in
-//!   information form.
+//! - [`group`]: spec 30's stage 2, the group filters: one axis of a large
+//!   group in information form, and the 3-D fusion of a formation in the
+//!   paper's axis-decoupled form and as an EKF.
 
 pub mod group;
 pub mod local_level;

@@ -274,9 +274,7 @@ impl Validate for AnomaliesScenario {
                 "a finite number",
             ));
         }
-        for f in &self.faults {
-            f.validate().map_err(|e| e.within("faults"))?;
-        }
+        crate::validate_faults("faults", &self.faults)?;
         Ok(())
     }
 }

@@ -2,7 +2,8 @@
 //! consistency demonstration: each one a scenario struct (TOML, documented
 //! defaults), a pure function that runs it by seeded Monte Carlo
 //! ([`aidnav_sim::MonteCarlo`]), a result struct the CLI prints and writes,
-//! and its figures ([`figures`]).
+//! and its figures ([`figures`]). The papers' published numbers they are
+//! compared with are in [`published`].
 
 pub mod anomalies;
 pub mod consistency;
@@ -11,6 +12,7 @@ pub mod figures;
 pub mod formation;
 pub mod group;
 pub mod outages;
+pub mod published;
 
 use aidnav_io::config::{Invalid, non_negative, positive};
 use aidnav_models::PlatformChannel;
@@ -32,6 +34,20 @@ pub(crate) fn validate_platform(p: &PlatformChannel) -> Result<(), Invalid> {
             p.accel_bias_m_s2,
             "a finite number",
         ));
+    }
+    Ok(())
+}
+
+/// Range checks of a scenario's list of fault specs (`[[faults]]`,
+/// `[[recovery_faults]]`): sim's [`aidnav_sim::faults::InvalidFault`] as a
+/// scenario [`Invalid`] under the list's key.
+pub(crate) fn validate_faults(
+    key: &str,
+    faults: &[aidnav_sim::faults::FaultSpec],
+) -> Result<(), Invalid> {
+    for f in faults {
+        f.validate()
+            .map_err(|e| Invalid::new(e.key, e.value, e.allowed).within(key))?;
     }
     Ok(())
 }

@@ -6,7 +6,6 @@
 //! A [`FaultPlan`] is per epoch: an additive error (0 where clean) and whether
 //! the measurement is lost to an outage.
 
-use aidnav_io::config::Invalid;
 use rand::Rng;
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
@@ -80,6 +79,29 @@ pub struct Outage {
     pub length: usize,
 }
 
+/// A fault spec out of its allowed range: which field, its value, and what
+/// is allowed. Scenario owners map it into their own validation error.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{key} = {value}: allowed {allowed}")]
+pub struct InvalidFault {
+    /// The offending field of the spec (`rate`, `magnitude`, …).
+    pub key: &'static str,
+    /// The offending value, as text.
+    pub value: String,
+    /// The allowed range, as text.
+    pub allowed: &'static str,
+}
+
+impl InvalidFault {
+    fn new(key: &'static str, value: impl std::fmt::Display, allowed: &'static str) -> Self {
+        Self {
+            key,
+            value: value.to_string(),
+            allowed,
+        }
+    }
+}
+
 /// Per-epoch faults of one run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FaultPlan {
@@ -91,7 +113,7 @@ pub struct FaultPlan {
 
 impl FaultSpec {
     /// Range checks (a scenario file's `[[faults]]` entry).
-    pub fn validate(&self) -> Result<(), Invalid> {
+    pub fn validate(&self) -> Result<(), InvalidFault> {
         let magnitude = match *self {
             FaultSpec::SingleOutliers { magnitude, .. }
             | FaultSpec::Bursts { magnitude, .. }
@@ -99,7 +121,7 @@ impl FaultSpec {
             | FaultSpec::AfterOutage { magnitude, .. } => Some(magnitude),
             FaultSpec::Fixed { sigmas, .. } => {
                 if !sigmas.is_finite() {
-                    return Err(Invalid::new("sigmas", sigmas, "a finite number"));
+                    return Err(InvalidFault::new("sigmas", sigmas, "a finite number"));
                 }
                 None
             }
@@ -107,7 +129,7 @@ impl FaultSpec {
         if let Some(m) = magnitude
             && !(m.min >= 0.0 && m.max >= m.min && m.max.is_finite())
         {
-            return Err(Invalid::new(
+            return Err(InvalidFault::new(
                 "magnitude",
                 format!("{}..{}", m.min, m.max),
                 "0 ≤ min ≤ max, finite",
@@ -116,7 +138,7 @@ impl FaultSpec {
         if let FaultSpec::RandomRate { rate, .. } = *self
             && !(0.0..=1.0).contains(&rate)
         {
-            return Err(Invalid::new("rate", rate, "0 ≤ rate ≤ 1"));
+            return Err(InvalidFault::new("rate", rate, "0 ≤ rate ≤ 1"));
         }
         if let FaultSpec::Bursts {
             min_length,
@@ -125,7 +147,7 @@ impl FaultSpec {
         } = *self
             && min_length > max_length
         {
-            return Err(Invalid::new(
+            return Err(InvalidFault::new(
                 "min_length",
                 min_length,
                 "min_length ≤ max_length",

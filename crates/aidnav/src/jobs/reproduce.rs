@@ -43,38 +43,7 @@ pub fn consistency(
             row
         }),
     )?;
-    let mut series: Vec<Series> = result
-        .variants
-        .iter()
-        .enumerate()
-        .map(|(i, v)| Series {
-            label: format!("{} (Q×{}, R×{})", v.name, v.q_scale, v.r_scale),
-            points: v
-                .nees_per_epoch
-                .iter()
-                .enumerate()
-                .map(|(k, &y)| (t(k), y))
-                .collect(),
-            style: LineStyle::Solid,
-            color: i,
-        })
-        .collect();
-    for (b, label) in [(lo, "χ² interval, lower"), (hi, "χ² interval, upper")] {
-        series.push(Series {
-            label: label.into(),
-            points: vec![(0.0, b), (t(epochs - 1), b)],
-            style: LineStyle::Dashed,
-            color: TRUTH_COLOR,
-        });
-    }
-    LineChart {
-        title: format!("Mean NEES over {} runs (2 states)", scenario.runs),
-        x_label: "time [s]".into(),
-        y_label: "NEES".into(),
-        series,
-        log_y: true,
-    }
-    .write_svg(&out.join("nees.svg"))?;
+    aidnav_reproduce::figures::nees_figure(scenario, &result, out)?;
     let mut summary = Summary::new(
         "reproduce consistency",
         VERSION,
@@ -122,41 +91,7 @@ pub fn anomalies(
             row
         }),
     )?;
-    // Estimates overlap the truth at this scale: plot the estimation errors.
-    let pick = ["kf_plain", "kf_reject", "developed"];
-    let mut series = Vec::new();
-    for (c, name) in pick.iter().enumerate() {
-        if let Some(i) = ESTIMATORS.iter().position(|e| e == name) {
-            series.push(Series {
-                label: format!("{name}: estimate − true δV"),
-                points: ex.estimates[i]
-                    .iter()
-                    .zip(&ex.truth)
-                    .enumerate()
-                    .map(|(k, (&v, &t))| (k as f64 * dt, v - t))
-                    .collect(),
-                style: LineStyle::Solid,
-                color: c,
-            });
-        }
-    }
-    series.push(Series {
-        label: "anomalous fix".into(),
-        points: (0..ex.truth.len())
-            .filter(|&k| ex.anomalous[k])
-            .map(|k| (k as f64 * dt, 0.0))
-            .collect(),
-        style: LineStyle::Points,
-        color: 3,
-    });
-    LineChart {
-        title: "Error of the INS velocity-error estimate, run 0 (true δV in the CSV)".into(),
-        x_label: "time [s]".into(),
-        y_label: "estimate − truth [m/s]".into(),
-        series,
-        log_y: false,
-    }
-    .write_svg(&out.join("anomalies_example.svg"))?;
+    aidnav_reproduce::figures::anomaly_example_figure(&result, dt, out)?;
     let mut summary = Summary::new(
         "reproduce anomalies",
         VERSION,
@@ -202,73 +137,8 @@ pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult
             row
         }),
     )?;
-    let mut series = vec![Series {
-        label: "true δV (uncorrected INS error)".into(),
-        points: ex
-            .age_s
-            .iter()
-            .copied()
-            .zip(ex.truth.iter().copied())
-            .collect(),
-        style: LineStyle::Solid,
-        color: TRUTH_COLOR,
-    }];
-    for (j, name) in PREDICTORS.iter().enumerate() {
-        series.push(Series {
-            label: format!("predicted, {name}"),
-            points: ex
-                .age_s
-                .iter()
-                .copied()
-                .zip(ex.predictions[j].iter().copied())
-                .collect(),
-            style: if *name == "relay" {
-                LineStyle::Solid
-            } else {
-                LineStyle::Dashed
-            },
-            color: j,
-        });
-    }
-    LineChart {
-        title: format!(
-            "Predictors during a {:.0} s GNSS outage, run 0",
-            result.long.length_s
-        ),
-        x_label: "time since the outage started [s]".into(),
-        y_label: "δV [m/s]".into(),
-        series,
-        log_y: false,
-    }
-    .write_svg(&out.join("outage_predictors.svg"))?;
-    let eff = &result.efficiency_example;
-    let end = eff.age_s.last().copied().unwrap_or(1.0);
-    LineChart {
-        title: "Efficiency criterion K_eff = σ_GNSS / σ_KOI, run 0 (outage, then GNSS back)".into(),
-        x_label: "time since the outage started [s]".into(),
-        y_label: "K_eff".into(),
-        series: vec![
-            Series {
-                label: "K_eff".into(),
-                points: eff
-                    .age_s
-                    .iter()
-                    .copied()
-                    .zip(eff.k_eff.iter().copied())
-                    .collect(),
-                style: LineStyle::Solid,
-                color: 0,
-            },
-            Series {
-                label: "K_eff = 1 (above: INS + filter, below: GNSS)".into(),
-                points: vec![(0.0, 1.0), (end, 1.0)],
-                style: LineStyle::Dashed,
-                color: TRUTH_COLOR,
-            },
-        ],
-        log_y: true,
-    }
-    .write_svg(&out.join("efficiency.svg"))?;
+    aidnav_reproduce::figures::outage_predictors_figure(&result, out)?;
+    aidnav_reproduce::figures::efficiency_figure(&result.efficiency_example, out)?;
     aidnav_reproduce::figures::recovery_figure(&result.efficiency_example, out)?;
     let mut summary = Summary::new("reproduce outages", VERSION, Some(scenario.seed), scenario);
     summary.insert("efficiency", &result.efficiency);
@@ -320,39 +190,7 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
             row
         }),
     )?;
-    let mut series = Vec::new();
-    for (i, c) in result.cases.iter().enumerate() {
-        let case_dt = scenario.cases()[i].dt_s;
-        let trace = |v: &[f64]| -> Vec<(f64, f64)> {
-            v.iter()
-                .enumerate()
-                .map(|(e, &y)| (e as f64 * case_dt, y))
-                .collect()
-        };
-        series.push(Series {
-            label: format!("{}: Monte Carlo RMS", c.name),
-            points: trace(&c.rms_by_epoch),
-            style: LineStyle::Solid,
-            color: i,
-        });
-        series.push(Series {
-            label: format!("{}: filter σ", c.name),
-            points: trace(&c.sigma_by_epoch),
-            style: LineStyle::Dashed,
-            color: i,
-        });
-    }
-    LineChart {
-        title: format!(
-            "Position error per member, one axis, {} runs (paper Fig. 6)",
-            scenario.runs
-        ),
-        x_label: "time [s]".into(),
-        y_label: "position error [m]".into(),
-        series,
-        log_y: false,
-    }
-    .write_svg(&out.join("group_errors.svg"))?;
+    aidnav_reproduce::figures::group_figure(scenario, &result, out)?;
     let mut summary = Summary::new("reproduce group", VERSION, Some(scenario.seed), scenario);
     for c in &result.cases {
         summary.insert(
@@ -401,59 +239,7 @@ pub fn formation(
                 .map(move |(l, e)| vec![t, l as f64, e[0], e[1], e[2]])
         }),
     )?;
-    let labels = ["GNSS/INS alone", "paper fusion", "EKF fusion"];
-    let mut series = Vec::new();
-    let trace = |pick: &dyn Fn(&[[f64; 3]], usize) -> f64, s: usize| -> Vec<(f64, f64)> {
-        result
-            .time_s
-            .iter()
-            .zip(&result.error_by_epoch)
-            .map(|(&t, e)| (t, pick(e, s)))
-            .collect()
-    };
-    let denied: Vec<usize> = result
-        .members
-        .iter()
-        .filter(|m| m.denied)
-        .map(|m| m.member)
-        .collect();
-    for &l in &denied {
-        for (s, label) in labels.iter().enumerate() {
-            series.push(Series {
-                label: format!("member {l} (GNSS denied): {label}"),
-                points: trace(&|e, s| e[l][s], s),
-                style: LineStyle::Solid,
-                color: s,
-            });
-        }
-    }
-    let others: Vec<usize> = (0..scenario.members)
-        .filter(|l| !denied.contains(l))
-        .collect();
-    if !others.is_empty() {
-        for (s, label) in labels.iter().enumerate() {
-            series.push(Series {
-                label: format!("other members (mean): {label}"),
-                points: trace(
-                    &|e, s| others.iter().map(|&l| e[l][s]).sum::<f64>() / others.len() as f64,
-                    s,
-                ),
-                style: LineStyle::Dashed,
-                color: s,
-            });
-        }
-    }
-    LineChart {
-        title: format!(
-            "Formation of {}: 3-D position error, RMS over {} runs",
-            scenario.members, scenario.runs
-        ),
-        x_label: "time [s]".into(),
-        y_label: "position error [m]".into(),
-        series,
-        log_y: true,
-    }
-    .write_svg(&out.join("formation_errors.svg"))?;
+    aidnav_reproduce::figures::formation_figure(scenario, &result, out)?;
     let mut summary = Summary::new(command, VERSION, Some(scenario.seed), scenario);
     summary.insert("solutions", SOLUTIONS);
     summary.insert("members", &result.members);

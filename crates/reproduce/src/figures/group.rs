@@ -1,0 +1,113 @@
+//! Spec 30's figures: the one-axis group's errors (like the paper's Fig. 6)
+//! and the formation's 3-D position errors.
+
+use std::path::Path;
+
+use crate::formation::{FormationResult, FormationScenario};
+use crate::group::{GroupResult, GroupScenario};
+use aidnav_io::IoError;
+use aidnav_io::plot::{LineChart, LineStyle, Series};
+
+/// `group_errors.svg` (like the paper's Fig. 6): per case, the Monte Carlo
+/// RMS and the filter's σ of position per epoch.
+pub fn group_figure(
+    scenario: &GroupScenario,
+    result: &GroupResult,
+    out: &Path,
+) -> Result<(), IoError> {
+    let mut series = Vec::new();
+    for (i, c) in result.cases.iter().enumerate() {
+        let case_dt = scenario.cases()[i].dt_s;
+        let trace = |v: &[f64]| -> Vec<(f64, f64)> {
+            v.iter()
+                .enumerate()
+                .map(|(e, &y)| (e as f64 * case_dt, y))
+                .collect()
+        };
+        series.push(Series {
+            label: format!("{}: Monte Carlo RMS", c.name),
+            points: trace(&c.rms_by_epoch),
+            style: LineStyle::Solid,
+            color: i,
+        });
+        series.push(Series {
+            label: format!("{}: filter σ", c.name),
+            points: trace(&c.sigma_by_epoch),
+            style: LineStyle::Dashed,
+            color: i,
+        });
+    }
+    LineChart {
+        title: format!(
+            "Position error per member, one axis, {} runs (paper Fig. 6)",
+            scenario.runs
+        ),
+        x_label: "time [s]".into(),
+        y_label: "position error [m]".into(),
+        series,
+        log_y: false,
+    }
+    .write_svg(&out.join("group_errors.svg"))
+}
+
+/// `formation_errors.svg`: each GNSS-denied member alone and in the group
+/// (both stage-2 forms), and the mean of the other members.
+pub fn formation_figure(
+    scenario: &FormationScenario,
+    result: &FormationResult,
+    out: &Path,
+) -> Result<(), IoError> {
+    let labels = ["GNSS/INS alone", "paper fusion", "EKF fusion"];
+    let mut series = Vec::new();
+    let trace = |pick: &dyn Fn(&[[f64; 3]], usize) -> f64, s: usize| -> Vec<(f64, f64)> {
+        result
+            .time_s
+            .iter()
+            .zip(&result.error_by_epoch)
+            .map(|(&t, e)| (t, pick(e, s)))
+            .collect()
+    };
+    let denied: Vec<usize> = result
+        .members
+        .iter()
+        .filter(|m| m.denied)
+        .map(|m| m.member)
+        .collect();
+    for &l in &denied {
+        for (s, label) in labels.iter().enumerate() {
+            series.push(Series {
+                label: format!("member {l} (GNSS denied): {label}"),
+                points: trace(&|e, s| e[l][s], s),
+                style: LineStyle::Solid,
+                color: s,
+            });
+        }
+    }
+    let others: Vec<usize> = (0..scenario.members)
+        .filter(|l| !denied.contains(l))
+        .collect();
+    if !others.is_empty() {
+        for (s, label) in labels.iter().enumerate() {
+            series.push(Series {
+                label: format!("other members (mean): {label}"),
+                points: trace(
+                    &|e, s| others.iter().map(|&l| e[l][s]).sum::<f64>() / others.len() as f64,
+                    s,
+                ),
+                style: LineStyle::Dashed,
+                color: s,
+            });
+        }
+    }
+    LineChart {
+        title: format!(
+            "Formation of {}: 3-D position error, RMS over {} runs",
+            scenario.members, scenario.runs
+        ),
+        x_label: "time [s]".into(),
+        y_label: "position error [m]".into(),
+        series,
+        log_y: true,
+    }
+    .write_svg(&out.join("formation_errors.svg"))
+}

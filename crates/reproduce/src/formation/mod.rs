@@ -1,0 +1,214 @@
+//! Spec 30's full pipeline: M vehicles flying a 3-D formation, each with its
+//! own INS and GNSS receiver (GNSS errors first-order Gauss–Markov plus
+//! white) fused by the stage-1 loosely coupled filter
+//! ([`aidnav_integration::local_level`]); inter-vehicle sensors measuring slant
+//! range, bearing and elevation in the observer's body frame
+//! ([`aidnav_models::relative_sensor`]), exchanged over the network; and the
+//! stage-2 group filter in two forms:
+//!
+//! - **paper**: the paper's axis-decoupled fusion — each relative measurement
+//!   converted to Cartesian coordinates with the observer's INS* attitude,
+//!   its per-axis variance the diagonal of the converted covariance, one
+//!   filter per axis ([`GroupAxisFilter`], constant-velocity model, own
+//!   positions and velocities observed);
+//! - **ekf**: one extended Kalman filter over all members' 3-D positions and
+//!   velocities that uses range, bearing and elevation directly (their noise
+//!   uncorrelated in polar form, so the cross-axis correlation of the
+//!   Cartesian errors is carried exactly by the Jacobian), and the full 6×6
+//!   stage-1 covariance of each member's own solution.
+//!
+//! Both forms add the observer's INS* attitude uncertainty to the relative
+//! measurement noise (a line of sight of length D turned by ψ moves by D ψ).
+//!
+//! GNSS denial: the members listed in `[[formation.denial]]` lose GNSS for
+//! the interval; their stage-1 INS runs free (its σ grows) while the group
+//! keeps measuring them.
+//!
+//! The flight: the leader flies east at `speed_mps`, weaving left and right
+//! (`weave_amplitude_m`, `weave_period_s`) and climbing and descending; the
+//! others hold a V behind it (`spacing_m`, rotated with the leader's heading).
+//! Flat, non-rotating Earth, local ENU frame (see [`aidnav_ins::local_level`]).
+
+use aidnav_io::config::{Invalid, Validate};
+use aidnav_models::local_ins::LocalInsModel;
+use aidnav_models::relative_sensor::RelativeSensor;
+use serde::{Deserialize, Serialize};
+
+mod run;
+mod scenario;
+mod simulate;
+
+pub use run::run;
+
+/// Names of the three solutions compared per member.
+pub const SOLUTIONS: [&str; 3] = ["gnss_ins", "paper", "ekf"];
+
+/// One GNSS denial interval.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Denial {
+    /// Members (0-based) that lose GNSS.
+    pub members: Vec<usize>,
+    /// Start of the denial \[s\].
+    pub start_s: f64,
+    /// End of the denial \[s\].
+    pub end_s: f64,
+}
+
+/// Initial INS errors (σ).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InitialErrors {
+    /// Position σ per axis \[m\]. Default 3.
+    pub position_sigma_m: f64,
+    /// Velocity σ per axis [m/s]. Default 0.2.
+    pub velocity_sigma_mps: f64,
+    /// Roll and pitch σ \[rad\]. Default 1e-3.
+    pub tilt_sigma_rad: f64,
+    /// Heading σ \[rad\]. Default 5e-3.
+    pub heading_sigma_rad: f64,
+}
+
+impl Default for InitialErrors {
+    fn default() -> Self {
+        Self {
+            position_sigma_m: 3.0,
+            velocity_sigma_mps: 0.2,
+            tilt_sigma_rad: 1e-3,
+            heading_sigma_rad: 5e-3,
+        }
+    }
+}
+
+/// The formation scenario (TOML table `[formation]`; every key optional).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FormationScenario {
+    /// Master seed. Default 20261123.
+    pub seed: u64,
+    /// Monte Carlo runs, 1 … 10 000. Default 20.
+    pub runs: usize,
+    /// Members M, 1 … 50. Default 5.
+    pub members: usize,
+    /// Flight duration \[s\], at most 36 000. Default 600.
+    pub duration_s: f64,
+    /// IMU sample interval \[s\] (≤ 0.02). Default 0.01.
+    pub imu_dt_s: f64,
+    /// Stage-1 filter time-update interval \[s\]. Default 0.1.
+    pub filter_dt_s: f64,
+    /// GNSS fix, relative measurement and stage-2 interval \[s\]. Default 1.
+    pub fix_interval_s: f64,
+    /// Errors are scored from this time on \[s\]. Default 60.
+    pub settle_s: f64,
+    /// Leader ground speed [m/s]. Default 60.
+    pub speed_mps: f64,
+    /// Initial altitude \[m\]. Default 1000.
+    pub altitude_m: f64,
+    /// Lateral weave amplitude of the leader \[m\]. Default 800.
+    pub weave_amplitude_m: f64,
+    /// Weave period \[s\]. Default 240.
+    pub weave_period_s: f64,
+    /// Climb/descent amplitude \[m\]. Default 50.
+    pub climb_amplitude_m: f64,
+    /// Climb period \[s\]. Default 180.
+    pub climb_period_s: f64,
+    /// Distance between neighbours in the V \[m\]. Default 150.
+    pub spacing_m: f64,
+    /// Stage-2 acceleration disturbance a_R [m/s²]. Default 1.
+    pub group_accel_sigma_m_s2: f64,
+    /// Whether stage 2 also fuses each member's own INS* velocity (the
+    /// paper's optional z_V). Default false: the INS* velocity is precise
+    /// (σ ≈ 0.05 m/s) so it ties stage 2's position to its own integral and
+    /// stage 2 then averages the INS* positions over minutes as if their
+    /// errors were white — they are not (GNSS errors correlated over
+    /// `position_correlation_s`), and stage 2 becomes overconfident and
+    /// lags. See the closing note of issue 5 for the numbers.
+    pub stage2_own_velocity: bool,
+    /// Initial INS errors.
+    pub initial: InitialErrors,
+    /// IMU and GNSS errors (stage-1 model; the truth draws from the same).
+    pub model: LocalInsModel,
+    /// Inter-vehicle sensor.
+    pub sensor: RelativeSensor,
+    /// GNSS denials. Default: member 2 from 200 s to 500 s.
+    pub denial: Vec<Denial>,
+}
+
+impl Default for FormationScenario {
+    fn default() -> Self {
+        Self {
+            seed: 20261123,
+            runs: 20,
+            members: 5,
+            duration_s: 600.0,
+            imu_dt_s: 0.01,
+            filter_dt_s: 0.1,
+            fix_interval_s: 1.0,
+            settle_s: 60.0,
+            speed_mps: 60.0,
+            altitude_m: 1000.0,
+            weave_amplitude_m: 800.0,
+            weave_period_s: 240.0,
+            climb_amplitude_m: 50.0,
+            climb_period_s: 180.0,
+            spacing_m: 150.0,
+            group_accel_sigma_m_s2: 1.0,
+            stage2_own_velocity: false,
+            initial: InitialErrors::default(),
+            model: LocalInsModel::default(),
+            sensor: RelativeSensor::default(),
+            denial: vec![Denial {
+                members: vec![2],
+                start_s: 200.0,
+                end_s: 500.0,
+            }],
+        }
+    }
+}
+
+/// A scenario file for `aidnav run`: the formation under a `[formation]` table.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FormationFile {
+    /// The scenario.
+    #[serde(default)]
+    pub formation: FormationScenario,
+}
+
+impl Validate for FormationFile {
+    fn validate(&self) -> Result<(), Invalid> {
+        self.formation.validate().map_err(|e| e.within("formation"))
+    }
+}
+
+/// Per-member result (RMS over settled epochs and runs).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MemberScore {
+    /// Member index.
+    pub member: usize,
+    /// Whether the member is denied GNSS at some time.
+    pub denied: bool,
+    /// 3-D position error RMS \[m\], per solution in [`SOLUTIONS`] order.
+    pub position_rms_m: [f64; 3],
+    /// 3-D velocity error RMS [m/s], per solution.
+    pub velocity_rms_mps: [f64; 3],
+    /// Filter's predicted 3-D position σ (√ trace), mean over epochs \[m\].
+    pub position_sigma_m: [f64; 3],
+    /// During its denial: mean over runs of the largest 3-D position error \[m\].
+    pub denial_max_error_m: Option<[f64; 3]>,
+    /// At the end of its denial: RMS over runs of the 3-D position error \[m\].
+    pub denial_end_error_m: Option<[f64; 3]>,
+}
+
+/// The experiment's result.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FormationResult {
+    /// Per member.
+    pub members: Vec<MemberScore>,
+    /// Epoch times \[s\].
+    pub time_s: Vec<f64>,
+    /// Per epoch, per member, per solution: RMS over runs of the 3-D position error \[m\].
+    pub error_by_epoch: Vec<Vec<[f64; 3]>>,
+    /// Relative measurements per epoch (mean over epochs and runs).
+    pub relative_per_epoch: f64,
+}

@@ -1,0 +1,221 @@
+//! The formation's Monte Carlo: stage 1, then both stage-2 filters on the
+//! same measurements, and the scores over runs.
+
+use aidnav_estimation::EstimationError;
+use aidnav_integration::group::{EkfFusion, PaperFusion};
+use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::rng::channel_rng;
+
+use super::simulate::{relative_measurements, stage_one};
+use super::{Denial, FormationResult, FormationScenario, MemberScore};
+
+/// One run's per-epoch errors.
+struct RunErrors {
+    /// [epoch][member][solution] squared position error.
+    position_sq: Vec<Vec<[f64; 3]>>,
+    velocity_sq: Vec<Vec<[f64; 3]>>,
+    sigma: Vec<Vec<[f64; 3]>>,
+    relative: usize,
+}
+
+fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationError> {
+    let (own, truth) = stage_one(sc, run)?;
+    let mut rng = channel_rng(sc.seed, run, 1_000_000);
+    let mut paper = PaperFusion::new(sc.fusion_params(), &own[0])?;
+    let mut ekf = EkfFusion::new(sc.fusion_params(), &own[0])?;
+    let mut errors = RunErrors {
+        position_sq: Vec::with_capacity(own.len()),
+        velocity_sq: Vec::with_capacity(own.len()),
+        sigma: Vec::with_capacity(own.len()),
+        relative: 0,
+    };
+    for (epoch, (own_e, truth_e)) in own.iter().zip(&truth).enumerate() {
+        let relative = relative_measurements(sc, truth_e, &mut rng);
+        errors.relative += relative.len();
+        paper.epoch(own_e, &relative, epoch > 0)?;
+        ekf.epoch(own_e, &relative, epoch > 0)?;
+        let mut pos = Vec::with_capacity(sc.members);
+        let mut vel = Vec::with_capacity(sc.members);
+        let mut sig = Vec::with_capacity(sc.members);
+        for (l, t) in truth_e.iter().enumerate() {
+            let o = &own_e[l];
+            let estimates = [
+                (o.state.position, o.state.velocity),
+                (paper.position(l), paper.velocity(l)),
+                (ekf.position(l), ekf.velocity(l)),
+            ];
+            pos.push(estimates.map(|(p, _)| (p - t.position).norm_squared()));
+            vel.push(estimates.map(|(_, v)| (v - t.velocity).norm_squared()));
+            let stage1_sigma = (0..3).map(|a| o.covariance[(a, a)]).sum::<f64>().sqrt();
+            sig.push([stage1_sigma, paper.position_sigma(l), ekf.position_sigma(l)]);
+        }
+        errors.position_sq.push(pos);
+        errors.velocity_sq.push(vel);
+        errors.sigma.push(sig);
+    }
+    Ok(errors)
+}
+
+/// Run the Monte Carlo of the formation.
+pub fn run(sc: &FormationScenario, mc: &MonteCarlo) -> Result<FormationResult, EstimationError> {
+    let runs = mc.try_run(|run, _rng| run_once(sc, run as u64))?;
+    let epochs = sc.epochs();
+    let time_s: Vec<f64> = (0..epochs)
+        .map(|k| (k + 1) as f64 * sc.fix_interval_s)
+        .collect();
+    let settled: Vec<usize> = (0..epochs).filter(|&k| time_s[k] >= sc.settle_s).collect();
+    let n_runs = runs.len() as f64;
+    let members = (0..sc.members)
+        .map(|l| {
+            let mean_over = |pick: &dyn Fn(&RunErrors, usize) -> [f64; 3], root: bool| {
+                let mut acc = [0.0; 3];
+                for r in &runs {
+                    for &k in &settled {
+                        let v = pick(r, k);
+                        for s in 0..3 {
+                            acc[s] += v[s];
+                        }
+                    }
+                }
+                acc.map(|a| {
+                    let mean = a / (n_runs * settled.len() as f64);
+                    if root { mean.sqrt() } else { mean }
+                })
+            };
+            let windows: Vec<&Denial> = sc
+                .denial
+                .iter()
+                .filter(|d| d.members.contains(&l))
+                .collect();
+            let in_denial: Vec<usize> = (0..epochs)
+                .filter(|&k| windows.iter().any(|d| d.denies(l, time_s[k])))
+                .collect();
+            let (denial_max, denial_end) = if in_denial.is_empty() {
+                (None, None)
+            } else {
+                let mut max = [0.0; 3];
+                let mut end = [0.0; 3];
+                let last = *in_denial.last().expect("non-empty");
+                for r in &runs {
+                    for s in 0..3 {
+                        let worst = in_denial
+                            .iter()
+                            .map(|&k| r.position_sq[k][l][s])
+                            .fold(0.0, f64::max);
+                        max[s] += worst.sqrt() / n_runs;
+                        end[s] += r.position_sq[last][l][s] / n_runs;
+                    }
+                }
+                (Some(max), Some(end.map(f64::sqrt)))
+            };
+            MemberScore {
+                member: l,
+                denied: !in_denial.is_empty(),
+                position_rms_m: mean_over(&|r, k| r.position_sq[k][l], true),
+                velocity_rms_mps: mean_over(&|r, k| r.velocity_sq[k][l], true),
+                position_sigma_m: mean_over(&|r, k| r.sigma[k][l], false),
+                denial_max_error_m: denial_max,
+                denial_end_error_m: denial_end,
+            }
+        })
+        .collect();
+    let error_by_epoch = (0..epochs)
+        .map(|k| {
+            (0..sc.members)
+                .map(|l| {
+                    let mut acc = [0.0; 3];
+                    for r in &runs {
+                        for (a, v) in acc.iter_mut().zip(r.position_sq[k][l]) {
+                            *a += v;
+                        }
+                    }
+                    acc.map(|a| (a / n_runs).sqrt())
+                })
+                .collect()
+        })
+        .collect();
+    let relative_per_epoch =
+        runs.iter().map(|r| r.relative as f64).sum::<f64>() / (n_runs * epochs as f64);
+    Ok(FormationResult {
+        members,
+        time_s,
+        error_by_epoch,
+        relative_per_epoch,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aidnav_io::config::Validate;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn formation_truth_is_smooth_and_spaced() {
+        let sc = FormationScenario::default();
+        for t in [0.0, 37.0, 120.0, 333.0] {
+            for l in 1..sc.members {
+                let d = (sc.position(l, t) - sc.position(0, t)).norm();
+                assert!(
+                    d > 100.0 && d < 2.5 * sc.spacing_m,
+                    "member {l} at {t}: {d}"
+                );
+            }
+            let s = sc.truth(0, t);
+            assert!((s.velocity.norm() - sc.speed_mps).abs() < 25.0);
+            // Body x axis along the velocity.
+            let fwd = s.attitude * Vector3::x();
+            assert!(fwd.dot(&s.velocity.normalize()) > 0.999);
+        }
+    }
+
+    #[test]
+    fn bad_denial_is_named() {
+        let sc = FormationScenario {
+            denial: vec![Denial {
+                members: vec![7],
+                start_s: 0.0,
+                end_s: 10.0,
+            }],
+            ..FormationScenario::default()
+        };
+        let e = sc.validate().unwrap_err();
+        assert_eq!(e.key, "denial[0].members");
+    }
+
+    /// Short flight, few runs: the group beats GNSS/INS alone for every
+    /// member, and the denied member's error stays bounded inside the group
+    /// while alone it drifts.
+    #[test]
+    fn group_fusion_beats_stand_alone_and_bounds_the_denied_member() {
+        let sc = FormationScenario {
+            runs: 4,
+            duration_s: 300.0,
+            settle_s: 30.0,
+            denial: vec![Denial {
+                members: vec![2],
+                start_s: 100.0,
+                end_s: 250.0,
+            }],
+            ..FormationScenario::default()
+        };
+        let r = run(&sc, &MonteCarlo::new(sc.runs, sc.seed).quiet()).unwrap();
+        assert_eq!(r.members.len(), 5);
+        for m in r.members.iter().filter(|m| !m.denied) {
+            let [alone, paper, ekf] = m.position_rms_m;
+            assert!(
+                paper < alone && ekf < alone,
+                "member {}: {:?}",
+                m.member,
+                m.position_rms_m
+            );
+        }
+        let denied = &r.members[2];
+        let [alone, paper, ekf] = denied.denial_max_error_m.unwrap();
+        assert!(alone > 20.0, "free INS drift {alone}");
+        assert!(
+            paper < 10.0 && ekf < 10.0,
+            "inside the group: {paper}, {ekf}"
+        );
+    }
+}

@@ -1,0 +1,218 @@
+//! The formation scenario's range checks, its flight (the leader's weaving,
+//! climbing path and the V behind it) and what it gives stage 2.
+
+use aidnav_ins::local_level::LocalLevelState;
+use aidnav_integration::group::FusionParams;
+use aidnav_io::config::{
+    Invalid, Validate, all_positive, count_in_range, in_range, non_negative, positive,
+};
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::{Denial, FormationScenario};
+
+/// Stage 2's prior σ of each position coordinate around the first stage-1
+/// solution \[m\] (a few times the GNSS σ).
+const STAGE2_INITIAL_POSITION_SIGMA_M: f64 = 10.0;
+/// Stage 2's prior σ of each velocity coordinate \[m/s\].
+const STAGE2_INITIAL_VELOCITY_SIGMA_MPS: f64 = 1.0;
+
+impl Denial {
+    pub(super) fn denies(&self, member: usize, t: f64) -> bool {
+        t >= self.start_s && t < self.end_s && self.members.contains(&member)
+    }
+}
+
+impl Validate for FormationScenario {
+    fn validate(&self) -> Result<(), Invalid> {
+        count_in_range("runs", self.runs, 1, 10_000)?;
+        count_in_range("members", self.members, 1, 50)?;
+        in_range("duration_s", self.duration_s, 1.0, 36_000.0)?;
+        in_range("imu_dt_s", self.imu_dt_s, 1e-4, 0.02)?;
+        in_range("filter_dt_s", self.filter_dt_s, self.imu_dt_s, 10.0)?;
+        in_range(
+            "fix_interval_s",
+            self.fix_interval_s,
+            self.filter_dt_s,
+            60.0,
+        )?;
+        if (self.fix_interval_s / self.imu_dt_s - (self.fix_interval_s / self.imu_dt_s).round())
+            .abs()
+            > 1e-6
+        {
+            return Err(Invalid::new(
+                "fix_interval_s",
+                self.fix_interval_s,
+                "a whole number of imu_dt_s",
+            ));
+        }
+        in_range(
+            "settle_s",
+            self.settle_s,
+            0.0,
+            self.duration_s - self.fix_interval_s,
+        )?;
+        positive("speed_mps", self.speed_mps)?;
+        for (k, v) in [
+            ("altitude_m", self.altitude_m),
+            ("weave_amplitude_m", self.weave_amplitude_m),
+            ("climb_amplitude_m", self.climb_amplitude_m),
+        ] {
+            non_negative(k, v)?;
+        }
+        positive("weave_period_s", self.weave_period_s)?;
+        positive("climb_period_s", self.climb_period_s)?;
+        positive("spacing_m", self.spacing_m)?;
+        positive("group_accel_sigma_m_s2", self.group_accel_sigma_m_s2)?;
+        let i = &self.initial;
+        all_positive(
+            "initial",
+            &[
+                ("position_sigma_m", i.position_sigma_m),
+                ("velocity_sigma_mps", i.velocity_sigma_mps),
+                ("tilt_sigma_rad", i.tilt_sigma_rad),
+                ("heading_sigma_rad", i.heading_sigma_rad),
+            ],
+        )?;
+        let imu = &self.model.imu;
+        all_positive(
+            "model.imu",
+            &[
+                ("accel_bias_sigma_m_s2", imu.accel_bias_sigma_m_s2),
+                ("accel_bias_correlation_s", imu.accel_bias_correlation_s),
+                ("gyro_bias_sigma_rad_s", imu.gyro_bias_sigma_rad_s),
+                ("gyro_bias_correlation_s", imu.gyro_bias_correlation_s),
+                ("velocity_random_walk", imu.velocity_random_walk),
+                ("angle_random_walk", imu.angle_random_walk),
+            ],
+        )?;
+        let gnss = &self.model.gnss;
+        all_positive(
+            "model.gnss",
+            &[
+                (
+                    "position_horizontal_sigma_m",
+                    gnss.position_horizontal_sigma_m,
+                ),
+                ("position_vertical_sigma_m", gnss.position_vertical_sigma_m),
+                ("position_correlation_s", gnss.position_correlation_s),
+                ("position_white_sigma_m", gnss.position_white_sigma_m),
+                ("velocity_sigma_mps", gnss.velocity_sigma_mps),
+                ("velocity_correlation_s", gnss.velocity_correlation_s),
+                ("velocity_white_sigma_mps", gnss.velocity_white_sigma_mps),
+            ],
+        )?;
+        let s = &self.sensor;
+        all_positive(
+            "sensor",
+            &[
+                ("range_sigma_m", s.range_sigma_m),
+                ("bearing_sigma_rad", s.bearing_sigma_rad),
+                ("elevation_sigma_rad", s.elevation_sigma_rad),
+                ("range_limit_m", s.range_limit_m),
+            ],
+        )?;
+        for (i, d) in self.denial.iter().enumerate() {
+            let key = format!("denial[{i}]");
+            if let Some(&m) = d.members.iter().find(|&&m| m >= self.members) {
+                return Err(Invalid::new(
+                    format!("{key}.members"),
+                    m,
+                    format!("member indices 0 … {}", self.members - 1),
+                ));
+            }
+            if !(d.start_s >= 0.0 && d.end_s > d.start_s && d.end_s.is_finite()) {
+                return Err(Invalid::new(
+                    format!("{key}.end_s"),
+                    d.end_s,
+                    "0 ≤ start_s < end_s, finite",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl FormationScenario {
+    /// Stage 2's parameters: the fix interval, a_R, whether own velocities
+    /// are fused, the inter-vehicle sensor, and the prior σ (10 m, 1 m/s).
+    pub fn fusion_params(&self) -> FusionParams {
+        FusionParams {
+            interval_s: self.fix_interval_s,
+            accel_sigma_m_s2: self.group_accel_sigma_m_s2,
+            own_velocity: self.stage2_own_velocity,
+            sensor: self.sensor,
+            initial_position_sigma_m: STAGE2_INITIAL_POSITION_SIGMA_M,
+            initial_velocity_sigma_mps: STAGE2_INITIAL_VELOCITY_SIGMA_MPS,
+        }
+    }
+
+    pub(super) fn epochs(&self) -> usize {
+        (self.duration_s / self.fix_interval_s).floor() as usize
+    }
+
+    pub(super) fn imu_steps_per_fix(&self) -> usize {
+        (self.fix_interval_s / self.imu_dt_s).round() as usize
+    }
+
+    pub(super) fn denied(&self, member: usize, t: f64) -> bool {
+        self.denial.iter().any(|d| d.denies(member, t))
+    }
+
+    /// Leader position.
+    fn leader(&self, t: f64) -> Vector3<f64> {
+        let w = std::f64::consts::TAU / self.weave_period_s;
+        let c = std::f64::consts::TAU / self.climb_period_s;
+        Vector3::new(
+            self.speed_mps * t,
+            self.weave_amplitude_m * (w * t).sin(),
+            self.altitude_m + self.climb_amplitude_m * (c * t).sin(),
+        )
+    }
+
+    /// Leader heading (from its horizontal velocity).
+    fn leader_heading(&self, t: f64) -> f64 {
+        let w = std::f64::consts::TAU / self.weave_period_s;
+        (self.weave_amplitude_m * w * (w * t).cos()).atan2(self.speed_mps)
+    }
+
+    /// Offset of member l in the leader's heading frame (forward, left, up):
+    /// the leader at the apex, the others alternating right/left behind it.
+    fn offset(&self, l: usize) -> Vector3<f64> {
+        if l == 0 {
+            return Vector3::zeros();
+        }
+        let rank = l.div_ceil(2) as f64;
+        let side = if l % 2 == 1 { -1.0 } else { 1.0 };
+        let s = self.spacing_m * std::f64::consts::FRAC_1_SQRT_2;
+        Vector3::new(-rank * s, side * rank * s, 10.0 * rank * side)
+    }
+
+    /// True position of member l.
+    pub fn position(&self, l: usize, t: f64) -> Vector3<f64> {
+        let (s, c) = self.leader_heading(t).sin_cos();
+        let o = self.offset(l);
+        self.leader(t) + Vector3::new(c * o.x - s * o.y, s * o.x + c * o.y, o.z)
+    }
+
+    /// True position, velocity and attitude of member l (velocity and
+    /// acceleration by central differences of the analytic path; attitude
+    /// along the velocity, banked for a coordinated turn).
+    pub fn truth(&self, l: usize, t: f64) -> LocalLevelState {
+        let h = 1e-3;
+        let velocity = (self.position(l, t + h) - self.position(l, t - h)) / (2.0 * h);
+        let h2 = 1e-2;
+        let accel = (self.position(l, t + h2) - 2.0 * self.position(l, t)
+            + self.position(l, t - h2))
+            / (h2 * h2);
+        let yaw = velocity.y.atan2(velocity.x);
+        let pitch = velocity.z.atan2(velocity.xy().norm());
+        let left = Vector3::new(-yaw.sin(), yaw.cos(), 0.0);
+        let g = aidnav_ins::local_level::GRAVITY_ENU.z.abs();
+        let roll = -(accel.dot(&left) / g).atan();
+        LocalLevelState {
+            position: self.position(l, t),
+            velocity,
+            attitude: UnitQuaternion::from_euler_angles(roll, -pitch, yaw),
+        }
+    }
+}

@@ -1,0 +1,154 @@
+//! Stage 1 of the formation: every member's truth-side IMU and GNSS errors,
+//! its own INS/GNSS filter over the whole flight, and the relative
+//! measurements between members.
+
+use aidnav_estimation::EstimationError;
+use aidnav_ins::local_level::{LocalLevelState, ideal_imu};
+use aidnav_integration::group::{OwnSolution, RelativeMeasurement};
+use aidnav_integration::local_level::LooselyCoupled;
+use aidnav_models::GaussMarkov;
+use aidnav_models::relative_sensor::{Polar, wrap_angle};
+use aidnav_sim::rng::{RunRng, channel_rng, standard_normal};
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::FormationScenario;
+
+/// Truth-side IMU and GNSS error processes of one member.
+struct MemberErrors {
+    accel_bias: Vector3<f64>,
+    gyro_bias: Vector3<f64>,
+    gnss_position: Vector3<f64>,
+    gnss_velocity: Vector3<f64>,
+}
+
+fn gauss3(rng: &mut RunRng, sigma: &Vector3<f64>) -> Vector3<f64> {
+    Vector3::new(
+        sigma.x * standard_normal(rng),
+        sigma.y * standard_normal(rng),
+        sigma.z * standard_normal(rng),
+    )
+}
+
+/// Per epoch, per member: stage-1 solutions and the truth.
+type StageOne = (Vec<Vec<OwnSolution>>, Vec<Vec<LocalLevelState>>);
+
+/// Stage 1 of every member over the whole flight: per epoch, each member's
+/// INS* solution. Also returns the truth at each epoch.
+pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, EstimationError> {
+    let m = sc.members;
+    let epochs = sc.epochs();
+    let steps = sc.imu_steps_per_fix();
+    let dt = sc.imu_dt_s;
+    let model = sc.model;
+    let imu = model.imu;
+    let gnss = model.gnss;
+    let mut out: Vec<Vec<OwnSolution>> = (0..epochs).map(|_| Vec::with_capacity(m)).collect();
+    let mut truth_by_epoch: Vec<Vec<LocalLevelState>> =
+        (0..epochs).map(|_| Vec::with_capacity(m)).collect();
+    let gm = |tau: f64, sigma: f64, step: f64| {
+        GaussMarkov::new(tau, sigma)
+            .expect("validated")
+            .discretise(step)
+    };
+    let (ba_phi, ba_q) = gm(imu.accel_bias_correlation_s, imu.accel_bias_sigma_m_s2, dt);
+    let (bg_phi, bg_q) = gm(imu.gyro_bias_correlation_s, imu.gyro_bias_sigma_rad_s, dt);
+    let gnss_pos_sigma = gnss.position_sigmas();
+    let (ep_phi, _) = gm(gnss.position_correlation_s, 1.0, sc.fix_interval_s);
+    let (ev_phi, ev_q) = gm(
+        gnss.velocity_correlation_s,
+        gnss.velocity_sigma_mps,
+        sc.fix_interval_s,
+    );
+    let accel_noise = imu.velocity_random_walk / dt.sqrt();
+    let gyro_noise = imu.angle_random_walk / dt.sqrt();
+    let i = &sc.initial;
+    let attitude_sigma = Vector3::new(i.tilt_sigma_rad, i.tilt_sigma_rad, i.heading_sigma_rad);
+    for l in 0..m {
+        let mut rng = channel_rng(sc.seed, run, l as u64);
+        let start = sc.truth(l, 0.0);
+        let psi = gauss3(&mut rng, &attitude_sigma);
+        let ins0 = LocalLevelState {
+            position: start.position + gauss3(&mut rng, &Vector3::repeat(i.position_sigma_m)),
+            velocity: start.velocity + gauss3(&mut rng, &Vector3::repeat(i.velocity_sigma_mps)),
+            attitude: UnitQuaternion::from_scaled_axis(-psi) * start.attitude,
+        };
+        let prior = model.prior_sigmas(i.position_sigma_m, i.velocity_sigma_mps, attitude_sigma);
+        let mut lc = LooselyCoupled::new(model, ins0, &prior, sc.filter_dt_s)?;
+        let mut e = MemberErrors {
+            accel_bias: gauss3(&mut rng, &Vector3::repeat(imu.accel_bias_sigma_m_s2)),
+            gyro_bias: gauss3(&mut rng, &Vector3::repeat(imu.gyro_bias_sigma_rad_s)),
+            gnss_position: gauss3(&mut rng, &gnss_pos_sigma),
+            gnss_velocity: gauss3(&mut rng, &Vector3::repeat(gnss.velocity_sigma_mps)),
+        };
+        let mut prev = start;
+        for (epoch, (out_e, truth_e)) in out.iter_mut().zip(truth_by_epoch.iter_mut()).enumerate() {
+            // Epoch k is at t = (k + 1) · fix interval.
+            for s in 0..steps {
+                let t = (epoch * steps + s + 1) as f64 * dt;
+                let next = sc.truth(l, t);
+                let (w, f) = ideal_imu(&prev, &next, dt);
+                let gyro = w + e.gyro_bias + gauss3(&mut rng, &Vector3::repeat(gyro_noise));
+                let accel = f + e.accel_bias + gauss3(&mut rng, &Vector3::repeat(accel_noise));
+                lc.step_imu(&gyro, &accel, dt)?;
+                e.accel_bias =
+                    e.accel_bias * ba_phi + gauss3(&mut rng, &Vector3::repeat(ba_q.sqrt()));
+                e.gyro_bias =
+                    e.gyro_bias * bg_phi + gauss3(&mut rng, &Vector3::repeat(bg_q.sqrt()));
+                prev = next;
+            }
+            let t = (epoch + 1) as f64 * sc.fix_interval_s;
+            e.gnss_position = e.gnss_position * ep_phi
+                + gauss3(&mut rng, &(gnss_pos_sigma * (1.0 - ep_phi * ep_phi).sqrt()));
+            e.gnss_velocity =
+                e.gnss_velocity * ev_phi + gauss3(&mut rng, &Vector3::repeat(ev_q.sqrt()));
+            let white_p = gauss3(&mut rng, &Vector3::repeat(gnss.position_white_sigma_m));
+            let white_v = gauss3(&mut rng, &Vector3::repeat(gnss.velocity_white_sigma_mps));
+            if sc.denied(l, t) {
+                lc.propagate()?;
+            } else {
+                lc.gnss_update(
+                    &(prev.position + e.gnss_position + white_p),
+                    &(prev.velocity + e.gnss_velocity + white_v),
+                )?;
+            }
+            out_e.push(OwnSolution {
+                state: *lc.solution(),
+                covariance: lc.position_velocity_covariance(),
+                attitude_covariance: lc.attitude_covariance(),
+            });
+            truth_e.push(prev);
+        }
+    }
+    Ok((out, truth_by_epoch))
+}
+
+/// Range, bearing and elevation of every member within range of every other.
+pub(super) fn relative_measurements(
+    sc: &FormationScenario,
+    truth: &[LocalLevelState],
+    rng: &mut RunRng,
+) -> Vec<RelativeMeasurement> {
+    let s = &sc.sensor;
+    let mut out = Vec::new();
+    for (from, a) in truth.iter().enumerate() {
+        for (to, b) in truth.iter().enumerate() {
+            let d = b.position - a.position;
+            if to == from || d.norm() > s.range_limit_m {
+                continue;
+            }
+            let p = Polar::from_cartesian(&(a.attitude.inverse() * d));
+            out.push(RelativeMeasurement {
+                from,
+                to,
+                polar: Polar {
+                    range_m: p.range_m + s.range_sigma_m * standard_normal(rng),
+                    bearing_rad: wrap_angle(
+                        p.bearing_rad + s.bearing_sigma_rad * standard_normal(rng),
+                    ),
+                    elevation_rad: p.elevation_rad + s.elevation_sigma_rad * standard_normal(rng),
+                },
+            });
+        }
+    }
+    out
+}
