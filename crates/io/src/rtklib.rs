@@ -18,35 +18,7 @@ use nalgebra::Vector3;
 
 use crate::error::{IoError, Result};
 
-/// One GNSS solution epoch.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GnssFix {
-    /// GPST, seconds since 1970-01-01.
-    pub time_s: f64,
-    /// Antenna position (height as written in the file).
-    pub position: Geodetic,
-    /// Solution quality (RTKLIB Q: 1 fixed, 2 float, 5 single, …).
-    pub quality: u8,
-    /// Number of satellites.
-    pub satellites: u32,
-    /// σ of north, east, up position \[m\].
-    pub position_sigma_neu: Vector3<f64>,
-    /// NED velocity [m/s], when the file has velocity columns.
-    pub velocity_ned: Option<Vector3<f64>>,
-    /// σ of north, east, up velocity [m/s], when present.
-    pub velocity_sigma_neu: Option<Vector3<f64>>,
-}
-
-/// One IMU sample in the sensor frame, SI units.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ImuSample {
-    /// GPST, seconds since 1970-01-01.
-    pub time_s: f64,
-    /// Specific force [m/s²].
-    pub specific_force: Vector3<f64>,
-    /// Angular rate [rad/s].
-    pub angular_rate: Vector3<f64>,
-}
+pub use aidnav_ins::samples::{GnssFix, ImuSample};
 
 /// Standard gravity, the unit of the data set's accelerometer columns.
 const G0: f64 = 9.806_65;
