@@ -8,9 +8,13 @@
 //!   NED mechanization;
 //! - [`local_level`]: spec 30's stage 1, the loosely coupled filter on the
 //!   flat local-level INS;
+//! - [`ned_loop`]: the NED filter's epoch loop over a recorded log, its
+//!   observers, and [`bridge`], spec 20's outage bridge as one of them;
 //! - [`group`]: spec 30's stage 2 at scale, one axis of a large group in
 //!   information form.
 
+pub mod bridge;
 pub mod group;
 pub mod local_level;
 pub mod ned;
+pub mod ned_loop;
