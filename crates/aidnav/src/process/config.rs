@@ -11,7 +11,7 @@ use aidnav_estimation::{
     nalgebra::U3,
 };
 use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_range, non_negative};
-use aidnav_supervisors::outage::{BridgeConfig, Predictor, RelaySchedule};
+use aidnav_supervisors::outage::{BridgeConfig, RelaySchedule};
 use serde::{Deserialize, Serialize};
 
 /// Format of the IMU file.
@@ -354,12 +354,7 @@ impl OutageBridgeConfig {
 }
 
 /// The predictors scored, in the order of \[`Epoch::bridged`\].
-pub const BRIDGE_PREDICTORS: [Predictor; 4] = [
-    Predictor::Trend,
-    Predictor::CombinedTrend,
-    Predictor::Gmdh,
-    Predictor::Relay,
-];
+pub use aidnav_integration::bridge::BRIDGE_PREDICTORS;
 
 /// Spec 20's efficiency criterion K_eff = σ_GNSS / σ_KOI on the 3-D antenna
 /// position.
