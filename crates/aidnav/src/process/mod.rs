@@ -19,7 +19,8 @@
 //! the plan becomes a prepared GNSS stream and observers of
 //! [`aidnav_integration::ned_loop`]), [`score`] (the outage, efficiency and
 //! anomaly scores of a run), [`scoring`] (every scoring run of a log,
-//! [`Scores`]), [`export`] (a result and its scores as files).
+//! [`Scores`]), [`export`] (a result and its scores as files); the configuration's
+//! validation lives beside [`config`].
 
 pub mod api;
 pub mod config;
@@ -27,6 +28,7 @@ pub mod export;
 pub mod run;
 pub mod score;
 pub mod scoring;
+mod validate;
 
 pub use api::*;
 pub use config::*;

@@ -88,6 +88,9 @@ pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, Process
     Ok(scores)
 }
 
+/// (L, free INS?, the windows of L)
+type OutagePlan = (f64, bool, Vec<(f64, f64)>);
+
 /// (L, free INS?, score, score of the smoothed solution, epochs)
 type Scored = (f64, bool, OutageScore, Option<OutageScore>, Vec<Epoch>);
 
@@ -99,8 +102,7 @@ fn outage_scores(
 ) -> Result<(), ProcessError> {
     let first = inputs.imu[0].time_s;
     let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
-    // (L, free INS?, the windows of L)
-    let plans: Vec<(f64, bool, Vec<(f64, f64)>)> = cfg
+    let plans: Vec<OutagePlan> = cfg
         .score
         .outages_s
         .iter()
