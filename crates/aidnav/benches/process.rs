@@ -11,7 +11,7 @@ use std::hint::black_box;
 use std::path::Path;
 
 use aidnav::ins::ned::{ImuIncrement, NedMechanization, NedState};
-use aidnav::process::{PolicyName, ProcessConfig, RunPlan, load_inputs, run_filter};
+use aidnav::process::{PolicyName, ProcessConfig, RunPlan, export, load_inputs, run_filter};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn process(c: &mut Criterion) {
@@ -56,15 +56,7 @@ fn process(c: &mut Criterion) {
     let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
     let dir = tempfile::tempdir().unwrap();
     g.bench_function("write_solution", |b| {
-        b.iter(|| {
-            aidnav::jobs::write_solution(
-                &dir.path().join("solution.csv"),
-                &inputs.gnss,
-                &epochs,
-                &[],
-            )
-            .unwrap()
-        })
+        b.iter(|| export::write_solution(&dir.path().join("solution.csv"), &epochs, &[]).unwrap())
     });
     g.finish();
 }

@@ -29,7 +29,7 @@ fn thirty_second_outages_stay_bounded() {
     let (_, cfg, inputs) = drive();
     assert_eq!(inputs.imu.len(), 54_858);
     let clean = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
-    let tracking = tracking_rms(&inputs.gnss, &clean);
+    let tracking = tracking_rms(&clean);
     assert!(tracking < 0.05, "tracking {tracking} m");
     let first = inputs.imu[0].time_s;
     let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
@@ -42,7 +42,7 @@ fn thirty_second_outages_stay_bounded() {
             ..RunPlan::default()
         };
         let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept).unwrap();
-        score_windows(&inputs.gnss, &epochs, &windows, 30.0)
+        score_windows(&epochs, &windows, 30.0)
     };
     let filter = score(false);
     let free = score(true);
@@ -118,10 +118,7 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
     assert_eq!(again.imu.len(), inputs.imu.len() - 1);
     let a = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
     let b = run_filter(&kf, &again, &RunPlan::default(), PolicyName::Accept).unwrap();
-    let (ta, tb) = (
-        tracking_rms(&inputs.gnss, &a),
-        tracking_rms(&again.gnss, &b),
-    );
+    let (ta, tb) = (tracking_rms(&a), tracking_rms(&b));
     assert!((ta - tb).abs() < 0.002, "{ta} vs {tb}");
     let last_a = a.last().unwrap().antenna;
     let last_b = b.last().unwrap().antenna;
@@ -149,7 +146,7 @@ fn supervisors_on_the_drive() {
     let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept).unwrap();
     let inside = |t: f64| windows.iter().any(|&(a, b)| (a..b).contains(&t));
     for e in &epochs {
-        let t = inputs.gnss[e.index].time_s;
+        let t = e.time_s();
         assert_eq!(e.bridged.is_some(), inside(t), "t = {t}");
         if let Some(b) = e.bridged {
             let start = windows.iter().find(|w| (w.0..w.1).contains(&t)).unwrap().0;
@@ -159,15 +156,15 @@ fn supervisors_on_the_drive() {
             }
         }
     }
-    let coasting = score_windows(&inputs.gnss, &epochs, &windows, 30.0);
+    let coasting = score_windows(&epochs, &windows, 30.0);
     for k in 0..4 {
-        let s = score_windows(&inputs.gnss, &bridged_epochs(&epochs, k), &windows, 30.0);
+        let s = score_windows(&bridged_epochs(&epochs, k), &windows, 30.0);
         assert_eq!(s.windows, coasting.windows);
         assert!(s.three_d_m.is_finite() && s.three_d_m != coasting.three_d_m);
     }
     // Efficiency: K_eff starts above 1 in every window and falls below it
     // within the 30 s; the actual error crosses 1.5 m in most windows too.
-    let eff = efficiency_in_windows(&inputs.gnss, &epochs, &windows, 30.0);
+    let eff = efficiency_in_windows(&epochs, &windows, 30.0);
     assert_eq!(eff.windows, 8);
     assert!((eff.sigma_gnss_m - 1.5).abs() < 1e-12);
     assert!(eff.predicted_crossed >= 6 && eff.predicted_crossing_s > 5.0);
@@ -175,7 +172,7 @@ fn supervisors_on_the_drive() {
     // Eq. 3: measured 0.025 m with the model's Q, 0.011 m with the term.
     let clean = |cfg: &ProcessConfig| {
         let e = run_filter(cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
-        tracking_rms(&inputs.gnss, &e)
+        tracking_rms(&e)
     };
     let fixed = clean(&cfg);
     cfg.filter.adaptive_noise = AdaptiveNoise::Hard;
@@ -256,7 +253,7 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
     }
     let run = |cfg: &ProcessConfig, i: &aidnav::process::Inputs| {
         let e = run_filter(cfg, i, &RunPlan::default(), PolicyName::Accept).unwrap();
-        tracking_rms(&i.gnss, &e)
+        tracking_rms(&e)
     };
     let (ta, tb) = (run(&cfg, &inputs), run(&nmea, &again));
     assert!((ta - tb).abs() < 0.01, "{ta} vs {tb}");
@@ -307,9 +304,9 @@ fn rows_between_fixes_cover_a_real_outage() {
     let mut compared = 0;
     for e in scored
         .iter()
-        .filter(|e| (gap.0..gap.1).contains(&inputs.gnss[e.index].time_s))
+        .filter(|e| (gap.0..gap.1).contains(&e.time_s()))
     {
-        let t = inputs.gnss[e.index].time_s;
+        let t = e.time_s();
         let row = inside
             .iter()
             .min_by(|a, b| (a.time_s - t).abs().total_cmp(&(b.time_s - t).abs()))

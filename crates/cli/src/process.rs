@@ -24,7 +24,7 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
     );
     let outcomes: Vec<String> = r.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
-        "all GNSS, policy {:?}: RMS 3-D antenna error over RTK-fixed epochs {:.4} m (KF-GINS 0.016 m); updates: {}",
+        "all GNSS, policy {:?}: RMS 3-D antenna error over RTK-fixed epochs {:.4} m; updates: {}",
         r.policy,
         r.tracking_rms_m,
         outcomes.join(", ")
@@ -52,37 +52,23 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
     if !r.outages.is_empty() {
         println!("simulated outages — RMS over windows of the maximum drift [m]:");
         println!(
-            "{:>6} {:>8} {:>12} {:>10} {:>8} {:>14} {:>12} {:>9}",
-            "L [s]",
-            "windows",
-            "horizontal",
-            "vertical",
-            "3-D",
-            "free INS 3-D",
-            "smoothed 3-D",
-            "KF-GINS"
+            "{:>6} {:>8} {:>12} {:>10} {:>8} {:>14} {:>12}",
+            "L [s]", "windows", "horizontal", "vertical", "3-D", "free INS 3-D", "smoothed 3-D"
         );
         for (k, (s, f)) in r.outages.iter().zip(&r.outages_free_ins).enumerate() {
             let smoothed = r
                 .outages_smoothed
                 .get(k)
                 .map_or_else(|| "—".to_string(), |o| format!("{:.2}", o.three_d_m));
-            let kf_gins = match s.outage_s.round() as i64 {
-                10 => "4.4",
-                30 => "30.1",
-                60 => "212",
-                _ => "—",
-            };
             println!(
-                "{:>6.0} {:>8} {:>12.2} {:>10.2} {:>8.2} {:>14.1} {:>12} {:>9}",
+                "{:>6.0} {:>8} {:>12.2} {:>10.2} {:>8.2} {:>14.1} {:>12}",
                 s.outage_s,
                 s.windows,
                 s.horizontal_m,
                 s.vertical_m,
                 s.three_d_m,
                 f.three_d_m,
-                smoothed,
-                kf_gins
+                smoothed
             );
         }
     }
@@ -127,18 +113,7 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
             "injected outliers (5–50 m jumps, σ unchanged) — RMS 3-D error over RTK-fixed epochs [m]:"
         );
         for (f, p, rms) in &r.anomalies {
-            let kf_gins = match (*f * 100.0).round() as i64 {
-                0 => "0.016",
-                10 => "6.4",
-                30 => "10.5",
-                _ => "—",
-            };
-            println!(
-                "  {:>3.0} %  {:<22} {:>8.3}   (KF-GINS, no outlier handling: {kf_gins})",
-                f * 100.0,
-                p.name(),
-                rms
-            );
+            println!("  {:>3.0} %  {:<22} {:>8.3}", f * 100.0, p.name(), rms);
         }
     }
     if !r.post_outage_bursts.is_empty() {

@@ -451,7 +451,9 @@ fn process_runs_the_recorded_drive_and_scores_it() {
     ]);
     assert!(
         stdout.contains("54858 IMU samples")
-            && stdout.contains("KF-GINS")
+            // Published numbers of other tools are not printed beside an
+            // arbitrary log's results (the README keeps them).
+            && !stdout.contains("KF-GINS")
             && stdout.contains("huber"),
         "{stdout}"
     );

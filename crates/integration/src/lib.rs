@@ -8,10 +8,14 @@
 //!   NED mechanization;
 //! - [`local_level`]: spec 30's stage 1, the loosely coupled filter on the
 //!   flat local-level INS;
+//! - [`ned_loop`]: the NED filter's epoch loop over a recorded log, its
+//!   observers, and [`bridge`], spec 20's outage bridge as one of them;
 //! - [`group`]: spec 30's stage 2, the group filters: one axis of a large
 //!   group in information form, and the 3-D fusion of a formation in the
 //!   paper's axis-decoupled form and as an EKF.
 
+pub mod bridge;
 pub mod group;
 pub mod local_level;
 pub mod ned;
+pub mod ned_loop;

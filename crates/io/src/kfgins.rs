@@ -130,6 +130,20 @@ const KF_GNSS: [&str; 13] = [
 
 /// Read a KF-GINS IMU file; increments become mean rates over each row's
 /// interval (the first row, with no interval, is dropped).
+///
+/// ```
+/// let path = std::env::temp_dir().join(format!("aidnav-doc-kfimu-{}.txt", std::process::id()));
+/// // time, dθ (rad), dv (m/s) over the interval ending at the time.
+/// std::fs::write(
+///     &path,
+///     "100.000 0 0 0 0 0 0\n100.005 1e-5 -2e-5 3e-5 0.001 0.002 -0.049\n100.010 1e-5 -2e-5 3e-5 0.001 0.002 -0.049\n",
+/// )
+/// .unwrap();
+/// let (imu, _) = aidnav_io::kfgins::read_kfgins_imu(&path).unwrap();
+/// std::fs::remove_file(&path).unwrap();
+/// assert_eq!(imu.len(), 2);
+/// assert!((imu[0].specific_force.z + 9.8).abs() < 1e-9); // −0.049 m/s over 5 ms
+/// ```
 pub fn read_kfgins_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
     let (rows, warnings) = rows(path, 7, &KF_IMU)?;
     let mut out = Vec::with_capacity(rows.len());
@@ -172,6 +186,18 @@ fn sigma_checked(path: &Path, line: usize, names: &[&str], v: &[f64]) -> Result<
 }
 
 /// Read a KF-GINS GNSS file (quality unknown: reported as 0).
+///
+/// ```
+/// let path = std::env::temp_dir().join(format!("aidnav-doc-kfgnss-{}.txt", std::process::id()));
+/// // time, latitude, longitude [deg], height [m], σN σE σD [m].
+/// std::fs::write(&path, "100.0 30.5 114.3 20.0 0.01 0.01 0.02\n101.0 30.5 114.3 20.1 0.01 0.01 0.02\n")
+///     .unwrap();
+/// let (fixes, _) = aidnav_io::kfgins::read_kfgins_gnss(&path).unwrap();
+/// std::fs::remove_file(&path).unwrap();
+/// assert_eq!(fixes.len(), 2);
+/// assert!((fixes[1].position.height_m - 20.1).abs() < 1e-12);
+/// assert!(fixes[0].velocity_ned.is_none());
+/// ```
 pub fn read_kfgins_gnss(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
     let (rows, warnings) = rows(path, 7, &KF_GNSS)?;
     let fixes = rows
@@ -229,6 +255,19 @@ fn columns(path: &Path, header: &str, wanted: &[&str]) -> Result<Vec<usize>> {
 }
 
 /// Read a generic IMU CSV (see the module docs).
+///
+/// ```
+/// let path = std::env::temp_dir().join(format!("aidnav-doc-generic-{}.csv", std::process::id()));
+/// std::fs::write(
+///     &path,
+///     "time_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2\n1.0,0,0,0.1,0,0,-9.8\n1.01,0,0,0.1,0,0,-9.8\n",
+/// )
+/// .unwrap();
+/// let (imu, _) = aidnav_io::kfgins::read_generic_imu(&path).unwrap();
+/// std::fs::remove_file(&path).unwrap();
+/// assert_eq!(imu.len(), 2);
+/// assert_eq!((imu[0].angular_rate.z, imu[1].specific_force.z), (0.1, -9.8));
+/// ```
 pub fn read_generic_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
     let text = read_text(path)?;
     let header = text.lines().next().unwrap_or("");

@@ -163,6 +163,24 @@ struct Pending {
 }
 
 /// Read an NMEA log (see the module docs).
+///
+/// ```
+/// let sentence = |body: &str| format!("${body}*{:02X}\r\n", body.bytes().fold(0u8, |a, b| a ^ b));
+/// let log = [
+///     "GNRMC,120000.00,A,4807.038000,N,01131.000000,E,10.0,90.0,080725,,,A",
+///     "GNGGA,120000.00,4807.038000,N,01131.000000,E,4,12,0.9,545.4,M,46.9,M,1.0,0000",
+///     "GNGST,120000.00,0.5,0.01,0.01,0.0,0.011,0.012,0.025",
+/// ]
+/// .map(sentence)
+/// .concat();
+/// let path = std::env::temp_dir().join(format!("aidnav-doc-{}.nmea", std::process::id()));
+/// std::fs::write(&path, log).unwrap();
+/// let (fixes, _) = aidnav_io::nmea::read_nmea(&path).unwrap();
+/// std::fs::remove_file(&path).unwrap();
+/// assert_eq!((fixes.len(), fixes[0].quality), (1, 1)); // RTK fixed
+/// assert!((fixes[0].position.height_m - (545.4 + 46.9)).abs() < 1e-9);
+/// assert!(fixes[0].velocity_ned.unwrap().y > 5.0); // 10 kn due east
+/// ```
 pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
     let text = read_text(path)?;
     let lines: Vec<&str> = text.lines().collect();

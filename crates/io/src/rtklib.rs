@@ -18,35 +18,7 @@ use nalgebra::Vector3;
 
 use crate::error::{IoError, Result};
 
-/// One GNSS solution epoch.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GnssFix {
-    /// GPST, seconds since 1970-01-01.
-    pub time_s: f64,
-    /// Antenna position (height as written in the file).
-    pub position: Geodetic,
-    /// Solution quality (RTKLIB Q: 1 fixed, 2 float, 5 single, …).
-    pub quality: u8,
-    /// Number of satellites.
-    pub satellites: u32,
-    /// σ of north, east, up position \[m\].
-    pub position_sigma_neu: Vector3<f64>,
-    /// NED velocity [m/s], when the file has velocity columns.
-    pub velocity_ned: Option<Vector3<f64>>,
-    /// σ of north, east, up velocity [m/s], when present.
-    pub velocity_sigma_neu: Option<Vector3<f64>>,
-}
-
-/// One IMU sample in the sensor frame, SI units.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ImuSample {
-    /// GPST, seconds since 1970-01-01.
-    pub time_s: f64,
-    /// Specific force [m/s²].
-    pub specific_force: Vector3<f64>,
-    /// Angular rate [rad/s].
-    pub angular_rate: Vector3<f64>,
-}
+pub use aidnav_ins::samples::{GnssFix, ImuSample};
 
 /// Standard gravity, the unit of the data set's accelerometer columns.
 const G0: f64 = 9.806_65;
@@ -140,6 +112,22 @@ const POS_COLUMNS: [&str; 19] = [
 
 /// Read an RTKLIB `.pos` solution file (latitude/longitude/height form).
 /// Returns the epochs and the warnings (skipped truncated last line).
+///
+/// ```
+/// let path = std::env::temp_dir().join(format!("aidnav-doc-{}.pos", std::process::id()));
+/// std::fs::write(
+///     &path,
+///     "% GPST latitude(deg) longitude(deg) height(m) Q ns sdn(m) sde(m) sdu(m) ...\n\
+///      2025/07/08 19:34:18.499 40.0966268 -105.1474483 1601.474 1 21 0.0099 0.0099 0.01 0 0 0 0 0 0.01 -0.002 0.009 0.05 0.05 0.05\n",
+/// )
+/// .unwrap();
+/// let (fixes, warnings) = aidnav_io::rtklib::read_pos(&path).unwrap();
+/// std::fs::remove_file(&path).unwrap();
+/// assert!(warnings.is_empty());
+/// assert_eq!((fixes.len(), fixes[0].quality, fixes[0].satellites), (1, 1, 21));
+/// assert!((fixes[0].position.latitude_rad.to_degrees() - 40.0966268).abs() < 1e-9);
+/// assert!(fixes[0].velocity_ned.is_some());
+/// ```
 pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
     let text = read_text(path)?;
     let lines: Vec<(usize, &str)> = text
@@ -337,6 +325,33 @@ const IMU_COLUMNS: [&str; 7] = [
 /// last line as upstream does, and mapping ticks to GPST by the tag file's
 /// start and last tag (the README's formula). Returns samples in SI units
 /// (sensor frame) and warnings.
+///
+/// ```
+/// let dir = std::env::temp_dir();
+/// let csv = dir.join(format!("aidnav-doc-{}.csv", std::process::id()));
+/// let tag = dir.join(format!("aidnav-doc-{}.csv.tag", std::process::id()));
+/// // The binary tag file: "TIMETAG" header padded to 60 bytes, time-zone
+/// // u32, start seconds u32, start fraction f64, then (ms, offset) pairs.
+/// let mut t = b"TIMETAG RTKLIB demo5".to_vec();
+/// t.resize(60, 0);
+/// t.extend(0u32.to_le_bytes());
+/// t.extend(1_750_000_000u32.to_le_bytes());
+/// t.extend(0.5f64.to_le_bytes());
+/// for (ms, offset) in [(0u32, 0u32), (30, 100)] {
+///     t.extend(ms.to_le_bytes());
+///     t.extend(offset.to_le_bytes());
+/// }
+/// std::fs::write(&tag, &t).unwrap();
+/// // ax ay az [g], gx gy gz [deg/s], tick [ms]; first and last line dropped.
+/// std::fs::write(&csv, "0,0,1,0,0,0,0\n0,0,1,0,0,0,10\n0,0,1,0,0,0,20\n0,0,1,0,0,0,30\n0,0,1,0,0,0,40\n")
+///     .unwrap();
+/// let (imu, _warnings) = aidnav_io::rtklib::read_tagged_imu(&csv, &tag).unwrap();
+/// std::fs::remove_file(&csv).unwrap();
+/// std::fs::remove_file(&tag).unwrap();
+/// assert!(!imu.is_empty());
+/// assert!(imu.iter().all(|s| (s.specific_force.z - 9.806_65).abs() < 1e-9));
+/// assert!(imu.windows(2).all(|w| w[1].time_s > w[0].time_s));
+/// ```
 pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
     let tags = read_time_tags(tag_path)?;
     let last_tag_ms = tags

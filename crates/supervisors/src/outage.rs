@@ -102,6 +102,28 @@ fn one() -> usize {
 }
 
 /// Every predictor, built at the outage start from the recorded history.
+///
+/// A correction that grew linearly (0.1 per second) up to the outage is
+/// continued by the trend; the relay holds (adds nothing) before T1.
+///
+/// ```
+/// use aidnav_estimation::gmdh::GmdhConfig;
+/// use aidnav_supervisors::outage::{BridgeConfig, OutageBridge, Predictor, RelaySchedule};
+///
+/// let times: Vec<f64> = (0..120).map(|k| k as f64 * 0.5).collect();
+/// let history: Vec<f64> = times.iter().map(|t| 0.1 * t).collect();
+/// let cfg = BridgeConfig {
+///     trend_window_s: 30.0,
+///     model_window_s: 60.0,
+///     model_decimation: 2,
+///     relay: RelaySchedule { t1_s: 1.0, t2_s: 10.0, t3_s: 30.0 },
+///     gmdh: GmdhConfig::default(),
+/// };
+/// let bridge = OutageBridge::start(&times, &history, &cfg).unwrap();
+/// let t = times[times.len() - 1] + 5.0;
+/// assert!((bridge.predict_increment(Predictor::Trend, t) - 0.5).abs() < 1e-9);
+/// assert_eq!(bridge.predict_increment(Predictor::Relay, times[times.len() - 1] + 0.5), 0.0);
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct OutageBridge {
     t0: f64,

@@ -8,15 +8,7 @@ use aidnav_estimation::{Chi2Mean, EpochRecord, EstimationError, Observer, Outcom
 use aidnav_io::IoError;
 use aidnav_io::measurements::read_measurements;
 use aidnav_io::model_file::load_model;
-use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
-use aidnav_io::writers::{FilterCsvWriter, Summary, write_smoothed, write_table};
-use aidnav_reproduce::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
-use aidnav_reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
-use aidnav_reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
-use aidnav_reproduce::formation::{FormationResult, FormationScenario, SOLUTIONS};
-use aidnav_reproduce::group::{GroupResult, GroupScenario};
-use aidnav_reproduce::outages::{OutagesResult, OutagesScenario, PREDICTORS};
-use aidnav_sim::MonteCarlo;
+use aidnav_io::writers::{FilterCsvWriter, Summary, write_smoothed};
 use serde::Serialize;
 
 use crate::VERSION;

@@ -1,6 +1,19 @@
 //! The reproductions' jobs: run one experiment of `aidnav_reproduce`, write
 //! its CSV, figures and `summary.json`.
 
+use std::path::Path;
+
+use aidnav_io::writers::{Summary, write_table};
+use aidnav_reproduce::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
+use aidnav_reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
+use aidnav_reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
+use aidnav_reproduce::formation::{FormationResult, FormationScenario, SOLUTIONS};
+use aidnav_reproduce::group::{GroupResult, GroupScenario};
+use aidnav_reproduce::outages::{OutagesResult, OutagesScenario, PREDICTORS};
+use aidnav_sim::MonteCarlo;
+
+use crate::VERSION;
+
 use super::*;
 
 /// The Monte Carlo runner of an experiment, with or without a progress bar.

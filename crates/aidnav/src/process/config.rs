@@ -4,8 +4,7 @@ use std::path::PathBuf;
 
 use aidnav_estimation::gmdh::GmdhConfig;
 use aidnav_estimation::{Scheme, SchemeParameters};
-use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_range, non_negative};
-use aidnav_supervisors::outage::{BridgeConfig, Predictor, RelaySchedule};
+use aidnav_supervisors::outage::{BridgeConfig, RelaySchedule};
 use serde::{Deserialize, Serialize};
 
 /// Format of the IMU file.
@@ -348,12 +347,7 @@ impl OutageBridgeConfig {
 }
 
 /// The predictors scored, in the order of \[`Epoch::bridged`\].
-pub const BRIDGE_PREDICTORS: [Predictor; 4] = [
-    Predictor::Trend,
-    Predictor::CombinedTrend,
-    Predictor::Gmdh,
-    Predictor::Relay,
-];
+pub use aidnav_integration::bridge::BRIDGE_PREDICTORS;
 
 /// Spec 20's efficiency criterion K_eff = σ_GNSS / σ_KOI on the 3-D antenna
 /// position.
@@ -426,117 +420,6 @@ pub struct ProcessConfig {
     /// Outputs.
     #[serde(default)]
     pub output: OutputConfig,
-}
-
-impl Validate for ProcessConfig {
-    fn validate(&self) -> Result<(), Invalid> {
-        if self.data.imu_format == ImuFormat::RtklibTagged && self.data.imu_tags.is_none() {
-            return Err(Invalid::new(
-                "data.imu_tags",
-                "(missing)",
-                "the RTKLIB .tag file of the IMU CSV (imu_format = \"rtklib_tagged\")",
-            ));
-        }
-        in_range("time_offset_s", self.imu.time_offset_s, -10.0, 10.0)
-            .map_err(|e| e.within("imu"))?;
-        in_range("smoothing_s", self.imu.smoothing_s, 0.0, 5.0).map_err(|e| e.within("imu"))?;
-        let n = &self.imu.noise;
-        all_positive(
-            "imu.noise",
-            &[
-                ("arw_deg_per_sqrt_h", n.arw_deg_per_sqrt_h),
-                ("vrw_mps_per_sqrt_h", n.vrw_mps_per_sqrt_h),
-                ("gyro_bias_deg_per_h", n.gyro_bias_deg_per_h),
-                ("accel_bias_mg", n.accel_bias_mg),
-                ("gyro_scale_ppm", n.gyro_scale_ppm),
-                ("accel_scale_ppm", n.accel_scale_ppm),
-                ("correlation_s", n.correlation_s),
-            ],
-        )?;
-        all_positive(
-            "initial",
-            &[
-                ("static_s", self.initial.static_s),
-                ("heading_speed_mps", self.initial.heading_speed_mps),
-                ("heading_sigma_deg", self.initial.heading_sigma_deg),
-                ("tilt_sigma_deg", self.initial.tilt_sigma_deg),
-            ],
-        )?;
-        all_positive(
-            "gnss",
-            &[
-                ("min_position_sigma_m", self.gnss.min_position_sigma_m),
-                ("min_velocity_sigma_mps", self.gnss.min_velocity_sigma_mps),
-            ],
-        )?;
-        in_range("anomaly_gamma", self.gnss.anomaly_gamma, 1.0, 1e4)
-            .map_err(|e| e.within("gnss"))?;
-        count_in_range("adaptive_window", self.gnss.adaptive_window, 1, 10_000)
-            .map_err(|e| e.within("gnss"))?;
-        count_in_range(
-            "adaptive_noise_window",
-            self.filter.adaptive_noise_window,
-            1,
-            10_000,
-        )
-        .map_err(|e| e.within("filter"))?;
-        let b = &self.outage_bridge;
-        all_positive(
-            "outage_bridge",
-            &[
-                ("trend_window_s", b.trend_window_s),
-                ("model_window_s", b.model_window_s),
-                ("relay.t1_s", b.relay.t1_s),
-            ],
-        )?;
-        if !(b.relay.t1_s < b.relay.t2_s && b.relay.t2_s < b.relay.t3_s && b.relay.t3_s.is_finite())
-        {
-            return Err(Invalid::new(
-                "outage_bridge.relay",
-                format!("[{}, {}, {}]", b.relay.t1_s, b.relay.t2_s, b.relay.t3_s),
-                "0 < t1_s < t2_s < t3_s",
-            ));
-        }
-        count_in_range("model_decimation", b.model_decimation, 1, 1000)
-            .map_err(|e| e.within("outage_bridge"))?;
-        if let Some(sg) = self.efficiency.sigma_gnss_m {
-            all_positive("efficiency", &[("sigma_gnss_m", sg)])?;
-        }
-        let i = self.output.interval_s;
-        if !(i == 0.0 || (1e-3..=3600.0).contains(&i)) {
-            return Err(Invalid::new(
-                "output.interval_s",
-                i,
-                "0 (GNSS epochs only) or 0.001 ≤ interval_s ≤ 3600",
-            ));
-        }
-        count_in_range("outages_s", self.score.outages_s.len(), 0, 10)
-            .map_err(|e| e.within("score"))?;
-        for l in &self.score.outages_s {
-            in_range("outages_s", *l, 1.0, 3600.0).map_err(|e| e.within("score"))?;
-        }
-        non_negative("lead_s", self.score.lead_s).map_err(|e| e.within("score"))?;
-        non_negative("gap_s", self.score.gap_s).map_err(|e| e.within("score"))?;
-        in_range(
-            "post_outage_burst_s",
-            self.score.post_outage_burst_s,
-            0.0,
-            60.0,
-        )
-        .map_err(|e| e.within("score"))?;
-        for f in &self.score.outlier_fractions {
-            in_range("outlier_fractions", *f, 0.0, 1.0).map_err(|e| e.within("score"))?;
-        }
-        let [lo, hi] = self.score.outlier_m;
-        if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
-            return Err(Invalid::new(
-                "score.outlier_m",
-                format!("[{lo}, {hi}]"),
-                "0 ≤ low ≤ high",
-            ));
-        }
-        Ok(())
-    }
 }
 
 /// Measurement policy of a run: a scheme of the engine's registry

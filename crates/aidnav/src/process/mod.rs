@@ -14,25 +14,38 @@
 //! at the fix's own time.
 //!
 //! Layout: [`config`] (the configuration file and its validation), this
-//! module (reading and initialisation), [`run`] (one filter pass under a
-//! plan: withheld windows, outliers, bridging, smoothing), [`score`] (the
-//! outage, efficiency and anomaly scores of a run).
+//! module (reading and initialisation), [`api`] ([`Process`]: run and score
+//! as library calls, no file I/O), [`run`] (one filter pass under a plan:
+//! the plan becomes a prepared GNSS stream and observers of
+//! [`aidnav_integration::ned_loop`]), [`score`] (the outage, efficiency and
+//! anomaly scores of a run), [`scoring`] (every scoring run of a log,
+//! [`Scores`]), [`export`] (a result and its scores as files); the configuration's
+//! validation lives beside [`config`].
 
+pub mod api;
 pub mod config;
+pub mod export;
 pub mod run;
 pub mod score;
+pub mod scoring;
+mod validate;
 
+pub use api::*;
 pub use config::*;
 pub use run::*;
 pub use score::*;
+pub use scoring::*;
+
+pub use aidnav_ins::mounting::euler_to_ctm;
 
 use std::path::Path;
 
 use aidnav_estimation::EstimationError;
-use aidnav_frames::earth::earth_rate_ned;
+use aidnav_ins::alignment::{course, gyro_bias_at_rest, level, static_window};
 use aidnav_ins::ned::NedState;
+use aidnav_ins::samples::moving_average;
 use aidnav_io::rtklib::{GnssFix, ImuSample, read_pos, read_tagged_imu};
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 
 /// Anything processing can fail with.
 #[derive(Debug, thiserror::Error)]
@@ -59,22 +72,12 @@ pub struct Inputs {
     pub warnings: Vec<String>,
 }
 
-/// Groves' Euler_to_CTM: the coordinate transformation for (roll, pitch, yaw).
-pub fn euler_to_ctm(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
-    let (sr, cr) = roll.sin_cos();
-    let (sp, cp) = pitch.sin_cos();
-    let (sy, cy) = yaw.sin_cos();
-    Matrix3::new(
-        cp * cy,
-        cp * sy,
-        -sp,
-        -cr * sy + sr * sp * cy,
-        cr * cy + sr * sp * sy,
-        sr * cp,
-        sr * sy + cr * sp * cy,
-        -sr * cy + cr * sp * sy,
-        cr * cp,
-    )
+impl Inputs {
+    /// Read the files named in the configuration (relative to `base`),
+    /// time-shift, rotate to the body frame and smooth: [`load_inputs`].
+    pub fn load(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
+        load_inputs(cfg, base)
+    }
 }
 
 /// Read, time-shift, rotate to the body frame and smooth.
@@ -102,18 +105,12 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
         GnssFormat::Nmea => aidnav_io::nmea::read_nmea(&gnss_path)?,
     };
     warnings.extend(w);
-    let [r, p, y] = cfg.imu.mounting_deg.map(f64::to_radians);
-    let c = euler_to_ctm(r, p, y);
-    for s in &mut imu {
-        s.time_s += cfg.imu.time_offset_s;
-        s.specific_force = c * s.specific_force;
-        s.angular_rate = c * s.angular_rate;
-    }
+    aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
     if cfg.imu.smoothing_s > 0.0 && imu.len() > 2 {
         let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
         let half = ((cfg.imu.smoothing_s / dt) / 2.0).round() as usize;
         if half > 0 {
-            imu = smooth(&imu, half);
+            imu = moving_average(&imu, half);
         }
     }
     Ok(Inputs {
@@ -121,33 +118,6 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
         gnss,
         warnings,
     })
-}
-
-/// Centred moving average over 2·half + 1 samples (shrinking at the ends).
-fn smooth(imu: &[ImuSample], half: usize) -> Vec<ImuSample> {
-    let n = imu.len();
-    let mut out = imu.to_vec();
-    let mut sum_f = Vector3::zeros();
-    let mut sum_w = Vector3::zeros();
-    // Prefix sums keep it O(n).
-    let mut pf = Vec::with_capacity(n + 1);
-    let mut pw = Vec::with_capacity(n + 1);
-    pf.push(sum_f);
-    pw.push(sum_w);
-    for s in imu {
-        sum_f += s.specific_force;
-        sum_w += s.angular_rate;
-        pf.push(sum_f);
-        pw.push(sum_w);
-    }
-    for (k, o) in out.iter_mut().enumerate() {
-        let lo = k.saturating_sub(half);
-        let hi = (k + half + 1).min(n);
-        let m = (hi - lo) as f64;
-        o.specific_force = (pf[hi] - pf[lo]) / m;
-        o.angular_rate = (pw[hi] - pw[lo]) / m;
-    }
-    out
 }
 
 /// The initial state and the starting gyro bias.
@@ -182,7 +152,7 @@ pub(crate) fn initialise(
     let arm = attitude * Vector3::from(cfg.gnss.lever_arm_m);
     let position = fix.position.offset_by(&-arm);
     let gyro_bias = w.map_or_else(Vector3::zeros, |w| {
-        w - attitude.inverse() * earth_rate_ned(position.latitude_rad)
+        gyro_bias_at_rest(&w, &attitude, position.latitude_rad)
     });
     Ok((
         NedState {
@@ -207,24 +177,13 @@ fn align(
     start: usize,
     t0: f64,
 ) -> Result<(UnitQuaternion<f64>, Vector3<f64>), ProcessError> {
-    let window: Vec<&ImuSample> = inputs.imu[start..]
-        .iter()
-        .take_while(|s| s.time_s < t0 + cfg.initial.static_s)
-        .collect();
+    let window = static_window(&inputs.imu, start, t0, cfg.initial.static_s);
     if window.len() < 10 {
         return Err(ProcessError::Data(
             "static window holds fewer than 10 IMU samples".into(),
         ));
     }
-    let n = window.len() as f64;
-    let f = window
-        .iter()
-        .map(|s| s.specific_force)
-        .sum::<Vector3<f64>>()
-        / n;
-    let w = window.iter().map(|s| s.angular_rate).sum::<Vector3<f64>>() / n;
-    let roll = (-f.y).atan2(-f.z);
-    let pitch = f.x.atan2(f.y.hypot(f.z));
+    let levelling = level(window);
     let moving = inputs
         .gnss
         .iter()
@@ -238,6 +197,5 @@ fn align(
             )
         })?;
     let v = moving.velocity_ned.expect("checked");
-    let yaw = v.y.atan2(v.x);
-    Ok((UnitQuaternion::from_euler_angles(roll, pitch, yaw), w))
+    Ok((levelling.attitude(course(&v)), levelling.mean_angular_rate))
 }

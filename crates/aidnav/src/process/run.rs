@@ -1,19 +1,29 @@
-//! One filter pass over a log under a plan and a measurement policy.
+//! One filter pass over a log under a plan and a measurement policy. The
+//! plan becomes inputs of the ordinary loop
+//! ([`aidnav_integration::ned_loop`]): withheld windows and injected
+//! outliers a prepared GNSS stream, the free INS and the outage bridge
+//! observers of the loop.
 
-use aidnav_estimation::{EstimationError, NoiseRule, Outcome};
+use aidnav_estimation::{NoiseRule, Outcome};
 use aidnav_frames::earth::Geodetic;
-use aidnav_ins::ned::ImuIncrement;
+use aidnav_integration::bridge::BridgeObserver;
 use aidnav_integration::ned::NedFilter;
+use aidnav_integration::ned_loop::{
+    AidingFix, Collector, EpochObserver, FixRecord, FreeInsObserver, LoopConfig, LoopPolicies,
+    NonHolonomic, run_loop,
+};
 use aidnav_io::rtklib::GnssFix;
 use aidnav_models::ned_ins::{
     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, VELOCITY,
     Vector21,
 };
-use aidnav_supervisors::outage::{BridgeConfig, OutageBridge, Predictor};
+use aidnav_supervisors::efficiency::EfficiencyCriterion;
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::config::{AdaptiveNoise, BRIDGE_PREDICTORS, Feedback, PolicyName};
+use super::config::{AdaptiveNoise, Feedback, PolicyName};
 use super::{Inputs, ProcessConfig, ProcessError, initialise};
+
+pub use aidnav_integration::ned_loop::SolutionRow;
 
 /// Which epochs a run withholds and how it corrupts the others.
 #[derive(Debug, Clone, Default)]
@@ -37,11 +47,38 @@ pub struct RunPlan {
     pub bridge: bool,
 }
 
+impl RunPlan {
+    fn in_window(&self, t: f64) -> bool {
+        self.windows.iter().any(|&(a, b)| t >= a && t < b)
+    }
+
+    /// The GNSS stream this plan hands to the loop: the fixes inside the
+    /// windows withheld (unless the free INS is scored), the outliers added.
+    pub fn prepare(&self, gnss: &[GnssFix]) -> Vec<AidingFix> {
+        gnss.iter()
+            .enumerate()
+            .map(|(i, g)| {
+                let mut fix = *g;
+                if let Some(Some(o)) = self.outliers.get(i) {
+                    fix.position = fix.position.offset_by(o);
+                }
+                AidingFix {
+                    fix,
+                    withheld: !self.free_ins_in_windows && self.in_window(g.time_s),
+                }
+            })
+            .collect()
+    }
+}
+
 /// One epoch of a run's output.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Epoch {
     /// GNSS index.
     pub index: usize,
+    /// The epoch's fix as read (uncorrupted): its time, and the reference
+    /// the scores compare with.
+    pub fix: GnssFix,
     /// Antenna position after the epoch (updated or not).
     pub antenna: Geodetic,
     /// NED velocity.
@@ -68,16 +105,21 @@ pub struct Epoch {
     /// above 1 the integrated solution is the better source.
     pub k_eff: f64,
     /// Inside an outage window of a run with `RunPlan::bridge`: the antenna
-    /// position bridged by each of [`BRIDGE_PREDICTORS`].
+    /// position bridged by each of [`super::BRIDGE_PREDICTORS`].
     pub bridged: Option<[Geodetic; 4]>,
     pub(crate) record_index: Option<usize>,
 }
 
 impl Epoch {
+    /// GPST of the epoch (its fix's time), seconds since 1970.
+    pub fn time_s(&self) -> f64 {
+        self.fix.time_s
+    }
+
     /// The navigation part of this epoch as a row at its fix's time.
-    pub fn row(&self, gnss: &[GnssFix]) -> SolutionRow {
+    pub fn row(&self) -> SolutionRow {
         SolutionRow {
-            time_s: gnss[self.index].time_s,
+            time_s: self.fix.time_s,
             antenna: self.antenna,
             velocity: self.velocity,
             attitude: self.attitude,
@@ -90,36 +132,32 @@ impl Epoch {
         self.smoothed_antenna
             .map(|antenna| Epoch { antenna, ..*self })
     }
-}
 
-/// The navigation solution at a time between GNSS epochs (`output.interval_s`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SolutionRow {
-    /// GPST, seconds since 1970.
-    pub time_s: f64,
-    /// Antenna position.
-    pub antenna: Geodetic,
-    /// NED velocity.
-    pub velocity: Vector3<f64>,
-    /// Attitude.
-    pub attitude: UnitQuaternion<f64>,
-    /// σ of the position error (N, E, D).
-    pub sigma: Vector3<f64>,
-}
-
-impl SolutionRow {
-    /// The filter's navigation solution at `time_s`: antenna position, the
-    /// solution's velocity and attitude, position σ.
-    fn of(filter: &NedFilter, time_s: f64) -> Self {
-        let (antenna, _) = filter.antenna();
-        let solution = filter.solution();
-        let s = filter.sigmas();
+    /// The epoch of a loop record, reporting `row` and `instruments` (the
+    /// filter's or a free INS's).
+    fn of(
+        fix: GnssFix,
+        rec: &FixRecord,
+        row: &SolutionRow,
+        instruments: aidnav_integration::ned::InstrumentEstimate,
+        k_eff: f64,
+    ) -> Self {
         Self {
-            time_s,
-            antenna,
-            velocity: solution.velocity,
-            attitude: solution.attitude,
-            sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
+            index: rec.index,
+            fix,
+            antenna: row.antenna,
+            velocity: row.velocity,
+            attitude: row.attitude,
+            sigma: row.sigma,
+            nis: rec.nis,
+            innovation: rec.innovation,
+            outcome: rec.outcome,
+            instruments,
+            smoothed_antenna: None,
+            convergence: rec.convergence,
+            k_eff,
+            bridged: None,
+            record_index: rec.recorded_epoch,
         }
     }
 }
@@ -145,16 +183,13 @@ pub fn run_filter(
     run_filter_rows(cfg, inputs, plan, policy, 0.0).map(|r| r.epochs)
 }
 
-/// [`run_filter`], also writing a [`SolutionRow`] every `interval_s` (at
-/// the first IMU sample at or after each multiple; 0: none) between the
-/// GNSS epochs — through real GNSS outages too.
-pub fn run_filter_rows(
+/// The filter at the start of the log, configured for a plan and a policy.
+fn new_filter(
     cfg: &ProcessConfig,
     inputs: &Inputs,
     plan: &RunPlan,
     policy: PolicyName,
-    interval_s: f64,
-) -> Result<Run, ProcessError> {
+) -> Result<(NedFilter, usize), ProcessError> {
     let (state, gyro_bias, start) = initialise(cfg, inputs)?;
     let model = NedErrorModel {
         noise: cfg.imu.noise,
@@ -179,9 +214,7 @@ pub fn run_filter_rows(
     let mut filter = NedFilter::new(model, state, &sig, lever)?;
     filter.set_gyro_bias(gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
-    let smooth =
-        plan.smooth && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed;
-    if smooth {
+    if smoothing(cfg, plan) {
         filter.start_recording(MAX_RECORDED_EPOCHS);
     }
     if plan.monitor {
@@ -201,248 +234,135 @@ pub fn run_filter_rows(
             average,
         );
     }
-    let mut position_policy = policy.policy(&cfg.gnss.scheme_parameters());
-    let mut velocity_policy = policy.policy(&cfg.gnss.scheme_parameters());
+    Ok((filter, start))
+}
+
+/// Whether a run under `plan` keeps the forward pass for the smoother.
+fn smoothing(cfg: &ProcessConfig, plan: &RunPlan) -> bool {
+    plan.smooth && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed
+}
+
+/// The loop's parameters from the configuration.
+fn loop_config(cfg: &ProcessConfig, plan: &RunPlan, interval_s: f64) -> LoopConfig {
+    let nhc = &cfg.constraints;
+    LoopConfig {
+        min_position_sigma_m: cfg.gnss.min_position_sigma_m,
+        use_velocity: cfg.gnss.use_velocity,
+        min_velocity_sigma_mps: cfg.gnss.min_velocity_sigma_mps,
+        non_holonomic: nhc.non_holonomic.then_some(NonHolonomic {
+            rate_hz: nhc.non_holonomic_rate_hz,
+            sigma_mps: nhc.non_holonomic_sigma_mps,
+            min_speed_mps: nhc.min_speed_mps,
+        }),
+        row_interval_s: interval_s,
+        convergence_monitor: plan.monitor,
+        sigma_gnss_m: cfg.efficiency.sigma_gnss_m,
+    }
+}
+
+/// [`run_filter`], also writing a [`SolutionRow`] every `interval_s` (at
+/// the first IMU sample at or after each multiple; 0: none) between the
+/// GNSS epochs — through real GNSS outages too.
+pub fn run_filter_rows(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    plan: &RunPlan,
+    policy: PolicyName,
+    interval_s: f64,
+) -> Result<Run, ProcessError> {
+    let (mut filter, start) = new_filter(cfg, inputs, plan, policy)?;
+    let (imu, gnss) = (&inputs.imu, &inputs.gnss);
+    let fixes = plan.prepare(gnss);
+    let span = imu[imu.len() - 1].time_s - imu[start].time_s;
+    let mut collector = Collector {
+        fixes: Vec::with_capacity(gnss.len()),
+        // Bounded: one row per IMU sample at most.
+        rows: Vec::with_capacity(if interval_s > 0.0 {
+            ((span / interval_s) as usize).min(imu.len()) + 1
+        } else {
+            0
+        }),
+    };
+    let mut free = plan
+        .free_ins_in_windows
+        .then(|| FreeInsObserver::new(plan.windows.clone()));
     let bridging =
         plan.bridge && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed;
-    let bridge_cfg = cfg.outage_bridge.bridge();
-    let mut bridge = BridgeState::default();
-    let imu = &inputs.imu;
-    let gnss = &inputs.gnss;
-    let mut next = gnss
-        .iter()
-        .position(|g| g.time_s > imu[start].time_s)
-        .unwrap_or(gnss.len());
-    let mut epochs = Vec::with_capacity(gnss.len());
-    let span = imu[imu.len() - 1].time_s - imu[start].time_s;
-    let mut between = Vec::with_capacity(if interval_s > 0.0 {
-        // Bounded: one row per IMU sample at most.
-        ((span / interval_s) as usize).min(imu.len()) + 1
-    } else {
-        0
-    });
-    let mut next_row = imu[start].time_s + interval_s;
-    let in_window = |t: f64| plan.windows.iter().any(|&(a, b)| t >= a && t < b);
-    let free = plan.free_ins_in_windows;
-    let withheld = |t: f64| !free && in_window(t);
-    // The free INS of the current window (free mode only).
-    let mut free_ins: Option<NedFilter> = None;
-    let nhc = &cfg.constraints;
-    let nhc_interval = 1.0 / nhc.non_holonomic_rate_hz;
-    let mut next_nhc = imu[start].time_s + nhc_interval;
-    // The time of the IMU sample being processed, for the error message.
-    let mut now = imu[start].time_s;
-    let pass = (|| -> Result<(), EstimationError> {
-        for k in start + 1..imu.len() {
-            let (a, b) = (&imu[k - 1], &imu[k]);
-            now = b.time_s;
-            let mut t = a.time_s;
-            let (mut w0, mut f0) = (a.angular_rate, a.specific_force);
-            let dt_total = b.time_s - a.time_s;
-            loop {
-                let split = next < gnss.len() && gnss[next].time_s <= b.time_s;
-                let t_end = if split { gnss[next].time_s } else { b.time_s };
-                let frac = (t_end - a.time_s) / dt_total;
-                let w1 = a.angular_rate + (b.angular_rate - a.angular_rate) * frac;
-                let f1 = a.specific_force + (b.specific_force - a.specific_force) * frac;
-                let dt = t_end - t;
-                if dt > 0.0 {
-                    let inc = ImuIncrement {
-                        dt_s: dt,
-                        delta_angle: (w0 + w1) * (0.5 * dt),
-                        delta_velocity: (f0 + f1) * (0.5 * dt),
-                    };
-                    if free && in_window(t_end) {
-                        free_ins
-                            .get_or_insert_with(|| filter.clone())
-                            .coast_uncorrected(&inc);
-                    } else if free {
-                        free_ins = None;
-                    }
-                    filter.propagate(&inc)?;
-                }
-                t = t_end;
-                w0 = w1;
-                f0 = f1;
-                if interval_s > 0.0 && t >= next_row {
-                    while next_row <= t {
-                        next_row += interval_s;
-                    }
-                    if !split {
-                        between.push(SolutionRow::of(&filter, t));
-                    }
-                }
-                if nhc.non_holonomic && t >= next_nhc {
-                    next_nhc += nhc_interval;
-                    if filter.state().velocity.norm() > nhc.min_speed_mps {
-                        filter.update_non_holonomic(nhc.non_holonomic_sigma_mps)?;
-                    }
-                }
-                if !split {
-                    break;
-                }
-                let g = &gnss[next];
-                let (mut nis, mut outcome) = (f64::NAN, None);
-                let mut innovation = Vector3::repeat(f64::NAN);
-                let mut convergence = f64::NAN;
-                if plan.monitor {
-                    filter.begin_epoch()?;
-                }
-                let fed_back_before = *filter.fed_back();
-                if !withheld(g.time_s) {
-                    let mut fix = g.position;
-                    if let Some(Some(o)) = plan.outliers.get(next) {
-                        fix = fix.offset_by(o);
-                    }
-                    let s = g.position_sigma_neu;
-                    let sigma =
-                        Vector3::new(s.x, s.y, s.z).map(|v| v.max(cfg.gnss.min_position_sigma_m));
-                    let rec = filter.update_position_with(&fix, &sigma, &mut position_policy)?;
-                    nis = rec.nis;
-                    outcome = Some(rec.outcome);
-                    innovation = rec.residual;
-                    if cfg.gnss.use_velocity
-                        && let (Some(v), Some(sv)) = (g.velocity_ned, g.velocity_sigma_neu)
-                    {
-                        let sv = sv.map(|x| x.max(cfg.gnss.min_velocity_sigma_mps));
-                        filter.update_velocity_with(&v, &sv, &mut velocity_policy)?;
-                    }
-                } else {
-                    filter.position_fix_missing()?;
-                }
-                if plan.monitor {
-                    convergence = filter.instrument_convergence().unwrap_or(f64::NAN);
-                }
-                let reporting = match &free_ins {
-                    Some(f) if in_window(g.time_s) => f,
-                    _ => &filter,
-                };
-                let row = SolutionRow::of(reporting, g.time_s);
-                let bridged = if !bridging {
-                    None
-                } else if withheld(g.time_s) {
-                    bridge.bridged(g.time_s, &row.antenna, &bridge_cfg)
-                } else {
-                    bridge.record(g.time_s, &(filter.fed_back() - fed_back_before));
-                    None
-                };
-                let sigma_gnss = cfg.efficiency.sigma_gnss_m.unwrap_or_else(|| {
-                    g.position_sigma_neu
-                        .map(|v| v.max(cfg.gnss.min_position_sigma_m))
-                        .norm()
-                });
-                epochs.push(Epoch {
-                    index: next,
-                    antenna: row.antenna,
-                    velocity: row.velocity,
-                    attitude: row.attitude,
-                    sigma: row.sigma,
-                    nis,
-                    innovation,
-                    outcome,
-                    instruments: *reporting.instruments(),
-                    smoothed_antenna: None,
-                    convergence,
-                    k_eff: aidnav_supervisors::efficiency::EfficiencyCriterion { sigma_gnss }
-                        .coefficient(row.sigma.norm()),
-                    bridged,
-                    record_index: filter.recorded_epoch(),
-                });
-                next += 1;
-            }
-        }
-        Ok(())
-    })();
-    pass.map_err(|e| {
+    let mut bridge = bridging.then(|| BridgeObserver::new(cfg.outage_bridge.bridge()));
+    let mut position_policy = policy.policy(&cfg.gnss.scheme_parameters());
+    let mut velocity_policy = policy.policy(&cfg.gnss.scheme_parameters());
+    let mut observers: Vec<&mut dyn EpochObserver> = vec![&mut collector];
+    if let Some(f) = free.as_mut() {
+        observers.push(f);
+    }
+    if let Some(b) = bridge.as_mut() {
+        observers.push(b);
+    }
+    run_loop(
+        &mut filter,
+        imu,
+        start,
+        &fixes,
+        &loop_config(cfg, plan, interval_s),
+        &mut LoopPolicies {
+            position: &mut position_policy,
+            velocity: &mut velocity_policy,
+        },
+        &mut observers,
+    )
+    .map_err(|e| {
         ProcessError::Data(format!(
-            "the filter failed {:.2} s after the first IMU sample (t = {now:.3} s): {e}",
-            now - imu[0].time_s
+            "the filter failed {:.2} s after the first IMU sample (t = {:.3} s): {}",
+            e.time_s - imu[0].time_s,
+            e.time_s,
+            e.source
         ))
     })?;
-    if smooth {
-        let states = filter.smoothed_states()?.ok_or_else(|| {
-            ProcessError::Data(format!(
-                "the log is too long to smooth: more than {MAX_RECORDED_EPOCHS} covariance epochs ({} MB)",
-                (MAX_RECORDED_EPOCHS * aidnav_integration::ned::BYTES_PER_RECORDED_EPOCH) >> 20
-            ))
-        })?;
-        for e in &mut epochs {
-            e.smoothed_antenna = e.record_index.map(|i| filter.antenna_of(&states[i]));
-        }
-    }
-    Ok(Run { epochs, between })
-}
-
-/// The history of the accumulated GNSS corrections and, in an outage, the
-/// predictors built from it (see [`OutageBridgeConfig`]).
-#[derive(Debug, Default)]
-struct BridgeState {
-    times: Vec<f64>,
-    /// Accumulated GNSS correction at each time: position (NED, m),
-    /// velocity (NED, m/s).
-    history: [Vec<f64>; 6],
-    active: Option<ActiveBridge>,
-}
-
-/// The predictors of the current outage and the running integral of each
-/// one's predicted velocity increment.
-#[derive(Debug)]
-struct ActiveBridge {
-    /// Per channel (None: too little history to build the predictors).
-    channels: Option<Vec<OutageBridge>>,
-    last_t: f64,
-    last_dv: [Vector3<f64>; 4],
-    integral: [Vector3<f64>; 4],
-}
-
-impl BridgeState {
-    /// An epoch with GNSS: add its corrections (the estimate fed back by
-    /// its updates) to the history; any outage is over.
-    fn record(&mut self, t: f64, fed_back: &Vector21) {
-        self.active = None;
-        for (c, h) in self.history.iter_mut().enumerate() {
-            let i = if c < 3 {
-                POSITION + c
-            } else {
-                VELOCITY + c - 3
-            };
-            let total = h.last().copied().unwrap_or(0.0);
-            h.push(total + fed_back[i]);
-        }
-        self.times.push(t);
-    }
-
-    /// An epoch inside an outage: the antenna position each predictor
-    /// gives (None when the predictors could not be built).
-    fn bridged(&mut self, t: f64, antenna: &Geodetic, cfg: &BridgeConfig) -> Option<[Geodetic; 4]> {
-        let (times, history) = (&self.times, &self.history);
-        let active = self.active.get_or_insert_with(|| {
-            let channels = history
-                .iter()
-                .map(|h| OutageBridge::start(times, h, cfg).ok())
-                .collect::<Option<Vec<_>>>();
-            ActiveBridge {
-                channels,
-                last_t: times.last().copied().unwrap_or(t),
-                last_dv: [Vector3::zeros(); 4],
-                integral: [Vector3::zeros(); 4],
+    drop(observers);
+    let mut epochs: Vec<Epoch> = collector
+        .fixes
+        .iter()
+        .enumerate()
+        .map(|(k, rec)| {
+            let fix = gnss[rec.index];
+            match free.as_ref().and_then(|f| f.rows[k]) {
+                Some((row, instruments)) => {
+                    let k_eff = EfficiencyCriterion {
+                        sigma_gnss: rec.sigma_gnss_m,
+                    }
+                    .coefficient(row.sigma.norm());
+                    Epoch::of(fix, rec, &row, instruments, k_eff)
+                }
+                None => Epoch::of(fix, rec, &rec.row, rec.instruments, rec.k_eff),
             }
-        });
-        let channels = active.channels.as_ref()?;
-        let increment = |p: Predictor, c: usize| channels[c].predict_increment(p, t);
-        let mut out = [*antenna; 4];
-        for (k, &p) in BRIDGE_PREDICTORS.iter().enumerate() {
-            let dp = Vector3::new(increment(p, 0), increment(p, 1), increment(p, 2));
-            let dv = Vector3::new(increment(p, 3), increment(p, 4), increment(p, 5));
-            // Trapezoid over the epochs: the predicted velocity error
-            // integrates into position.
-            active.integral[k] += (active.last_dv[k] + dv) * (0.5 * (t - active.last_t));
-            active.last_dv[k] = dv;
-            out[k] = antenna.offset_by(&-(dp + active.integral[k]));
+        })
+        .collect();
+    if let Some(b) = &bridge {
+        for (e, bridged) in epochs.iter_mut().zip(&b.bridged) {
+            e.bridged = *bridged;
         }
-        active.last_t = t;
-        Some(out)
     }
+    if smoothing(cfg, plan) {
+        smooth(&filter, &mut epochs)?;
+    }
+    Ok(Run {
+        epochs,
+        between: collector.rows,
+    })
+}
+
+/// Add the RTS-smoothed antenna position to every recorded epoch.
+fn smooth(filter: &NedFilter, epochs: &mut [Epoch]) -> Result<(), ProcessError> {
+    let states = filter.smoothed_states()?.ok_or_else(|| {
+        ProcessError::Data(format!(
+            "the log is too long to smooth: more than {MAX_RECORDED_EPOCHS} covariance epochs ({} MB)",
+            (MAX_RECORDED_EPOCHS * aidnav_integration::ned::BYTES_PER_RECORDED_EPOCH) >> 20
+        ))
+    })?;
+    for e in epochs {
+        e.smoothed_antenna = e.record_index.map(|i| filter.antenna_of(&states[i]));
+    }
+    Ok(())
 }
 
 /// Most covariance epochs a smoothing run keeps (≈ 4 GiB; about five hours
@@ -452,60 +372,7 @@ pub const MAX_RECORDED_EPOCHS: usize =
 
 #[cfg(test)]
 mod tests {
-    use super::super::config::OutageBridgeConfig;
     use super::*;
-
-    /// A history whose velocity correction grows linearly (the INS kept
-    /// needing a = 0.01 m/s² of north correction) is bridged, by the trend,
-    /// with the position correction a τ²/2 — exactly, since the line fits
-    /// the history exactly and the trapezoid rule is exact for it; the relay
-    /// holds (no correction) up to T1, then follows the trend's increment.
-    #[test]
-    fn bridge_integrates_the_extrapolated_velocity_correction() {
-        let cfg = OutageBridgeConfig::default().bridge();
-        let (a, dt) = (0.01, 0.25);
-        let mut state = BridgeState::default();
-        for k in 0..400 {
-            let mut fed_back = Vector21::zeros();
-            if k > 0 {
-                fed_back[VELOCITY] = a * dt;
-            }
-            state.record(k as f64 * dt, &fed_back);
-        }
-        let t0 = 399.0 * dt;
-        let antenna = Geodetic {
-            latitude_rad: 0.5,
-            longitude_rad: 0.2,
-            height_m: 30.0,
-        };
-        for k in 1..=120 {
-            let tau = k as f64 * dt;
-            let bridged = state.bridged(t0 + tau, &antenna, &cfg).unwrap();
-            let north = |g: &Geodetic| antenna.ned_to(g).x;
-            let trend = north(&bridged[0]);
-            assert!(
-                (trend + 0.5 * a * tau * tau).abs() < 1e-6,
-                "τ = {tau}: {trend}"
-            );
-            let relay = north(&bridged[3]);
-            if tau <= cfg.relay.t1_s {
-                assert_eq!(relay, 0.0, "τ = {tau}");
-            } else if tau <= cfg.relay.t2_s {
-                // From T1 the relay's velocity increment is the trend's; its
-                // integral lacks the trend's first T1 seconds, less half a
-                // step's worth at the switch (the trapezoid spans the jump).
-                let lacking = 0.5 * a * cfg.relay.t1_s * cfg.relay.t1_s;
-                let d = relay - trend;
-                assert!(
-                    d >= lacking - 1e-6 && d <= lacking + 0.5 * a * cfg.relay.t1_s * dt + 1e-6,
-                    "τ = {tau}: {d} vs {lacking}"
-                );
-            }
-        }
-        // GNSS is back: the outage is over, the next one starts afresh.
-        state.record(t0 + 31.0, &Vector21::zeros());
-        assert!(state.active.is_none());
-    }
 
     #[test]
     fn policy_names_are_the_configuration_names() {

@@ -42,18 +42,13 @@ pub struct OutageScore {
 }
 
 /// Score a run's epochs inside windows against the withheld RTK-fixed fixes.
-pub fn score_windows(
-    gnss: &[GnssFix],
-    epochs: &[Epoch],
-    windows: &[(f64, f64)],
-    length_s: f64,
-) -> OutageScore {
+pub fn score_windows(epochs: &[Epoch], windows: &[(f64, f64)], length_s: f64) -> OutageScore {
     let mut maxima: Vec<[f64; 3]> = Vec::new();
     for &(a, b) in windows {
         let mut m = [0.0f64; 3];
         let mut any = false;
         for e in epochs {
-            let g = &gnss[e.index];
+            let g = &e.fix;
             if g.time_s < a || g.time_s >= b || !is_reference(g) {
                 continue;
             }
@@ -80,7 +75,7 @@ pub fn score_windows(
 }
 
 /// The outage-window epochs with each epoch's antenna replaced by the
-/// position bridged by predictor `k` of \[`BRIDGE_PREDICTORS`\] (epochs
+/// position bridged by predictor `k` of [`super::BRIDGE_PREDICTORS`] (epochs
 /// without a bridge keep the coasting filter's).
 pub fn bridged_epochs(epochs: &[Epoch], k: usize) -> Vec<Epoch> {
     epochs
@@ -117,7 +112,6 @@ pub struct EfficiencyScore {
 
 /// The efficiency criterion of a run with outage windows (see [`EfficiencyScore`]).
 pub fn efficiency_in_windows(
-    gnss: &[GnssFix],
     epochs: &[Epoch],
     windows: &[(f64, f64)],
     length_s: f64,
@@ -127,13 +121,13 @@ pub fn efficiency_in_windows(
     for &(a, b) in windows {
         let inside: Vec<&Epoch> = epochs
             .iter()
-            .filter(|e| (a..b).contains(&gnss[e.index].time_s))
+            .filter(|e| (a..b).contains(&e.fix.time_s))
             .collect();
         if inside.is_empty() {
             continue;
         }
         n += 1;
-        let age = |e: &Epoch| gnss[e.index].time_s - a;
+        let age = |e: &Epoch| e.fix.time_s - a;
         let sigma_gnss = |e: &Epoch| e.k_eff * e.sigma.norm();
         for e in &inside {
             sigma_sum += sigma_gnss(e);
@@ -145,8 +139,7 @@ pub fn efficiency_in_windows(
             (
                 &mut actual,
                 first(&|e| {
-                    is_reference(&gnss[e.index])
-                        && gnss[e.index].position.ned_to(&e.antenna).norm() > sigma_gnss(e)
+                    is_reference(&e.fix) && e.fix.position.ned_to(&e.antenna).norm() > sigma_gnss(e)
                 }),
             ),
         ] {
@@ -173,31 +166,22 @@ fn is_reference(g: &GnssFix) -> bool {
 }
 
 /// RMS 3-D error over all RTK-fixed epochs against the clean fixes.
-pub fn tracking_rms(gnss: &[GnssFix], epochs: &[Epoch]) -> f64 {
-    let (sum, n) =
-        epochs
-            .iter()
-            .filter(|e| is_reference(&gnss[e.index]))
-            .fold((0.0, 0usize), |(s, n), e| {
-                (
-                    s + gnss[e.index].position.ned_to(&e.antenna).norm_squared(),
-                    n + 1,
-                )
-            });
+pub fn tracking_rms(epochs: &[Epoch]) -> f64 {
+    let (sum, n) = epochs
+        .iter()
+        .filter(|e| is_reference(&e.fix))
+        .fold((0.0, 0usize), |(s, n), e| {
+            (s + e.fix.position.ned_to(&e.antenna).norm_squared(), n + 1)
+        });
     (sum / n.max(1) as f64).sqrt()
 }
 
 /// Flight times (since the first epoch) at which spec 10's switch rule —
 /// δ(n) non-increasing for `falling_s`, then ≤ threshold for 5 epochs —
 /// declares the instrument errors converged, per threshold (None: never).
-pub fn convergence_times(
-    gnss: &[GnssFix],
-    epochs: &[Epoch],
-    thresholds: &[f64],
-    falling_s: f64,
-) -> Vec<Option<f64>> {
+pub fn convergence_times(epochs: &[Epoch], thresholds: &[f64], falling_s: f64) -> Vec<Option<f64>> {
     use aidnav_supervisors::convergence::{ConvergenceSwitch, SwitchRule};
-    let Some(t0) = epochs.first().map(|e| gnss[e.index].time_s) else {
+    let Some(t0) = epochs.first().map(|e| e.fix.time_s) else {
         return vec![None; thresholds.len()];
     };
     thresholds
@@ -212,7 +196,7 @@ pub fn convergence_times(
                 .iter()
                 .filter(|e| e.convergence.is_finite())
                 .find_map(|e| {
-                    let t = gnss[e.index].time_s - t0;
+                    let t = e.fix.time_s - t0;
                     switch.observe(t, e.convergence).then_some(t)
                 })
         })
@@ -221,13 +205,13 @@ pub fn convergence_times(
 
 /// RMS 3-D error over the RTK-fixed epochs where GNSS was used (not
 /// withheld), against the clean fixes.
-pub fn tracking_rms_with_gnss(gnss: &[GnssFix], epochs: &[Epoch]) -> f64 {
+pub fn tracking_rms_with_gnss(epochs: &[Epoch]) -> f64 {
     let used: Vec<Epoch> = epochs
         .iter()
         .filter(|e| e.outcome.is_some())
         .copied()
         .collect();
-    tracking_rms(gnss, &used)
+    tracking_rms(&used)
 }
 
 /// One common jump per window for the fixes in [end, end + burst_s) after

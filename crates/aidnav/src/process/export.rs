@@ -1,0 +1,332 @@
+//! A [`ProcessResult`] and its optional [`Scores`] as the files `aidnav
+//! process` writes: `solution.csv`, `navresult.txt` (optional),
+//! `smoothed.csv`, `trajectory.svg`, `instruments.csv`, `innovations.svg`,
+//! `outage_drift.svg` (with scores) and `summary.json`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use aidnav_estimation::Outcome;
+use aidnav_frames::earth::Geodetic;
+use aidnav_io::IoError;
+use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
+use aidnav_io::writers::{Summary, ensure_dir, write_table};
+use serde::Serialize;
+
+use super::api::ProcessResult;
+use super::config::ProcessConfig;
+use super::run::{Epoch, SolutionRow};
+use super::scoring::Scores;
+
+/// Write every file of a result (and of its scores) into `out`, in the
+/// order `aidnav process` lists them; `navresult` adds `navresult.txt`.
+pub fn write_files(
+    result: &ProcessResult,
+    scores: Option<&Scores>,
+    out: &Path,
+    navresult: bool,
+) -> Result<Vec<PathBuf>, IoError> {
+    ensure_dir(out)?;
+    let mut files = Vec::new();
+    let solution = out.join("solution.csv");
+    write_solution(&solution, &result.epochs, &result.between)?;
+    files.push(solution);
+    if navresult {
+        let path = out.join("navresult.txt");
+        write_navresult(&path, &result.epochs, &result.between)?;
+        files.push(path);
+    }
+    if !result.smoothed.is_empty() {
+        let path = out.join("smoothed.csv");
+        write_smoothed(&path, &result.smoothed)?;
+        files.push(path);
+    }
+    let path = out.join("trajectory.svg");
+    trajectory_chart(result).write_svg(&path)?;
+    files.push(path);
+    let path = out.join("instruments.csv");
+    write_instruments(&path, &result.epochs)?;
+    files.push(path);
+    let path = out.join("innovations.svg");
+    innovations_chart(result).write_svg(&path)?;
+    files.push(path);
+    if let Some(scores) = scores {
+        let path = out.join("outage_drift.svg");
+        drift_chart(scores).write_svg(&path)?;
+        files.push(path);
+    }
+    Ok(files)
+}
+
+/// Write `summary.json` with the configuration and `report` as its result.
+pub fn write_summary(
+    out: &Path,
+    cfg: &ProcessConfig,
+    report: &impl Serialize,
+) -> Result<PathBuf, IoError> {
+    let mut summary = Summary::new("process", crate::VERSION, Some(cfg.score.seed), cfg);
+    summary.insert("result", report);
+    summary.write(out)
+}
+
+/// Write `solution.csv`: per GNSS epoch the antenna position, NED velocity,
+/// attitude, σ, NIS, δ(n), K_eff, innovation and update outcome; merged in
+/// time order with the rows `between` the epochs (NaN where a column needs
+/// a fix, outcome 0).
+pub fn write_solution(
+    path: &Path,
+    epochs: &[Epoch],
+    between: &[SolutionRow],
+) -> Result<(), IoError> {
+    let navigation = |row: &SolutionRow| {
+        let (r, p, y) = row.attitude.euler_angles();
+        vec![
+            row.time_s,
+            row.antenna.latitude_rad.to_degrees(),
+            row.antenna.longitude_rad.to_degrees(),
+            row.antenna.height_m,
+            row.velocity.x,
+            row.velocity.y,
+            row.velocity.z,
+            r.to_degrees(),
+            p.to_degrees(),
+            y.to_degrees(),
+            row.sigma.x,
+            row.sigma.y,
+            row.sigma.z,
+        ]
+    };
+    let epoch_rows = epochs.iter().map(|e| {
+        let mut row = navigation(&e.row());
+        row.extend([e.nis, e.convergence, e.k_eff]);
+        row.extend(e.innovation.iter());
+        row.push(match e.outcome {
+            Some(Outcome::Accepted) => 1.0,
+            Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
+            Some(Outcome::Rejected) => 3.0,
+            _ => 0.0,
+        });
+        row
+    });
+    let other_rows = between.iter().map(|b| {
+        let mut row = navigation(b);
+        // No fix: NIS, δ, K_eff, innovation are NaN, outcome 0.
+        row.extend([f64::NAN; 6]);
+        row.push(0.0);
+        row
+    });
+    let rows = merge_in_time(epoch_rows, other_rows, |row| row[0]);
+    write_table(
+        path,
+        &[
+            "time [s GPST since 1970]",
+            "latitude [deg]",
+            "longitude [deg]",
+            "height [m]",
+            "vn [m/s]",
+            "ve [m/s]",
+            "vd [m/s]",
+            "roll [deg]",
+            "pitch [deg]",
+            "yaw [deg]",
+            "sigma_n [m]",
+            "sigma_e [m]",
+            "sigma_d [m]",
+            "nis",
+            "delta (Cramér–Rao convergence of the instruments)",
+            "k_eff (sigma_gnss / sigma_filter, 3-D)",
+            "innovation_n [m]",
+            "innovation_e [m]",
+            "innovation_d [m]",
+            "outcome (1 accepted, 2 limited, 3 rejected, 0 no fix)",
+        ],
+        rows,
+    )
+}
+
+/// Write `navresult.txt` in KF-GINS's layout: the GNSS epochs and the rows
+/// between them, in time order.
+pub fn write_navresult(
+    path: &Path,
+    epochs: &[Epoch],
+    between: &[SolutionRow],
+) -> Result<(), IoError> {
+    let mut text = String::new();
+    let rows = merge_in_time(
+        epochs.iter().map(Epoch::row),
+        between.iter().copied(),
+        |r| r.time_s,
+    );
+    for e in rows {
+        let gps = e.time_s - 315_964_800.0;
+        let week = (gps / 604_800.0).floor();
+        let (r, p, y) = e.attitude.euler_angles();
+        let _ = writeln!(
+            text,
+            "{:.0} {:.3} {:.9} {:.9} {:.4} {:.4} {:.4} {:.4} {:.5} {:.5} {:.5}",
+            week,
+            gps - week * 604_800.0,
+            e.antenna.latitude_rad.to_degrees(),
+            e.antenna.longitude_rad.to_degrees(),
+            e.antenna.height_m,
+            e.velocity.x,
+            e.velocity.y,
+            e.velocity.z,
+            r.to_degrees(),
+            p.to_degrees(),
+            y.to_degrees()
+        );
+    }
+    std::fs::write(path, text).map_err(|e| IoError::Write {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Write `smoothed.csv`: time and the smoothed antenna position.
+pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<(), IoError> {
+    write_table(
+        path,
+        &[
+            "time [s GPST since 1970]",
+            "latitude [deg]",
+            "longitude [deg]",
+            "height [m]",
+        ],
+        smoothed.iter().map(|e| {
+            vec![
+                e.time_s(),
+                e.antenna.latitude_rad.to_degrees(),
+                e.antenna.longitude_rad.to_degrees(),
+                e.antenna.height_m,
+            ]
+        }),
+    )
+}
+
+/// Write `instruments.csv`: the instrument corrections after every epoch.
+pub fn write_instruments(path: &Path, epochs: &[Epoch]) -> Result<(), IoError> {
+    write_table(
+        path,
+        &[
+            "time [s GPST since 1970]",
+            "gyro_bias_x [deg/h]",
+            "gyro_bias_y [deg/h]",
+            "gyro_bias_z [deg/h]",
+            "accel_bias_x [mg]",
+            "accel_bias_y [mg]",
+            "accel_bias_z [mg]",
+            "gyro_scale_x [ppm]",
+            "gyro_scale_y [ppm]",
+            "gyro_scale_z [ppm]",
+            "accel_scale_x [ppm]",
+            "accel_scale_y [ppm]",
+            "accel_scale_z [ppm]",
+        ],
+        epochs.iter().map(|e| {
+            let i = &e.instruments;
+            let mut row = vec![e.time_s()];
+            row.extend(i.gyro_bias.iter().map(|v| v.to_degrees() * 3600.0));
+            row.extend(i.accel_bias.iter().map(|v| v / 9.806_65 * 1e3));
+            row.extend(i.gyro_scale.iter().map(|v| v * 1e6));
+            row.extend(i.accel_scale.iter().map(|v| v * 1e6));
+            row
+        }),
+    )
+}
+
+/// GNSS fixes and the filter's antenna position, east/north of the first fix.
+pub fn trajectory_chart(result: &ProcessResult) -> LineChart {
+    let origin = result.fix_track[0];
+    let ne = |g: &Geodetic| {
+        let d = origin.ned_to(g);
+        (d.y, d.x)
+    };
+    LineChart {
+        title: "Trajectory: GNSS fixes and the filter's antenna position".into(),
+        x_label: "east [m]".into(),
+        y_label: "north [m]".into(),
+        series: vec![
+            Series {
+                label: "GNSS (RTK)".into(),
+                points: result.fix_track.iter().map(ne).collect(),
+                style: LineStyle::Points,
+                color: TRUTH_COLOR,
+            },
+            Series {
+                label: "aidnav".into(),
+                points: result.epochs.iter().map(|e| ne(&e.antenna)).collect(),
+                style: LineStyle::Solid,
+                color: 0,
+            },
+        ],
+        log_y: false,
+    }
+}
+
+/// The position innovations (N, E, D) against time since the first fix.
+pub fn innovations_chart(result: &ProcessResult) -> LineChart {
+    let t0 = result.first_fix_time_s;
+    LineChart {
+        title: "GNSS position innovations (antenna estimate − fix)".into(),
+        x_label: "time since the first fix [s]".into(),
+        y_label: "innovation [m]".into(),
+        series: ["north", "east", "down"]
+            .iter()
+            .enumerate()
+            .map(|(k, name)| Series {
+                label: (*name).into(),
+                points: result
+                    .epochs
+                    .iter()
+                    .filter(|e| e.innovation[k].is_finite())
+                    .map(|e| (e.time_s() - t0, e.innovation[k]))
+                    .collect(),
+                style: LineStyle::Solid,
+                color: k,
+            })
+            .collect(),
+        log_y: false,
+    }
+}
+
+/// The coasting filter's 3-D error and 3σ through each outage length's windows.
+pub fn drift_chart(scores: &Scores) -> LineChart {
+    let mut series = Vec::new();
+    for (k, d) in scores.drift.iter().enumerate() {
+        series.push(Series {
+            label: format!("{:.0} s outages", d.outage_s),
+            points: d.error_m.clone(),
+            style: LineStyle::Solid,
+            color: k,
+        });
+        series.push(Series {
+            label: format!("{:.0} s outages: 3σ", d.outage_s),
+            points: d.three_sigma_m.clone(),
+            style: LineStyle::Dashed,
+            color: k,
+        });
+    }
+    LineChart {
+        title: "3-D antenna error with simulated GNSS outages (filter coasting)".into(),
+        x_label: "time since the first IMU sample [s]".into(),
+        y_label: "3-D error [m]".into(),
+        series,
+        log_y: true,
+    }
+}
+
+/// Two sequences, each in time order, merged in time order (the first's
+/// item first on equal times) as they are consumed.
+fn merge_in_time<T>(
+    a: impl Iterator<Item = T>,
+    b: impl Iterator<Item = T>,
+    time: impl Fn(&T) -> f64,
+) -> impl Iterator<Item = T> {
+    let (mut a, mut b) = (a.peekable(), b.peekable());
+    std::iter::from_fn(move || match (a.peek(), b.peek()) {
+        (Some(x), Some(y)) if time(x) <= time(y) => a.next(),
+        (Some(_), None) => a.next(),
+        _ => b.next(),
+    })
+}

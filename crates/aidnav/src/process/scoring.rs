@@ -1,0 +1,249 @@
+//! Every scoring run of a log: simulated outages (coasting filter, free INS,
+//! smoothed, bridged), the efficiency criterion, injected outliers under
+//! every policy, bursts after outages. Each run prepares its plan
+//! ([`RunPlan`]) and runs the ordinary loop; the runs go in parallel.
+
+use std::sync::Mutex;
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::config::{BRIDGE_PREDICTORS, PolicyName};
+use super::run::{Epoch, RunPlan, run_filter};
+use super::score::{
+    EfficiencyScore, OutageScore, bridged_epochs, efficiency_in_windows, inject_outliers,
+    outage_windows, post_outage_bursts, score_windows, tracking_rms, tracking_rms_with_gnss,
+};
+use super::{Inputs, ProcessConfig, ProcessError};
+
+/// Outage scores of one bridging predictor.
+#[derive(Debug, Clone, Serialize)]
+pub struct BridgedScores {
+    /// The predictor.
+    pub predictor: aidnav_supervisors::outage::Predictor,
+    /// Per outage length, as the coasting filter's.
+    pub scores: Vec<OutageScore>,
+}
+
+/// The 3-D antenna error of the coasting filter through one outage length's
+/// windows, for the drift plot (time since the first IMU sample \[s\]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DriftSeries {
+    /// L \[s\].
+    pub outage_s: f64,
+    /// (time, 3-D error \[m\], floored at 1 mm) per epoch.
+    pub error_m: Vec<(f64, f64)>,
+    /// (time, 3σ of the 3-D position \[m\], floored at 1 mm) per epoch.
+    pub three_sigma_m: Vec<(f64, f64)>,
+}
+
+/// Everything scoring measures (see [`super::Process::score`]).
+#[derive(Debug, Clone, Default)]
+pub struct Scores {
+    /// Outage scores (filter coasting), per length.
+    pub outages: Vec<OutageScore>,
+    /// Outage scores of the RTS-smoothed solution (with `output.smooth`).
+    pub outages_smoothed: Vec<OutageScore>,
+    /// Outage scores of the free INS (raw IMU, no instrument correction).
+    pub outages_free_ins: Vec<OutageScore>,
+    /// Outage scores with spec 20's predictors bridging the windows (with
+    /// `outage_bridge.enabled`), per predictor.
+    pub outages_bridged: Vec<BridgedScores>,
+    /// Spec 20's efficiency criterion in the outage windows, per length.
+    pub efficiency: Vec<EfficiencyScore>,
+    /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
+    pub anomalies: Vec<(f64, PolicyName, f64)>,
+    /// (policy, RMS 3-D error over the RTK-fixed epochs with GNSS) with the
+    /// 30 s outages and a burst after each; and the same without bursts.
+    pub post_outage_bursts: Vec<(PolicyName, f64, f64)>,
+    /// The coasting filter's drift per outage length.
+    pub drift: Vec<DriftSeries>,
+    /// Runs that failed (their score is NaN), and why.
+    pub warnings: Vec<String>,
+}
+
+/// Score a log: every table of [`Scores`].
+pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, ProcessError> {
+    let mut scores = Scores::default();
+    outage_scores(cfg, inputs, &mut scores)?;
+    // A policy other than the configured one may make the filter fail
+    // on corrupted data (eq. 4's gain, say): that is a result of the
+    // table (NaN, and a warning saying why), not a reason to stop.
+    let failures = Mutex::new(Vec::new());
+    let scored_or_nan = |what: String, run: Result<f64, ProcessError>| {
+        run.unwrap_or_else(|e| {
+            failures
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .push(format!("{what}: {e}"));
+            f64::NAN
+        })
+    };
+    scores.anomalies = anomaly_scores(cfg, inputs, &scored_or_nan);
+    scores.post_outage_bursts = burst_scores(cfg, inputs, &scored_or_nan);
+    scores.warnings = failures
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    Ok(scores)
+}
+
+/// (L, free INS?, the windows of L)
+type OutagePlan = (f64, bool, Vec<(f64, f64)>);
+
+/// (L, free INS?, score, score of the smoothed solution, epochs)
+type Scored = (f64, bool, OutageScore, Option<OutageScore>, Vec<Epoch>);
+
+/// The outage tables and the drift series.
+fn outage_scores(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    scores: &mut Scores,
+) -> Result<(), ProcessError> {
+    let first = inputs.imu[0].time_s;
+    let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
+    let plans: Vec<OutagePlan> = cfg
+        .score
+        .outages_s
+        .iter()
+        .flat_map(|&l| {
+            let windows = outage_windows(&cfg.score, first, last, l);
+            [(l, false, windows.clone()), (l, true, windows)]
+        })
+        .collect();
+    let scored: Vec<Scored> = plans
+        .par_iter()
+        .map(|(l, free, windows)| {
+            let (l, free) = (*l, *free);
+            let plan = RunPlan {
+                windows: windows.clone(),
+                free_ins_in_windows: free,
+                smooth: cfg.output.smooth,
+                bridge: cfg.outage_bridge.enabled,
+                ..RunPlan::default()
+            };
+            let epochs = run_filter(cfg, inputs, &plan, cfg.gnss.policy)?;
+            let smoothed: Vec<Epoch> = epochs.iter().filter_map(|e| e.smoothed()).collect();
+            Ok((
+                l,
+                free,
+                score_windows(&epochs, windows, l),
+                (!smoothed.is_empty()).then(|| score_windows(&smoothed, windows, l)),
+                epochs,
+            ))
+        })
+        .collect::<Result<_, ProcessError>>()?;
+    if cfg.outage_bridge.enabled {
+        scores.outages_bridged = BRIDGE_PREDICTORS
+            .iter()
+            .map(|&predictor| BridgedScores {
+                predictor,
+                scores: Vec::new(),
+            })
+            .collect();
+    }
+    for ((l, free, s, smoothed, epochs), (_, _, windows)) in scored.into_iter().zip(&plans) {
+        if free {
+            scores.outages_free_ins.push(s);
+            continue;
+        }
+        for (k, b) in scores.outages_bridged.iter_mut().enumerate() {
+            let bridged = bridged_epochs(&epochs, k);
+            b.scores.push(score_windows(&bridged, windows, l));
+        }
+        scores
+            .efficiency
+            .push(efficiency_in_windows(&epochs, windows, l));
+        scores.drift.push(DriftSeries {
+            outage_s: l,
+            error_m: epochs
+                .iter()
+                .map(|e| {
+                    (
+                        e.fix.time_s - first,
+                        e.fix.position.ned_to(&e.antenna).norm().max(1e-3),
+                    )
+                })
+                .collect(),
+            three_sigma_m: epochs
+                .iter()
+                .map(|e| (e.fix.time_s - first, (3.0 * e.sigma.norm()).max(1e-3)))
+                .collect(),
+        });
+        scores.outages_smoothed.extend(smoothed);
+        scores.outages.push(s);
+    }
+    Ok(())
+}
+
+/// Injected outliers under every policy: (fraction, policy, RMS).
+fn anomaly_scores(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    scored_or_nan: &(dyn Fn(String, Result<f64, ProcessError>) -> f64 + Sync),
+) -> Vec<(f64, PolicyName, f64)> {
+    let policies = PolicyName::ALL;
+    let mut cases: Vec<(f64, PolicyName)> = policies.iter().map(|&p| (0.0, p)).collect();
+    for &f in &cfg.score.outlier_fractions {
+        cases.extend(policies.iter().map(|&p| (f, p)));
+    }
+    cases
+        .par_iter()
+        .map(|&(f, p)| {
+            let plan = RunPlan {
+                outliers: inject_outliers(
+                    inputs.gnss.len(),
+                    f,
+                    cfg.score.outlier_m,
+                    cfg.score.seed,
+                ),
+                ..RunPlan::default()
+            };
+            let run = run_filter(cfg, inputs, &plan, p).map(|epochs| tracking_rms(&epochs));
+            let what = format!("{:.0} % outliers, {}", 100.0 * f, p.name());
+            (f, p, scored_or_nan(what, run))
+        })
+        .collect()
+}
+
+/// 30 s outages with a burst after each, and without, under every policy.
+fn burst_scores(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    scored_or_nan: &(dyn Fn(String, Result<f64, ProcessError>) -> f64 + Sync),
+) -> Vec<(PolicyName, f64, f64)> {
+    // (Written so that a NaN length scores nothing, as `> 0` is false.)
+    let scheduled = cfg.score.post_outage_burst_s > 0.0;
+    if !scheduled {
+        return Vec::new();
+    }
+    let first = inputs.imu[0].time_s;
+    let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
+    let windows = outage_windows(&cfg.score, first, last, 30.0);
+    let bursts = post_outage_bursts(
+        &inputs.gnss,
+        &windows,
+        cfg.score.post_outage_burst_s,
+        cfg.score.outlier_m,
+        cfg.score.seed,
+    );
+    PolicyName::ALL
+        .par_iter()
+        .map(|&p| {
+            let run = |outliers: Vec<Option<Vector3<f64>>>, what: &str| {
+                let plan = RunPlan {
+                    windows: windows.clone(),
+                    outliers,
+                    ..RunPlan::default()
+                };
+                let run = run_filter(cfg, inputs, &plan, p).map(|e| tracking_rms_with_gnss(&e));
+                scored_or_nan(format!("30 s outages {what}, {}", p.name()), run)
+            };
+            (
+                p,
+                run(bursts.clone(), "with bursts"),
+                run(Vec::new(), "without bursts"),
+            )
+        })
+        .collect()
+}

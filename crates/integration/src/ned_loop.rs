@@ -1,0 +1,360 @@
+//! The epoch loop of the NED filter ([`crate::ned`]) over a recorded log:
+//! IMU increments by the trapezoid rule ([`aidnav_ins::increments`]), split
+//! at every GNSS epoch so each update is made at the fix's own time,
+//! non-holonomic updates at their rate, solution rows between the fixes.
+//!
+//! The loop knows nothing about scoring: a caller that wants a fix withheld
+//! or corrupted prepares the [`AidingFix`] stream so. The estimator reports,
+//! observers write: every increment, every row between fixes and one
+//! [`FixRecord`] per GNSS epoch go to the [`EpochObserver`]s (a collector,
+//! the outage bridge of [`crate::bridge`], a free INS, …). The loop itself
+//! allocates nothing per IMU sample.
+
+use aidnav_estimation::{EstimationError, MeasurementPolicy, Outcome, nalgebra::U3};
+use aidnav_frames::earth::Geodetic;
+use aidnav_ins::increments::{Rates, trapezoid};
+use aidnav_ins::ned::ImuIncrement;
+use aidnav_ins::samples::{GnssFix, ImuSample};
+use aidnav_models::ned_ins::POSITION;
+use aidnav_supervisors::efficiency::EfficiencyCriterion;
+use nalgebra::{UnitQuaternion, Vector3};
+
+use crate::ned::{InstrumentEstimate, NedFilter};
+
+/// Non-holonomic constraint (no lateral or vertical body velocity).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NonHolonomic {
+    /// Update rate \[Hz\].
+    pub rate_hz: f64,
+    /// σ of the lateral and vertical velocity \[m/s\].
+    pub sigma_mps: f64,
+    /// Applied only above this speed \[m/s\].
+    pub min_speed_mps: f64,
+}
+
+/// What the loop does besides propagating: the GNSS updates' σ floors,
+/// velocity updates, the constraint, rows between fixes, the monitor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopConfig {
+    /// Floor of the fixes' position σ \[m\].
+    pub min_position_sigma_m: f64,
+    /// Update with the fixes' velocity when they have one.
+    pub use_velocity: bool,
+    /// Floor of the fixes' velocity σ \[m/s\].
+    pub min_velocity_sigma_mps: f64,
+    /// The non-holonomic constraint (None: off).
+    pub non_holonomic: Option<NonHolonomic>,
+    /// A row between fixes at the first IMU sample at or after every
+    /// multiple of this interval \[s\] (0: none).
+    pub row_interval_s: f64,
+    /// Compute spec 10's δ(n) at every fix (the filter's monitor must be
+    /// started).
+    pub convergence_monitor: bool,
+    /// σ_GNSS of the efficiency criterion \[m\] (None: each fix's own 3-D σ).
+    pub sigma_gnss_m: Option<f64>,
+}
+
+/// One GNSS epoch as the loop uses it: the fix (possibly corrupted by the
+/// caller) and whether it is withheld (the filter coasts through it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AidingFix {
+    /// The fix.
+    pub fix: GnssFix,
+    /// Withheld: no update at this epoch.
+    pub withheld: bool,
+}
+
+/// The navigation solution at one time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolutionRow {
+    /// GPST, seconds since 1970.
+    pub time_s: f64,
+    /// Antenna position.
+    pub antenna: Geodetic,
+    /// NED velocity.
+    pub velocity: Vector3<f64>,
+    /// Attitude.
+    pub attitude: UnitQuaternion<f64>,
+    /// σ of the position error (N, E, D).
+    pub sigma: Vector3<f64>,
+}
+
+impl SolutionRow {
+    /// The filter's navigation solution at `time_s`: antenna position, the
+    /// solution's velocity and attitude, position σ.
+    pub fn of(filter: &NedFilter, time_s: f64) -> Self {
+        let (antenna, _) = filter.antenna();
+        let solution = filter.solution();
+        let s = filter.sigmas();
+        Self {
+            time_s,
+            antenna,
+            velocity: solution.velocity,
+            attitude: solution.attitude,
+            sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
+        }
+    }
+}
+
+/// What the loop reports at one GNSS epoch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixRecord {
+    /// Index of the fix in the stream.
+    pub index: usize,
+    /// The solution after the epoch (updated or not), at the fix's time.
+    pub row: SolutionRow,
+    /// The fix was withheld.
+    pub withheld: bool,
+    /// Position NIS of the update (NaN when withheld).
+    pub nis: f64,
+    /// Position innovation, antenna estimate minus fix (NED) \[m\] (NaN when withheld).
+    pub innovation: Vector3<f64>,
+    /// What the update did (None: withheld).
+    pub outcome: Option<Outcome>,
+    /// The instrument corrections after the epoch.
+    pub instruments: InstrumentEstimate,
+    /// Spec 10's δ(n) (NaN without the monitor or while singular).
+    pub convergence: f64,
+    /// σ_GNSS of the efficiency criterion at this epoch \[m\].
+    pub sigma_gnss_m: f64,
+    /// Spec 20's K_eff = σ_GNSS / σ_filter (3-D position).
+    pub k_eff: f64,
+    /// The filter's recorded covariance epoch (smoothing runs).
+    pub recorded_epoch: Option<usize>,
+}
+
+/// Receives what the loop reports. Every method but [`EpochObserver::fix`]
+/// does nothing by default.
+pub trait EpochObserver {
+    /// An increment ending at `t_end_s`, before the filter propagates it.
+    fn increment(&mut self, _filter: &NedFilter, _inc: &ImuIncrement, _t_end_s: f64) {}
+    /// A row between fixes.
+    fn row(&mut self, _row: &SolutionRow) {}
+    /// A GNSS epoch is about to be processed (before its updates).
+    fn before_update(&mut self, _filter: &NedFilter) {}
+    /// A GNSS epoch, after its updates.
+    fn fix(&mut self, filter: &NedFilter, record: &FixRecord);
+}
+
+/// The filter failed inside the loop.
+#[derive(Debug, thiserror::Error)]
+#[error("the filter failed at t = {time_s:.3} s: {source}")]
+pub struct LoopError {
+    /// Time of the IMU sample being processed (GPST s).
+    pub time_s: f64,
+    /// The engine's error.
+    pub source: EstimationError,
+}
+
+/// The measurement policies of the position and the velocity updates.
+pub struct LoopPolicies<'a> {
+    /// Position updates.
+    pub position: &'a mut dyn MeasurementPolicy<U3>,
+    /// Velocity updates.
+    pub velocity: &'a mut dyn MeasurementPolicy<U3>,
+}
+
+/// Run `filter` (initialised at `imu[start]`) over the rest of the log.
+pub fn run_loop(
+    filter: &mut NedFilter,
+    imu: &[ImuSample],
+    start: usize,
+    fixes: &[AidingFix],
+    cfg: &LoopConfig,
+    policies: &mut LoopPolicies<'_>,
+    observers: &mut [&mut dyn EpochObserver],
+) -> Result<(), LoopError> {
+    let t_start = imu[start].time_s;
+    let mut next = fixes
+        .iter()
+        .position(|g| g.fix.time_s > t_start)
+        .unwrap_or(fixes.len());
+    let interval_s = cfg.row_interval_s;
+    let mut next_row = t_start + interval_s;
+    let nhc_interval = cfg.non_holonomic.map_or(f64::INFINITY, |n| 1.0 / n.rate_hz);
+    let mut next_nhc = t_start + nhc_interval;
+    for k in start + 1..imu.len() {
+        let (a, b) = (&imu[k - 1], &imu[k]);
+        let at = |source| LoopError {
+            time_s: b.time_s,
+            source,
+        };
+        let mut t = a.time_s;
+        let mut r0 = Rates::of(a);
+        loop {
+            let split = next < fixes.len() && fixes[next].fix.time_s <= b.time_s;
+            let t_end = if split {
+                fixes[next].fix.time_s
+            } else {
+                b.time_s
+            };
+            let r1 = Rates::interpolate(a, b, t_end);
+            let dt = t_end - t;
+            if dt > 0.0 {
+                let inc = trapezoid(&r0, &r1, dt);
+                for o in observers.iter_mut() {
+                    o.increment(filter, &inc, t_end);
+                }
+                filter.propagate(&inc).map_err(at)?;
+            }
+            t = t_end;
+            r0 = r1;
+            if interval_s > 0.0 && t >= next_row {
+                while next_row <= t {
+                    next_row += interval_s;
+                }
+                if !split {
+                    let row = SolutionRow::of(filter, t);
+                    for o in observers.iter_mut() {
+                        o.row(&row);
+                    }
+                }
+            }
+            if let Some(nhc) = &cfg.non_holonomic
+                && t >= next_nhc
+            {
+                next_nhc += nhc_interval;
+                if filter.state().velocity.norm() > nhc.min_speed_mps {
+                    filter.update_non_holonomic(nhc.sigma_mps).map_err(at)?;
+                }
+            }
+            if !split {
+                break;
+            }
+            if cfg.convergence_monitor {
+                filter.begin_epoch().map_err(at)?;
+            }
+            for o in observers.iter_mut() {
+                o.before_update(filter);
+            }
+            let record = fix_epoch(filter, &fixes[next], next, cfg, policies).map_err(at)?;
+            for o in observers.iter_mut() {
+                o.fix(filter, &record);
+            }
+            next += 1;
+        }
+    }
+    Ok(())
+}
+
+/// One GNSS epoch: the updates (or the missing fix), the record.
+fn fix_epoch(
+    filter: &mut NedFilter,
+    g: &AidingFix,
+    index: usize,
+    cfg: &LoopConfig,
+    policies: &mut LoopPolicies<'_>,
+) -> Result<FixRecord, EstimationError> {
+    let (mut nis, mut outcome) = (f64::NAN, None);
+    let mut innovation = Vector3::repeat(f64::NAN);
+    let mut convergence = f64::NAN;
+    if !g.withheld {
+        let s = g.fix.position_sigma_neu;
+        let sigma = Vector3::new(s.x, s.y, s.z).map(|v| v.max(cfg.min_position_sigma_m));
+        let rec = filter.update_position_with(&g.fix.position, &sigma, policies.position)?;
+        nis = rec.nis;
+        outcome = Some(rec.outcome);
+        innovation = rec.residual;
+        if cfg.use_velocity
+            && let (Some(v), Some(sv)) = (g.fix.velocity_ned, g.fix.velocity_sigma_neu)
+        {
+            let sv = sv.map(|x| x.max(cfg.min_velocity_sigma_mps));
+            filter.update_velocity_with(&v, &sv, policies.velocity)?;
+        }
+    } else {
+        filter.position_fix_missing()?;
+    }
+    if cfg.convergence_monitor {
+        convergence = filter.instrument_convergence().unwrap_or(f64::NAN);
+    }
+    let row = SolutionRow::of(filter, g.fix.time_s);
+    let sigma_gnss_m = cfg.sigma_gnss_m.unwrap_or_else(|| {
+        g.fix
+            .position_sigma_neu
+            .map(|v| v.max(cfg.min_position_sigma_m))
+            .norm()
+    });
+    Ok(FixRecord {
+        index,
+        row,
+        withheld: g.withheld,
+        nis,
+        innovation,
+        outcome,
+        instruments: *filter.instruments(),
+        convergence,
+        sigma_gnss_m,
+        k_eff: EfficiencyCriterion {
+            sigma_gnss: sigma_gnss_m,
+        }
+        .coefficient(row.sigma.norm()),
+        recorded_epoch: filter.recorded_epoch(),
+    })
+}
+
+/// Collects the records and the rows between fixes.
+#[derive(Debug, Clone, Default)]
+pub struct Collector {
+    /// One per GNSS epoch.
+    pub fixes: Vec<FixRecord>,
+    /// Between the GNSS epochs.
+    pub rows: Vec<SolutionRow>,
+}
+
+impl EpochObserver for Collector {
+    fn row(&mut self, row: &SolutionRow) {
+        self.rows.push(*row);
+    }
+
+    fn fix(&mut self, _filter: &NedFilter, record: &FixRecord) {
+        self.fixes.push(*record);
+    }
+}
+
+/// A free INS in given intervals: from each interval's start a copy of the
+/// filter's INS is mechanized from the raw increments (no instrument
+/// corrections, no updates) to the interval's end.
+#[derive(Debug, Clone)]
+pub struct FreeInsObserver {
+    windows: Vec<(f64, f64)>,
+    ins: Option<NedFilter>,
+    /// Per GNSS epoch, in loop order: the free INS's solution and
+    /// instrument corrections inside an interval (None outside).
+    pub rows: Vec<Option<(SolutionRow, InstrumentEstimate)>>,
+}
+
+impl FreeInsObserver {
+    /// A free INS in the intervals [start, end) (GPST s).
+    pub fn new(windows: Vec<(f64, f64)>) -> Self {
+        Self {
+            windows,
+            ins: None,
+            rows: Vec::new(),
+        }
+    }
+
+    fn inside(&self, t: f64) -> bool {
+        self.windows.iter().any(|&(a, b)| t >= a && t < b)
+    }
+}
+
+impl EpochObserver for FreeInsObserver {
+    fn increment(&mut self, filter: &NedFilter, inc: &ImuIncrement, t_end_s: f64) {
+        if self.inside(t_end_s) {
+            self.ins
+                .get_or_insert_with(|| filter.clone())
+                .coast_uncorrected(inc);
+        } else {
+            self.ins = None;
+        }
+    }
+
+    fn fix(&mut self, _filter: &NedFilter, record: &FixRecord) {
+        let t = record.row.time_s;
+        let row = match &self.ins {
+            Some(f) if self.inside(t) => Some((SolutionRow::of(f, t), *f.instruments())),
+            _ => None,
+        };
+        self.rows.push(row);
+    }
+}
