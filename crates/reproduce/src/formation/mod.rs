@@ -4,21 +4,22 @@
 //! ([`aidnav_integration::local_level`]); inter-vehicle sensors measuring slant
 //! range, bearing and elevation in the observer's body frame
 //! ([`aidnav_models::relative_sensor`]), exchanged over the network; and the
-//! stage-2 group filter in two forms:
+//! stage-2 group filter in two forms, both from [`aidnav_integration::group`]
+//! with their parameters from [`FormationScenario::fusion_params`]:
 //!
-//! - **paper**: the paper's axis-decoupled fusion — each relative measurement
+//! - **paper**: the paper's axis-decoupled fusion
+//!   ([`aidnav_integration::group::PaperFusion`]) — each relative measurement
 //!   converted to Cartesian coordinates with the observer's INS* attitude,
 //!   its per-axis variance the diagonal of the converted covariance, one
-//!   filter per axis ([`GroupAxisFilter`], constant-velocity model, own
-//!   positions and velocities observed);
+//!   constant-velocity filter per axis;
 //! - **ekf**: one extended Kalman filter over all members' 3-D positions and
-//!   velocities that uses range, bearing and elevation directly (their noise
-//!   uncorrelated in polar form, so the cross-axis correlation of the
-//!   Cartesian errors is carried exactly by the Jacobian), and the full 6×6
-//!   stage-1 covariance of each member's own solution.
+//!   velocities ([`aidnav_integration::group::EkfFusion`]) that uses range,
+//!   bearing and elevation directly, and the full 6×6 stage-1 covariance of
+//!   each member's own solution.
 //!
-//! Both forms add the observer's INS* attitude uncertainty to the relative
-//! measurement noise (a line of sight of length D turned by ψ moves by D ψ).
+//! This module holds the scenario and its results; `scenario` its checks and
+//! flight, `simulate` stage 1 and the relative measurements, `run` the Monte
+//! Carlo and the scores.
 //!
 //! GNSS denial: the members listed in `[[formation.denial]]` lose GNSS for
 //! the interval; their stage-1 INS runs free (its σ grows) while the group
