@@ -40,4 +40,4 @@ pub mod earth;
 pub mod launch;
 mod typed;
 
-pub use typed::{Body, Ecef, Launch, Ned, Rotation, Vec3};
+pub use typed::{Body, Ecef, Launch, Ned, Rotation, RotationMatrix, Vec3};

@@ -177,7 +177,7 @@ pub fn process(
     }
     let origin = inputs.gnss[0].position;
     let ne = |g: &aidnav_frames::earth::Geodetic| {
-        let d = origin.ned_to(g);
+        let d = origin.ned_to(g).raw();
         (d.y, d.x)
     };
     LineChart {

@@ -29,7 +29,7 @@ pub use score::*;
 use std::path::Path;
 
 use aidnav_estimation::EstimationError;
-use aidnav_frames::earth::earth_rate_ned;
+use aidnav_frames::{Rotation, Vec3, earth::earth_rate_ned};
 use aidnav_ins::ned::NedState;
 use aidnav_io::rtklib::{GnssFix, ImuSample, read_pos, read_tagged_imu};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -180,18 +180,19 @@ pub(crate) fn initialise(
         .find(|g| g.time_s <= t0)
         .unwrap_or(first_fix);
     let arm = attitude * Vector3::from(cfg.gnss.lever_arm_m);
-    let position = fix.position.offset_by(&-arm);
+    let position = fix.position.offset_by(&Vec3::assume_in_frame(-arm));
     let gyro_bias = w.map_or_else(Vector3::zeros, |w| {
-        w - attitude.inverse() * earth_rate_ned(position.latitude_rad)
+        w - attitude.inverse() * earth_rate_ned(position.latitude_rad).raw()
     });
     Ok((
         NedState {
             position,
-            velocity: cfg
-                .initial
-                .velocity_ned_mps
-                .map_or_else(Vector3::zeros, Vector3::from),
-            attitude,
+            velocity: Vec3::assume_in_frame(
+                cfg.initial
+                    .velocity_ned_mps
+                    .map_or_else(Vector3::zeros, Vector3::from),
+            ),
+            attitude: Rotation::assume_from_quaternion(attitude),
         },
         gyro_bias,
         start,

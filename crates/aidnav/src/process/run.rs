@@ -1,7 +1,7 @@
 //! One filter pass over a log under a plan and a measurement policy.
 
 use aidnav_estimation::{EstimationError, Outcome};
-use aidnav_frames::earth::Geodetic;
+use aidnav_frames::{Vec3, earth::Geodetic};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_integration::ned::NedFilter;
 use aidnav_io::rtklib::GnssFix;
@@ -117,8 +117,8 @@ impl SolutionRow {
         Self {
             time_s,
             antenna,
-            velocity: solution.velocity,
-            attitude: solution.attitude,
+            velocity: solution.velocity.raw(),
+            attitude: solution.attitude.quaternion(),
             sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
         }
     }
@@ -176,7 +176,7 @@ pub fn run_filter_rows(
         sig[ACCEL_SCALE + i] = ka;
     }
     let lever = Vector3::from(cfg.gnss.lever_arm_m);
-    let mut filter = NedFilter::new(model, state, &sig, lever)?;
+    let mut filter = NedFilter::new(model, state, &sig, Vec3::assume_in_frame(lever))?;
     filter.set_gyro_bias(gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
     let smooth =
@@ -247,8 +247,8 @@ pub fn run_filter_rows(
                 if dt > 0.0 {
                     let inc = ImuIncrement {
                         dt_s: dt,
-                        delta_angle: (w0 + w1) * (0.5 * dt),
-                        delta_velocity: (f0 + f1) * (0.5 * dt),
+                        delta_angle: Vec3::assume_in_frame((w0 + w1) * (0.5 * dt)),
+                        delta_velocity: Vec3::assume_in_frame((f0 + f1) * (0.5 * dt)),
                     };
                     if free && in_window(t_end) {
                         free_ins
@@ -290,7 +290,7 @@ pub fn run_filter_rows(
                 if !withheld(g.time_s) {
                     let mut fix = g.position;
                     if let Some(Some(o)) = plan.outliers.get(next) {
-                        fix = fix.offset_by(o);
+                        fix = fix.offset_by(&Vec3::assume_in_frame(*o));
                     }
                     let s = g.position_sigma_neu;
                     let sigma =
@@ -304,6 +304,7 @@ pub fn run_filter_rows(
                         && let (Some(v), Some(sv)) = (g.velocity_ned, g.velocity_sigma_neu)
                     {
                         let sv = sv.map(|x| x.max(cfg.gnss.min_velocity_sigma_mps));
+                        let v = Vec3::assume_in_frame(v);
                         filter.update_velocity_with(&v, &sv, velocity_policy.as_mut())?;
                     }
                 } else {
@@ -437,7 +438,7 @@ impl BridgeState {
             // integrates into position.
             active.integral[k] += (active.last_dv[k] + dv) * (0.5 * (t - active.last_t));
             active.last_dv[k] = dv;
-            out[k] = antenna.offset_by(&-(dp + active.integral[k]));
+            out[k] = antenna.offset_by(&Vec3::assume_in_frame(-(dp + active.integral[k])));
         }
         active.last_t = t;
         Some(out)
@@ -480,7 +481,7 @@ mod tests {
         for k in 1..=120 {
             let tau = k as f64 * dt;
             let bridged = state.bridged(t0 + tau, &antenna, &cfg).unwrap();
-            let north = |g: &Geodetic| antenna.ned_to(g).x;
+            let north = |g: &Geodetic| antenna.ned_to(g).x();
             let trend = north(&bridged[0]);
             assert!(
                 (trend + 0.5 * a * tau * tau).abs() < 1e-6,
