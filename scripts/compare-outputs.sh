@@ -37,7 +37,7 @@ echo "building base $base_sha ..."
 echo "building the working tree ..."
 cargo build --release -q -p aidnav-cli
 base_bin="$work/target-base/release/aidnav"
-new_bin="$top/target/release/aidnav"
+new_bin="${CARGO_TARGET_DIR:-$top/target}/release/aidnav"
 
 run() { # BIN CONFIG_ROOT OUT
   # Both runs write to the same folder (summary.json names its files), then
