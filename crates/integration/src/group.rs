@@ -5,7 +5,7 @@
 //! positions to a few neighbours ([`k_nearest`], [`within_range`]).
 //!
 //! The state is ordered `[R¹ … R^M, V¹ … V^M]` (positions first) so the
-//! observed block is contiguous; [`crate::AxisGroup`] keeps the paper's
+//! observed block is contiguous; [`aidnav_models::AxisGroup`] keeps the paper's
 //! interleaved order for the small reproduction.
 //!
 //! ```

@@ -3,7 +3,8 @@
 //! Seeded random streams whose output does not depend on the number of
 //! threads ([`rng`]), a parallel Monte Carlo runner with a progress bar
 //! ([`monte_carlo`]), truth and measurement simulation of linear Gaussian
-//! models ([`linear`]), measurement faults and outages ([`faults`]), and the experiments built on them ([`experiments`]).
+//! models ([`linear`]), measurement faults and outages ([`faults`]); the
+//! experiments built on them are in `aidnav-reproduce`.
 //!
 //! ```
 //! use aidnav_sim::{MonteCarlo, rng::RngExt};
