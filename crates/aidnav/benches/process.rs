@@ -10,6 +10,7 @@
 use std::hint::black_box;
 use std::path::Path;
 
+use aidnav::frames::{Rotation, Vec3};
 use aidnav::ins::ned::{ImuIncrement, NedMechanization, NedState};
 use aidnav::process::{PolicyName, ProcessConfig, RunPlan, export, load_inputs, run_filter};
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -29,16 +30,20 @@ fn process(c: &mut Criterion) {
         b.iter(|| {
             let start = NedState {
                 position: inputs.gnss[0].position,
-                velocity: nalgebra::Vector3::zeros(),
-                attitude: nalgebra::UnitQuaternion::identity(),
+                velocity: Vec3::zeros(),
+                attitude: Rotation::from_euler_angles(0.0, 0.0, 0.0),
             };
             let mut ins = NedMechanization::new(start);
             for w in inputs.imu.windows(2) {
                 let dt = w[1].time_s - w[0].time_s;
                 ins.update(&ImuIncrement {
                     dt_s: dt,
-                    delta_angle: (w[0].angular_rate + w[1].angular_rate) * (0.5 * dt),
-                    delta_velocity: (w[0].specific_force + w[1].specific_force) * (0.5 * dt),
+                    delta_angle: Vec3::assume_in_frame(
+                        (w[0].angular_rate + w[1].angular_rate) * (0.5 * dt),
+                    ),
+                    delta_velocity: Vec3::assume_in_frame(
+                        (w[0].specific_force + w[1].specific_force) * (0.5 * dt),
+                    ),
                 });
             }
             black_box(ins.state().velocity)

@@ -311,7 +311,8 @@ fn rows_between_fixes_cover_a_real_outage() {
             .iter()
             .min_by(|a, b| (a.time_s - t).abs().total_cmp(&(b.time_s - t).abs()))
             .unwrap();
-        let at_t = row.antenna.offset_by(&(row.velocity * (t - row.time_s)));
+        let velocity = row.velocity;
+        let at_t = row.antenna.offset_by(&(velocity * (t - row.time_s)));
         let d = e.antenna.ned_to(&at_t).norm();
         assert!(d < 0.05, "t − gap start {:.2}: {d} m", t - gap.0);
         compared += 1;

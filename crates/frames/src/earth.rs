@@ -5,16 +5,20 @@
 //! ```
 //! use aidnav_frames::earth::{Geodetic, normal_gravity};
 //! let p = Geodetic { latitude_rad: 30f64.to_radians(), longitude_rad: 114f64.to_radians(), height_m: 20.0 };
-//! let back = Geodetic::from_ecef(&p.to_ecef());
+//! let back = Geodetic::from_ecef(&p.to_ecef()); // through a `Vec3<Ecef>`
 //! assert!((back.latitude_rad - p.latitude_rad).abs() < 1e-12);
 //! assert!((back.height_m - 20.0).abs() < 1e-6);
+//! // NED offsets are `Vec3<Ned>`: 10 m north, 2 m up.
+//! let q = p.offset_by(&aidnav_frames::Vec3::new(10.0, 0.0, -2.0));
+//! assert!((p.ned_to(&q).x() - 10.0).abs() < 1e-4);
 //! // Normal gravity at the equator on the ellipsoid.
 //! assert!((normal_gravity(0.0, 0.0) - 9.7803253359).abs() < 1e-9);
 //! ```
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
 
 use crate::constants::{GM_M3_S2, OMEGA_IE_RAD_S, WGS84_A_M, WGS84_F};
+use crate::{Ecef, Ned, RotationMatrix, Vec3};
 
 /// First eccentricity squared e² = f (2 − f).
 pub const WGS84_E2: f64 = WGS84_F * (2.0 - WGS84_F);
@@ -55,29 +59,35 @@ pub fn normal_gravity(latitude_rad: f64, height_m: f64) -> f64 {
         + 3.0 * height_m * height_m / (a * a))
 }
 
-/// Earth rate in NED at latitude φ.
-pub fn earth_rate_ned(latitude_rad: f64) -> Vector3<f64> {
-    Vector3::new(
+/// Earth rate ω_ie in NED at latitude φ \[rad/s\].
+#[inline]
+pub fn earth_rate_ned(latitude_rad: f64) -> Vec3<Ned> {
+    Vec3::new(
         OMEGA_IE_RAD_S * latitude_rad.cos(),
         0.0,
         -OMEGA_IE_RAD_S * latitude_rad.sin(),
     )
 }
 
-/// Transport rate ω_en in NED for NED velocity v at position p.
-pub fn transport_rate_ned(p: &Geodetic, v: &Vector3<f64>) -> Vector3<f64> {
+/// Transport rate ω_en in NED for NED velocity v at position p \[rad/s\].
+#[inline]
+pub fn transport_rate_ned(p: &Geodetic, v: &Vec3<Ned>) -> Vec3<Ned> {
     let (rm, rn) = radii(p.latitude_rad);
     let (rmh, rnh) = (rm + p.height_m, rn + p.height_m);
-    Vector3::new(v.y / rnh, -v.x / rmh, -v.y * p.latitude_rad.tan() / rnh)
+    Vec3::new(
+        v.y() / rnh,
+        -v.x() / rmh,
+        -v.y() * p.latitude_rad.tan() / rnh,
+    )
 }
 
 impl Geodetic {
     /// Earth-centred, Earth-fixed coordinates \[m\].
-    pub fn to_ecef(&self) -> Vector3<f64> {
+    pub fn to_ecef(&self) -> Vec3<Ecef> {
         let (_, rn) = radii(self.latitude_rad);
         let (sp, cp) = self.latitude_rad.sin_cos();
         let (sl, cl) = self.longitude_rad.sin_cos();
-        Vector3::new(
+        Vec3::new(
             (rn + self.height_m) * cp * cl,
             (rn + self.height_m) * cp * sl,
             (rn * (1.0 - WGS84_E2) + self.height_m) * sp,
@@ -86,7 +96,8 @@ impl Geodetic {
 
     /// Geodetic coordinates of an ECEF point (iterated to 1e-12 rad; 10
     /// iterations at most, plenty anywhere above the Earth's centre region).
-    pub fn from_ecef(r: &Vector3<f64>) -> Self {
+    pub fn from_ecef(r: &Vec3<Ecef>) -> Self {
+        let r = r.as_raw();
         let p = r.x.hypot(r.y);
         let longitude_rad = r.y.atan2(r.x);
         let mut lat = r.z.atan2(p * (1.0 - WGS84_E2));
@@ -111,10 +122,10 @@ impl Geodetic {
     }
 
     /// Rotation ECEF → NED at this position (`v_ned = C v_ecef`).
-    pub fn ecef_to_ned(&self) -> Matrix3<f64> {
+    pub fn ecef_to_ned(&self) -> RotationMatrix<Ecef, Ned> {
         let (sp, cp) = self.latitude_rad.sin_cos();
         let (sl, cl) = self.longitude_rad.sin_cos();
-        Matrix3::new(
+        RotationMatrix::assume_from_matrix(Matrix3::new(
             -sp * cl,
             -sp * sl,
             cp,
@@ -124,24 +135,24 @@ impl Geodetic {
             -cp * cl,
             -cp * sl,
             -sp,
-        )
+        ))
     }
 
     /// NED offset of `other` from this position (through ECEF; exact).
-    pub fn ned_to(&self, other: &Geodetic) -> Vector3<f64> {
+    pub fn ned_to(&self, other: &Geodetic) -> Vec3<Ned> {
         self.ecef_to_ned() * (other.to_ecef() - self.to_ecef())
     }
 
     /// The position a small NED offset away (first order in the offset,
     /// exact radii at this latitude): what a lever arm or a filter
     /// correction needs.
-    pub fn offset_by(&self, ned: &Vector3<f64>) -> Self {
+    pub fn offset_by(&self, ned: &Vec3<Ned>) -> Self {
         let (rm, rn) = radii(self.latitude_rad);
         Self {
-            latitude_rad: self.latitude_rad + ned.x / (rm + self.height_m),
+            latitude_rad: self.latitude_rad + ned.x() / (rm + self.height_m),
             longitude_rad: self.longitude_rad
-                + ned.y / ((rn + self.height_m) * self.latitude_rad.cos()),
-            height_m: self.height_m - ned.z,
+                + ned.y() / ((rn + self.height_m) * self.latitude_rad.cos()),
+            height_m: self.height_m - ned.z(),
         }
     }
 }
@@ -180,7 +191,7 @@ mod tests {
     fn known_values() {
         // Equator, prime meridian: ECEF (a, 0, 0); radii a(1 − e²) and a.
         let p = Geodetic::default();
-        assert!((p.to_ecef() - Vector3::new(WGS84_A_M, 0.0, 0.0)).norm() < 1e-6);
+        assert!((p.to_ecef() - Vec3::new(WGS84_A_M, 0.0, 0.0)).norm() < 1e-6);
         let (rm, rn) = radii(0.0);
         assert!((rm - 6_335_439.327).abs() < 1e-3 && (rn - WGS84_A_M).abs() < 1e-6);
         // Normal gravity at the pole: γ_p = 9.8321849378.
@@ -195,9 +206,9 @@ mod tests {
             longitude_rad: 0.3,
             height_m: 0.0,
         };
-        let c = q.ecef_to_ned();
+        let c = q.ecef_to_ned().raw();
         assert!((c * c.transpose() - Matrix3::identity()).norm() < 1e-15);
-        let up = q.ecef_to_ned().transpose() * Vector3::new(0.0, 0.0, -1.0);
+        let up = q.ecef_to_ned().transpose() * Vec3::new(0.0, 0.0, -1.0);
         let higher = Geodetic { height_m: 1.0, ..q };
         assert!((higher.to_ecef() - q.to_ecef() - up).norm() < 1e-9);
     }
@@ -209,7 +220,7 @@ mod tests {
             longitude_rad: -1.2,
             height_m: 250.0,
         };
-        let d = Vector3::new(30.0, -20.0, 5.0);
+        let d = Vec3::new(30.0, -20.0, 5.0);
         let q = p.offset_by(&d);
         assert!((p.ned_to(&q) - d).norm() < 1e-3);
     }

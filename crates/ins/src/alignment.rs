@@ -80,5 +80,5 @@ pub fn gyro_bias_at_rest(
     attitude: &UnitQuaternion<f64>,
     latitude_rad: f64,
 ) -> Vector3<f64> {
-    mean_angular_rate - attitude.inverse() * earth_rate_ned(latitude_rad)
+    mean_angular_rate - attitude.inverse() * earth_rate_ned(latitude_rad).raw()
 }

@@ -2,6 +2,7 @@
 //! samples, split at any time between them (a GNSS epoch) with the rates
 //! interpolated linearly.
 
+use aidnav_frames::Vec3;
 use nalgebra::Vector3;
 
 use crate::ned::ImuIncrement;
@@ -44,13 +45,15 @@ impl Rates {
 /// let r0 = Rates { angular_rate: Vector3::zeros(), specific_force: Vector3::new(0.0, 0.0, -9.8) };
 /// let r1 = Rates { angular_rate: Vector3::new(0.0, 0.0, 0.2), ..r0 };
 /// let inc = trapezoid(&r0, &r1, 0.01);
-/// assert!((inc.delta_angle.z - 0.001).abs() < 1e-15);
-/// assert!((inc.delta_velocity.z + 0.098).abs() < 1e-15);
+/// assert!((inc.delta_angle.z() - 0.001).abs() < 1e-15);
+/// assert!((inc.delta_velocity.z() + 0.098).abs() < 1e-15);
 /// ```
 pub fn trapezoid(r0: &Rates, r1: &Rates, dt_s: f64) -> ImuIncrement {
     ImuIncrement {
         dt_s,
-        delta_angle: (r0.angular_rate + r1.angular_rate) * (0.5 * dt_s),
-        delta_velocity: (r0.specific_force + r1.specific_force) * (0.5 * dt_s),
+        delta_angle: Vec3::assume_in_frame((r0.angular_rate + r1.angular_rate) * (0.5 * dt_s)),
+        delta_velocity: Vec3::assume_in_frame(
+            (r0.specific_force + r1.specific_force) * (0.5 * dt_s),
+        ),
     }
 }

@@ -14,14 +14,17 @@
 //! A perfect stationary IMU (Earth rate and gravity only) leaves the state
 //! exactly where it is (test: one hour, well under a metre).
 //!
+//! Frames are in the types: the velocity is a `Vec3<Ned>`, the attitude a
+//! `Rotation<Body, Ned>`, the increments `Vec3<Body>`; a body increment
+//! cannot be added to a NED velocity without going through the attitude.
+//!
 //! ```
-//! use aidnav_frames::earth::Geodetic;
+//! use aidnav_frames::{Body, Ned, Rotation, Vec3, earth::Geodetic};
 //! use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState};
-//! use nalgebra::{UnitQuaternion, Vector3};
 //! let start = NedState {
 //!     position: Geodetic { latitude_rad: 0.6, longitude_rad: 2.0, height_m: 50.0 },
-//!     velocity: Vector3::zeros(),
-//!     attitude: UnitQuaternion::identity(),
+//!     velocity: Vec3::zeros(),
+//!     attitude: Rotation::<Body, Ned>::from_euler_angles(0.0, 0.0, 0.3),
 //! };
 //! let mut ins = NedMechanization::new(start);
 //! let imu = NedMechanization::stationary_increment(&start, 0.01);
@@ -32,7 +35,8 @@
 //! ```
 
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, normal_gravity, radii, transport_rate_ned};
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use aidnav_frames::{Body, Ned, Rotation, Vec3};
+use nalgebra::Matrix3;
 
 /// Navigation state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,9 +44,9 @@ pub struct NedState {
     /// Position.
     pub position: Geodetic,
     /// NED velocity [m/s].
-    pub velocity: Vector3<f64>,
-    /// Body → NED rotation.
-    pub attitude: UnitQuaternion<f64>,
+    pub velocity: Vec3<Ned>,
+    /// Attitude: body → NED rotation.
+    pub attitude: Rotation<Body, Ned>,
 }
 
 /// One IMU sample as increments over `dt_s` (body frame).
@@ -51,14 +55,15 @@ pub struct ImuIncrement {
     /// Interval \[s\].
     pub dt_s: f64,
     /// Angle increment Δθ \[rad\].
-    pub delta_angle: Vector3<f64>,
+    pub delta_angle: Vec3<Body>,
     /// Velocity increment Δv (integrated specific force) [m/s].
-    pub delta_velocity: Vector3<f64>,
+    pub delta_velocity: Vec3<Body>,
 }
 
-/// Gravity vector in NED at a position.
-pub fn gravity_ned(p: &Geodetic) -> Vector3<f64> {
-    Vector3::new(0.0, 0.0, normal_gravity(p.latitude_rad, p.height_m))
+/// Gravity vector in NED at a position [m/s²].
+#[inline]
+pub fn gravity_ned(p: &Geodetic) -> Vec3<Ned> {
+    Vec3::new(0.0, 0.0, normal_gravity(p.latitude_rad, p.height_m))
 }
 
 /// The mechanization and the previous increment its corrections need.
@@ -101,15 +106,13 @@ impl NedMechanization {
     pub fn update(&mut self, imu: &ImuIncrement) {
         let dt = imu.dt_s;
         let (dth, dv) = (imu.delta_angle, imu.delta_velocity);
-        let (dth_prev, dv_prev) = self
-            .previous
-            .map_or((Vector3::zeros(), Vector3::zeros()), |p| {
-                (p.delta_angle, p.delta_velocity)
-            });
+        let (dth_prev, dv_prev) = self.previous.map_or((Vec3::zeros(), Vec3::zeros()), |p| {
+            (p.delta_angle, p.delta_velocity)
+        });
         let old = self.state;
         let dv_body =
             dv + 0.5 * dth.cross(&dv) + (dth_prev.cross(&dv) + dv_prev.cross(&dth)) / 12.0;
-        let c_bn = old.attitude.to_rotation_matrix().into_inner();
+        let c_bn = old.attitude.matrix();
         // Predictor with the old state, corrector with the mid-interval state.
         let mut velocity = old.velocity;
         let mut position = old.position;
@@ -123,7 +126,12 @@ impl NedMechanization {
             let w_ie = earth_rate_ned(p_mid.latitude_rad);
             let w_en = transport_rate_ned(&p_mid, &v_mid);
             let zeta = (w_ie + w_en) * dt;
-            let dv_nav = (Matrix3::identity() - 0.5 * zeta.cross_matrix()) * c_bn * dv_body;
+            // (I − ½[ζ×]) C_b^n: body → NED at mid-interval (first order).
+            let dv_nav = Vec3::<Ned>::assume_in_frame(
+                (Matrix3::identity() - 0.5 * zeta.as_raw().cross_matrix())
+                    * c_bn.as_raw()
+                    * dv_body.as_raw(),
+            );
             let dv_grav = (gravity_ned(&p_mid) - (2.0 * w_ie + w_en).cross(&v_mid)) * dt;
             velocity = old.velocity + dv_nav + dv_grav;
             position = Self::integrate_position(&old.position, &old.velocity, &velocity, dt);
@@ -137,9 +145,10 @@ impl NedMechanization {
         };
         let zeta = (earth_rate_ned(p_mid.latitude_rad) + transport_rate_ned(&p_mid, &v_mid)) * dt;
         let phi_b = dth + dth_prev.cross(&dth) / 12.0;
-        let attitude = UnitQuaternion::from_scaled_axis(-zeta)
+        // NED(k) → NED(k+1) · body(k) → NED(k) · body(k+1) → body(k).
+        let attitude = Rotation::<Ned, Ned>::from_rotation_vector(-zeta)
             * old.attitude
-            * UnitQuaternion::from_scaled_axis(phi_b);
+            * Rotation::<Body, Body>::from_rotation_vector(phi_b);
         self.state = NedState {
             position,
             velocity,
@@ -149,20 +158,15 @@ impl NedMechanization {
     }
 
     /// Trapezoidal position update over dt from the old and new velocity.
-    fn integrate_position(
-        p: &Geodetic,
-        v_old: &Vector3<f64>,
-        v_new: &Vector3<f64>,
-        dt: f64,
-    ) -> Geodetic {
-        let v = 0.5 * (v_old + v_new);
-        let height_m = p.height_m - v.z * dt;
+    fn integrate_position(p: &Geodetic, v_old: &Vec3<Ned>, v_new: &Vec3<Ned>, dt: f64) -> Geodetic {
+        let v = 0.5 * (*v_old + *v_new);
+        let height_m = p.height_m - v.z() * dt;
         let h_mid = 0.5 * (p.height_m + height_m);
         let (rm, _) = radii(p.latitude_rad);
-        let latitude_rad = p.latitude_rad + v.x / (rm + h_mid) * dt;
+        let latitude_rad = p.latitude_rad + v.x() / (rm + h_mid) * dt;
         let lat_mid = 0.5 * (p.latitude_rad + latitude_rad);
         let (_, rn) = radii(lat_mid);
-        let longitude_rad = p.longitude_rad + v.y / ((rn + h_mid) * lat_mid.cos()) * dt;
+        let longitude_rad = p.longitude_rad + v.y() / ((rn + h_mid) * lat_mid.cos()) * dt;
         Geodetic {
             latitude_rad,
             longitude_rad,
@@ -186,8 +190,8 @@ mod tests {
                 longitude_rad: 114.3f64.to_radians(),
                 height_m: 30.0,
             },
-            velocity: Vector3::zeros(),
-            attitude: UnitQuaternion::from_euler_angles(0.02, -0.01, 1.3),
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.02, -0.01, 1.3),
         };
         let mut ins = NedMechanization::new(start);
         let imu = NedMechanization::stationary_increment(&start, 0.005);
@@ -213,8 +217,8 @@ mod tests {
                 longitude_rad: 0.1,
                 height_m: 100.0,
             },
-            velocity: Vector3::new(speed, 0.0, 0.0),
-            attitude: UnitQuaternion::identity(),
+            velocity: Vec3::new(speed, 0.0, 0.0),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, 0.0),
         };
         let mut ins = NedMechanization::new(start);
         let dt = 0.01;
@@ -239,7 +243,7 @@ mod tests {
         // 600 s at 20 m/s: 12 km north, no east or vertical motion.
         let d = start.position.ned_to(&end.position);
         assert!(
-            (end.velocity - Vector3::new(speed, 0.0, 0.0)).norm() < 1e-3,
+            (end.velocity - Vec3::new(speed, 0.0, 0.0)).norm() < 1e-3,
             "{}",
             end.velocity
         );
@@ -249,6 +253,6 @@ mod tests {
             "{}",
             end.position.height_m
         );
-        assert!((d.x - 12_000.0).abs() < 15.0, "{d}");
+        assert!((d.x() - 12_000.0).abs() < 15.0, "{d}");
     }
 }

@@ -3,6 +3,7 @@
 //! predictor gives ([`BridgeState`]); [`BridgeObserver`] runs it as an
 //! observer of the epoch loop ([`crate::ned_loop`]).
 
+use aidnav_frames::Vec3;
 use aidnav_frames::earth::Geodetic;
 use aidnav_models::ned_ins::{POSITION, VELOCITY, Vector21};
 use aidnav_supervisors::outage::{BridgeConfig, OutageBridge, Predictor};
@@ -95,7 +96,7 @@ impl BridgeState {
             // integrates into position.
             active.integral[k] += (active.last_dv[k] + dv) * (0.5 * (t - active.last_t));
             active.last_dv[k] = dv;
-            out[k] = antenna.offset_by(&-(dp + active.integral[k]));
+            out[k] = antenna.offset_by(&Vec3::assume_in_frame(-(dp + active.integral[k])));
         }
         active.last_t = t;
         Some(out)
@@ -189,7 +190,7 @@ mod tests {
         for k in 1..=120 {
             let tau = k as f64 * dt;
             let bridged = state.bridged(t0 + tau, &antenna, &cfg).unwrap();
-            let north = |g: &Geodetic| antenna.ned_to(g).x;
+            let north = |g: &Geodetic| antenna.ned_to(g).x();
             let trend = north(&bridged[0]);
             assert!(
                 (trend + 0.5 * a * tau * tau).abs() < 1e-6,

@@ -13,15 +13,18 @@ use aidnav_estimation::{
     rts_smooth,
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
+use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_models::ned_ins::{
     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, STATES,
     VELOCITY, Vector21,
 };
-use nalgebra::{Matrix3, SMatrix, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState};
 
-/// The instrument corrections in use.
+/// The instrument corrections in use, per sensor axis (the body axes).
+/// Biases and scale factors stay raw: a scale factor is no vector, and the
+/// corrections act component by component.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct InstrumentEstimate {
     /// Gyro bias [rad/s].
@@ -40,10 +43,14 @@ impl InstrumentEstimate {
         let one = Vector3::repeat(1.0);
         ImuIncrement {
             dt_s: raw.dt_s,
-            delta_angle: (raw.delta_angle - self.gyro_bias * raw.dt_s)
-                .component_div(&(one + self.gyro_scale)),
-            delta_velocity: (raw.delta_velocity - self.accel_bias * raw.dt_s)
-                .component_div(&(one + self.accel_scale)),
+            delta_angle: Vec3::assume_in_frame(
+                (raw.delta_angle.raw() - self.gyro_bias * raw.dt_s)
+                    .component_div(&(one + self.gyro_scale)),
+            ),
+            delta_velocity: Vec3::assume_in_frame(
+                (raw.delta_velocity.raw() - self.accel_bias * raw.dt_s)
+                    .component_div(&(one + self.accel_scale)),
+            ),
         }
     }
 }
@@ -52,11 +59,12 @@ impl InstrumentEstimate {
 /// the attitude turned by φ (`C = (I + [φ×]) Ĉ`). Feedback, the open-loop
 /// output and the smoothed states all apply an estimate this way.
 fn corrected(state: &NedState, x: &Vector21) -> NedState {
-    let v3 = |o: usize| Vector3::new(x[o], x[o + 1], x[o + 2]);
+    // The navigation error states are NED vectors (δr, δv, φ).
+    let v3 = |o: usize| Vec3::<Ned>::new(x[o], x[o + 1], x[o + 2]);
     NedState {
         position: state.position.offset_by(&-v3(POSITION)),
         velocity: state.velocity - v3(VELOCITY),
-        attitude: UnitQuaternion::from_scaled_axis(v3(ATTITUDE)) * state.attitude,
+        attitude: Rotation::from_rotation_vector(v3(ATTITUDE)) * state.attitude,
     }
 }
 
@@ -82,17 +90,82 @@ struct ForwardRecord {
     overflow: bool,
 }
 
-/// The filter.
+/// The filter: the entry point of spec 40's GNSS/INS integration.
+///
+/// Build it from an error model, an initial state, the prior σ of the 21
+/// error states and the antenna lever arm (body frame); feed it corrected-
+/// or-not IMU increments and GNSS fixes; read the solution:
+///
+/// ```
+/// use aidnav_frames::{Body, Ned, Rotation, Vec3, earth::Geodetic};
+/// use aidnav_ins::ned::{NedMechanization, NedState};
+/// use aidnav_integration::ned::NedFilter;
+/// use aidnav_models::ned_ins::{
+///     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION,
+///     VELOCITY, Vector21,
+/// };
+/// use nalgebra::Vector3;
+///
+/// let start = NedState {
+///     position: Geodetic { latitude_rad: 0.52, longitude_rad: 2.0, height_m: 30.0 },
+///     velocity: Vec3::<Ned>::zeros(),
+///     attitude: Rotation::<Body, Ned>::from_euler_angles(0.0, 0.0, 1.2),
+/// };
+/// // Prior σ: 1 m, 0.1 m/s, 10 mrad; the instrument states from the model.
+/// let model = NedErrorModel::default();
+/// let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
+/// let mut sigmas = Vector21::zeros();
+/// for (block, sigma) in [
+///     (POSITION, 1.0), (VELOCITY, 0.1), (ATTITUDE, 0.01),
+///     (GYRO_BIAS, sg), (ACCEL_BIAS, sa), (GYRO_SCALE, kg), (ACCEL_SCALE, ka),
+/// ] {
+///     sigmas.fixed_rows_mut::<3>(block).fill(sigma);
+/// }
+/// // Antenna 1 m forward of and 0.5 m above the IMU: a body-frame vector.
+/// let lever = Vec3::<Body>::new(1.0, 0.0, -0.5);
+/// let mut filter = NedFilter::new(model, start, &sigmas, lever).unwrap();
+///
+/// // One second at rest (ideal increments), then a fix 0.3 m north of the
+/// // true antenna position, σ 0.1 m.
+/// let imu = NedMechanization::stationary_increment(&start, 0.01);
+/// for _ in 0..100 {
+///     filter.propagate(&imu).unwrap();
+/// }
+/// let (antenna, _) = filter.antenna();
+/// let fix = antenna.offset_by(&Vec3::new(0.3, 0.0, 0.0));
+/// let record = filter.update_position(&fix, &Vector3::repeat(0.1)).unwrap();
+/// assert!(record.nis > 0.0);
+///
+/// // The solution moved most of the way towards the fix.
+/// let solution = filter.solution();
+/// let moved = start.position.ned_to(&solution.position);
+/// assert!(moved.x() > 0.2 && moved.x() < 0.3, "{moved}");
+/// let (roll, pitch, yaw) = solution.attitude.euler_angles();
+/// assert!(roll.abs() < 0.01 && pitch.abs() < 0.01 && (yaw - 1.2).abs() < 0.01);
+/// assert!(solution.velocity.norm() < 0.1);
+/// ```
+///
+/// A NED vector does not go where a body vector is expected:
+///
+/// ```compile_fail
+/// # use aidnav_frames::{Ned, Vec3};
+/// # use aidnav_integration::ned::NedFilter;
+/// # fn f(model: aidnav_models::ned_ins::NedErrorModel, s: aidnav_ins::ned::NedState,
+/// #      p: &aidnav_models::ned_ins::Vector21) {
+/// let lever = Vec3::<Ned>::new(1.0, 0.0, -0.5);
+/// let _ = NedFilter::new(model, s, p, lever); // expected `Vec3<Body>`
+/// # }
+/// ```
 #[derive(Debug, Clone)]
 pub struct NedFilter {
     model: NedErrorModel,
     ins: NedMechanization,
     kf: FixedKalmanFilter<STATES>,
     instruments: InstrumentEstimate,
-    lever_arm: Vector3<f64>,
-    rate: Vector3<f64>,
-    pending_force: Vector3<f64>,
-    pending_angle: Vector3<f64>,
+    lever_arm: Vec3<Body>,
+    rate: Vec3<Body>,
+    pending_force: Vec3<Body>,
+    pending_angle: Vec3<Body>,
     pending_dt: f64,
     covariance_interval_s: f64,
     record: Option<ForwardRecord>,
@@ -120,7 +193,7 @@ impl NedFilter {
         model: NedErrorModel,
         state: NedState,
         prior_sigmas: &Vector21,
-        lever_arm: Vector3<f64>,
+        lever_arm: Vec3<Body>,
     ) -> Result<Self, EstimationError> {
         let p0 = SMatrix::<f64, STATES, STATES>::from_diagonal(&prior_sigmas.map(|s| s * s));
         Ok(Self {
@@ -129,9 +202,9 @@ impl NedFilter {
             kf: FixedKalmanFilter::new(Vector21::zeros(), p0)?,
             instruments: InstrumentEstimate::default(),
             lever_arm,
-            rate: Vector3::zeros(),
-            pending_force: Vector3::zeros(),
-            pending_angle: Vector3::zeros(),
+            rate: Vec3::zeros(),
+            pending_force: Vec3::zeros(),
+            pending_angle: Vec3::zeros(),
             pending_dt: 0.0,
             covariance_interval_s: 0.05,
             record: None,
@@ -191,10 +264,10 @@ impl NedFilter {
         self.kf.covariance().diagonal().map(f64::sqrt)
     }
 
-    /// The antenna position and velocity implied by the INS.
-    pub fn antenna(&self) -> (Geodetic, Vector3<f64>) {
+    /// The antenna position and NED velocity implied by the INS.
+    pub fn antenna(&self) -> (Geodetic, Vec3<Ned>) {
         let s = &self.solution();
-        let c = s.attitude.to_rotation_matrix().into_inner();
+        let c = s.attitude.matrix();
         let arm = c * self.lever_arm;
         (
             s.position.offset_by(&arm),
@@ -229,18 +302,18 @@ impl NedFilter {
         }
         let dt = self.pending_dt;
         let s = self.ins.state();
-        let c = s.attitude.to_rotation_matrix().into_inner();
+        let c = s.attitude.matrix();
         let f = self.model.continuous(
-            &c,
-            &(self.pending_force / dt),
-            &(self.pending_angle / dt),
-            &earth_rate_ned(s.position.latitude_rad),
-            &transport_rate_ned(&s.position, &s.velocity),
+            c.as_raw(),
+            (self.pending_force / dt).as_raw(),
+            (self.pending_angle / dt).as_raw(),
+            earth_rate_ned(s.position.latitude_rad).as_raw(),
+            transport_rate_ned(&s.position, &s.velocity).as_raw(),
             s.position.latitude_rad,
         );
         let (phi, q) = self.model.discrete(&f, dt);
-        self.pending_force = Vector3::zeros();
-        self.pending_angle = Vector3::zeros();
+        self.pending_force = Vec3::zeros();
+        self.pending_angle = Vec3::zeros();
         self.pending_dt = 0.0;
         self.kf.predict(&phi, &q)?;
         if let Some(m) = self.monitor.as_mut() {
@@ -420,11 +493,11 @@ impl NedFilter {
         policy: &mut P,
     ) -> Result<GnssUpdate, EstimationError> {
         let s = *self.ins.state();
-        let c = s.attitude.to_rotation_matrix().into_inner();
+        let c = s.attitude.matrix();
         // The INS's own antenna: in open loop the estimate x is part of H x.
         let antenna = s.position.offset_by(&(c * self.lever_arm));
-        let z = fix.ned_to(&antenna);
-        let h = NedErrorModel::position_measurement(&(c * self.lever_arm));
+        let z = fix.ned_to(&antenna).raw();
+        let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
         self.flush_covariance()?;
         if let Some(a) = self.adaptive.as_mut() {
@@ -450,18 +523,19 @@ impl NedFilter {
         self.update_position_with(fix, sigma_ned, &mut AcceptAll)
     }
 
-    /// GNSS antenna velocity fix (NED) with σ.
+    /// GNSS antenna velocity fix (NED) with σ (north, east, down).
     pub fn update_velocity_with<P: MeasurementPolicy<U3> + ?Sized>(
         &mut self,
-        velocity_ned: &Vector3<f64>,
+        velocity_ned: &Vec3<Ned>,
         sigma_ned: &Vector3<f64>,
         policy: &mut P,
     ) -> Result<GnssUpdate, EstimationError> {
         let s = *self.ins.state();
-        let c = s.attitude.to_rotation_matrix().into_inner();
+        let c = s.attitude.matrix();
         let v_ant = s.velocity + c * self.rate.cross(&self.lever_arm);
-        let z = v_ant - velocity_ned;
-        let h = NedErrorModel::velocity_measurement(&(c * self.rate.cross(&self.lever_arm)));
+        let z = (v_ant - *velocity_ned).raw();
+        let h =
+            NedErrorModel::velocity_measurement((c * self.rate.cross(&self.lever_arm)).as_raw());
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
         self.flush_covariance()?;
         let rec = self.kf.update_with(&z, &h, &r, policy)?;
@@ -475,10 +549,10 @@ impl NedFilter {
     pub fn update_non_holonomic(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
         self.flush_covariance()?;
         let s = *self.ins.state();
-        let c = s.attitude.to_rotation_matrix().into_inner();
+        let c = s.attitude.matrix();
         let body = c.transpose() * s.velocity;
-        let z = nalgebra::Vector2::new(body.y, body.z);
-        let h = NedErrorModel::non_holonomic_measurement(&c, &s.velocity);
+        let z = nalgebra::Vector2::new(body.y(), body.z());
+        let h = NedErrorModel::non_holonomic_measurement(c.as_raw(), s.velocity.as_raw());
         let r = nalgebra::Matrix2::identity() * (sigma_mps * sigma_mps);
         self.kf.update(&z, &h, &r)?;
         self.add_information(&h, &r, Outcome::Accepted)?;
@@ -549,17 +623,17 @@ mod tests {
                 longitude_rad: -1.8,
                 height_m: 1600.0,
             },
-            velocity: Vector3::zeros(),
-            attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 0.5),
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, 0.5),
         };
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
-        let mut f = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
+        let mut f = NedFilter::new(model, start, &sig, Vec3::zeros()).unwrap();
         f.start_recording(100_000);
         let imu = NedMechanization::stationary_increment(&start, 0.01);
         // An accelerometer bias of 0.02 m/s² on x appears when the fixes stop.
         let mut biased = imu;
-        biased.delta_velocity.x += 0.02 * 0.01;
+        biased.delta_velocity += Vec3::new(0.02 * 0.01, 0.0, 0.0);
         let mut gap = Vec::new(); // (record index, filtered drift)
         for k in 0..18_000 {
             let t = (k + 1) as f64 * 0.01;
@@ -601,16 +675,16 @@ mod tests {
                 longitude_rad: 0.2,
                 height_m: 10.0,
             },
-            velocity: Vector3::zeros(),
-            attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 1.0),
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, 1.0),
         };
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
-        let mut closed = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
+        let mut closed = NedFilter::new(model, start, &sig, Vec3::zeros()).unwrap();
         let mut open = closed.clone();
         open.set_open_loop(true);
         let mut imu = NedMechanization::stationary_increment(&start, 0.01);
-        imu.delta_velocity.y += 2e-3 * 0.01;
+        imu.delta_velocity += Vec3::new(0.0, 2e-3 * 0.01, 0.0);
         for k in 0..6_000 {
             closed.propagate(&imu).unwrap();
             open.propagate(&imu).unwrap();
@@ -639,16 +713,15 @@ mod tests {
                 longitude_rad: 0.1,
                 height_m: 100.0,
             },
-            velocity: Vector3::zeros(),
-            attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3),
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, 0.3),
         };
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
-        let mut adaptive =
-            NedFilter::new(model, start, &sig, Vector3::new(0.5, 0.2, -0.3)).unwrap();
+        let mut adaptive = NedFilter::new(model, start, &sig, Vec3::new(0.5, 0.2, -0.3)).unwrap();
         adaptive.set_adaptive_noise(None, 1, false);
         let mut imu = NedMechanization::stationary_increment(&start, 0.01);
-        imu.delta_velocity.x += 0.05 * 0.01;
+        imu.delta_velocity += Vec3::new(0.05 * 0.01, 0.0, 0.0);
         let sigma = Vector3::repeat(0.05);
         let coast = |f: &mut NedFilter| {
             for _ in 0..25 {
@@ -690,22 +763,22 @@ mod tests {
                 longitude_rad: -1.8,
                 height_m: 1600.0,
             },
-            velocity: Vector3::zeros(),
-            attitude: UnitQuaternion::from_euler_angles(0.01, -0.02, 0.5),
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.01, -0.02, 0.5),
         };
         let model = NedErrorModel {
             noise: ImuNoise::default(),
         };
         let sig = prior(&model, [1.0, 0.1, 0.01, 0.1]);
-        let mut f = NedFilter::new(model, start, &sig, Vector3::zeros()).unwrap();
+        let mut f = NedFilter::new(model, start, &sig, Vec3::zeros()).unwrap();
         let mut imu = NedMechanization::stationary_increment(&start, 0.01);
-        imu.delta_velocity.z += 0.01 * 0.01; // 0.01 m/s² bias on body z
+        imu.delta_velocity += Vec3::new(0.0, 0.0, 0.01 * 0.01); // 0.01 m/s² bias on body z
         for k in 0..30_000 {
             f.propagate(&imu).unwrap();
             if k % 25 == 24 {
                 f.update_position(&start.position, &Vector3::repeat(0.02))
                     .unwrap();
-                f.update_velocity_with(&Vector3::zeros(), &Vector3::repeat(0.01), &mut AcceptAll)
+                f.update_velocity_with(&Vec3::zeros(), &Vector3::repeat(0.01), &mut AcceptAll)
                     .unwrap();
             }
         }
@@ -714,7 +787,7 @@ mod tests {
         // Static, bias and scale factor on z are one thing: b_z + s_z f_z
         // (f_z ≈ −g) is what is observable, and it is found.
         let i = f.instruments();
-        let f_z = imu.delta_velocity.z / 0.01;
+        let f_z = imu.delta_velocity.z() / 0.01;
         let effective = i.accel_bias.z + i.accel_scale.z * f_z;
         assert!((effective - 0.01).abs() < 2e-4, "{effective} from {i:?}");
     }

@@ -12,12 +12,13 @@
 
 use aidnav_estimation::{EstimationError, MeasurementPolicy, Outcome, nalgebra::U3};
 use aidnav_frames::earth::Geodetic;
+use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::increments::{Rates, trapezoid};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::samples::{GnssFix, ImuSample};
 use aidnav_models::ned_ins::POSITION;
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 
 use crate::ned::{InstrumentEstimate, NedFilter};
 
@@ -72,9 +73,9 @@ pub struct SolutionRow {
     /// Antenna position.
     pub antenna: Geodetic,
     /// NED velocity.
-    pub velocity: Vector3<f64>,
-    /// Attitude.
-    pub attitude: UnitQuaternion<f64>,
+    pub velocity: Vec3<Ned>,
+    /// Attitude, body to NED.
+    pub attitude: Rotation<Body, Ned>,
     /// σ of the position error (N, E, D).
     pub sigma: Vector3<f64>,
 }
@@ -259,7 +260,7 @@ fn fix_epoch(
             && let (Some(v), Some(sv)) = (g.fix.velocity_ned, g.fix.velocity_sigma_neu)
         {
             let sv = sv.map(|x| x.max(cfg.min_velocity_sigma_mps));
-            filter.update_velocity_with(&v, &sv, policies.velocity)?;
+            filter.update_velocity_with(&Vec3::assume_in_frame(v), &sv, policies.velocity)?;
         }
     } else {
         filter.position_fix_missing()?;

@@ -20,7 +20,7 @@
 //!   detector (eq. 5) and limiting (eq. 8) with the filter's gain, the prior
 //!   during anomalies predicted from the last stable epochs;
 //! - `developed_eq4`: eq. 9 as printed, with eq. 4's gain in place of the
-//!   filter's ([`LimitedAdaptiveGain`]);
+//!   filter's ([`aidnav_estimation::adaptive::LimitedAdaptiveGain`]);
 //! - `chi2_gate`, `huber`: modern baselines on the known-statistics filter.
 //!
 //! "Known statistics" means what a 3-state filter can know of the truth

@@ -85,9 +85,9 @@ pub fn write_solution(
             row.antenna.latitude_rad.to_degrees(),
             row.antenna.longitude_rad.to_degrees(),
             row.antenna.height_m,
-            row.velocity.x,
-            row.velocity.y,
-            row.velocity.z,
+            row.velocity.x(),
+            row.velocity.y(),
+            row.velocity.z(),
             r.to_degrees(),
             p.to_degrees(),
             y.to_degrees(),
@@ -169,9 +169,9 @@ pub fn write_navresult(
             e.antenna.latitude_rad.to_degrees(),
             e.antenna.longitude_rad.to_degrees(),
             e.antenna.height_m,
-            e.velocity.x,
-            e.velocity.y,
-            e.velocity.z,
+            e.velocity.x(),
+            e.velocity.y(),
+            e.velocity.z(),
             r.to_degrees(),
             p.to_degrees(),
             y.to_degrees()
@@ -240,7 +240,7 @@ pub fn trajectory_chart(result: &ProcessResult) -> LineChart {
     let origin = result.fix_track[0];
     let ne = |g: &Geodetic| {
         let d = origin.ned_to(g);
-        (d.y, d.x)
+        (d.y(), d.x())
     };
     LineChart {
         title: "Trajectory: GNSS fixes and the filter's antenna position".into(),

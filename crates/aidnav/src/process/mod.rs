@@ -41,6 +41,7 @@ pub use aidnav_ins::mounting::euler_to_ctm;
 use std::path::Path;
 
 use aidnav_estimation::EstimationError;
+use aidnav_frames::{Rotation, Vec3};
 use aidnav_ins::alignment::{course, gyro_bias_at_rest, level, static_window};
 use aidnav_ins::ned::NedState;
 use aidnav_ins::samples::moving_average;
@@ -150,18 +151,19 @@ pub(crate) fn initialise(
         .find(|g| g.time_s <= t0)
         .unwrap_or(first_fix);
     let arm = attitude * Vector3::from(cfg.gnss.lever_arm_m);
-    let position = fix.position.offset_by(&-arm);
+    let position = fix.position.offset_by(&Vec3::assume_in_frame(-arm));
     let gyro_bias = w.map_or_else(Vector3::zeros, |w| {
         gyro_bias_at_rest(&w, &attitude, position.latitude_rad)
     });
     Ok((
         NedState {
             position,
-            velocity: cfg
-                .initial
-                .velocity_ned_mps
-                .map_or_else(Vector3::zeros, Vector3::from),
-            attitude,
+            velocity: Vec3::assume_in_frame(
+                cfg.initial
+                    .velocity_ned_mps
+                    .map_or_else(Vector3::zeros, Vector3::from),
+            ),
+            attitude: Rotation::assume_from_quaternion(attitude),
         },
         gyro_bias,
         start,

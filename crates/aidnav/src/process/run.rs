@@ -6,6 +6,7 @@
 
 use aidnav_estimation::{NoiseRule, Outcome};
 use aidnav_frames::earth::Geodetic;
+use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_integration::bridge::BridgeObserver;
 use aidnav_integration::ned::NedFilter;
 use aidnav_integration::ned_loop::{
@@ -18,7 +19,7 @@ use aidnav_models::ned_ins::{
     Vector21,
 };
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 
 use super::config::{AdaptiveNoise, Feedback, PolicyName};
 use super::{Inputs, ProcessConfig, ProcessError, initialise};
@@ -60,7 +61,7 @@ impl RunPlan {
             .map(|(i, g)| {
                 let mut fix = *g;
                 if let Some(Some(o)) = self.outliers.get(i) {
-                    fix.position = fix.position.offset_by(o);
+                    fix.position = fix.position.offset_by(&Vec3::assume_in_frame(*o));
                 }
                 AidingFix {
                     fix,
@@ -82,9 +83,9 @@ pub struct Epoch {
     /// Antenna position after the epoch (updated or not).
     pub antenna: Geodetic,
     /// NED velocity.
-    pub velocity: Vector3<f64>,
+    pub velocity: Vec3<Ned>,
     /// Attitude.
-    pub attitude: UnitQuaternion<f64>,
+    pub attitude: Rotation<Body, Ned>,
     /// σ of the position error (N, E, D).
     pub sigma: Vector3<f64>,
     /// Position NIS of the update (NaN when withheld).
@@ -211,7 +212,7 @@ fn new_filter(
         sig[ACCEL_SCALE + i] = ka;
     }
     let lever = Vector3::from(cfg.gnss.lever_arm_m);
-    let mut filter = NedFilter::new(model, state, &sig, lever)?;
+    let mut filter = NedFilter::new(model, state, &sig, Vec3::assume_in_frame(lever))?;
     filter.set_gyro_bias(gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
     if smoothing(cfg, plan) {

@@ -52,7 +52,7 @@ pub fn score_windows(epochs: &[Epoch], windows: &[(f64, f64)], length_s: f64) ->
             if g.time_s < a || g.time_s >= b || !is_reference(g) {
                 continue;
             }
-            let d = g.position.ned_to(&e.antenna);
+            let d = g.position.ned_to(&e.antenna).raw();
             m[0] = m[0].max(d.xy().norm());
             m[1] = m[1].max(d.z.abs());
             m[2] = m[2].max(d.norm());

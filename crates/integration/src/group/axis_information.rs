@@ -1,6 +1,22 @@
-//! One axis of a large group in information form ([`GroupAxisFilter`]) and
-//! the neighbour selections that decide who measures whom ([`k_nearest`],
-//! [`within_range`]).
+//! Spec 30 at scale: one axis of a group of hundreds to thousands of
+//! vehicles, the paper's constant-velocity model with a dense covariance,
+//! updated in information form ([`aidnav_estimation::SubspaceUpdate`]) from
+//! sparse observations — own position (and velocity) fixes, and relative
+//! positions to a few neighbours ([`k_nearest`], [`within_range`]).
+//!
+//! The state is ordered `[R¹ … R^M, V¹ … V^M]` (positions first) so the
+//! observed block is contiguous; [`aidnav_models::AxisGroup`] keeps the paper's
+//! interleaved order for the small reproduction.
+//!
+//! ```
+//! use aidnav_integration::group::GroupAxisFilter;
+//! let mut f = GroupAxisFilter::new(3, 1.0, 1.0, false, &[0.0; 3], &[0.0; 3], 10.0, 5.0).unwrap();
+//! f.predict();
+//! f.observe_own_position(0, 2.0, 10.0).unwrap();
+//! f.observe_relative(0, 1, -50.0, 0.5).unwrap(); // R¹ − R² = −50
+//! f.update().unwrap();
+//! assert!(f.position_sigma(1) < 10.0); // member 2 gained from member 1's fix
+//! ```
 
 use aidnav_estimation::{EstimationError, SparseInformation, SubspaceUpdate};
 use nalgebra::{DMatrix, DVector, Vector3};
