@@ -1,6 +1,11 @@
 //! `aidnav process`: run the job, print its tables.
 
-use super::*;
+use std::path::Path;
+
+use aidnav::jobs::{self, ProcessReport};
+use anyhow::Result;
+
+use super::ProcessArgs;
 
 pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
     let stem = a
@@ -49,6 +54,17 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
     if let Some(s) = r.tracking_smoothed_rms_m {
         println!("RTS-smoothed: RMS 3-D antenna error over RTK-fixed epochs {s:.4} m");
     }
+    print_outages(&r);
+    print_anomalies(&r);
+    for f in &r.files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+/// The outage tables: coasting, free INS and smoothed drift; the bridged
+/// drift; the efficiency criterion.
+fn print_outages(r: &ProcessReport) {
     if !r.outages.is_empty() {
         println!("simulated outages — RMS over windows of the maximum drift [m]:");
         println!(
@@ -108,6 +124,10 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
             );
         }
     }
+}
+
+/// The anomaly tables: injected outliers, and bursts after outages.
+fn print_anomalies(r: &ProcessReport) {
     if !r.anomalies.is_empty() {
         println!(
             "injected outliers (5–50 m jumps, σ unchanged) — RMS 3-D error over RTK-fixed epochs [m]:"
@@ -129,8 +149,4 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
             );
         }
     }
-    for f in &r.files {
-        println!("wrote {}", f.display());
-    }
-    Ok(())
 }
