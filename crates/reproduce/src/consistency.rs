@@ -206,52 +206,64 @@ pub fn run(
             Ok(out)
         },
     )?;
-    let runs = per_run.len() as f64;
-    let samples = runs * epochs as f64;
     let nees_epoch_bounds = mean_chi2_bounds(2, per_run.len(), s.confidence);
     let variants = (0..VARIANTS)
-        .map(|v| {
-            let mut nees_per_epoch = vec![0.0; epochs];
-            let mut nis_per_epoch = vec![0.0; epochs];
-            let mut nis_all = Chi2Mean::default();
-            let (mut sq_err, mut sq_sigma) = (0.0, 0.0);
-            for r in &per_run {
-                for k in 0..epochs {
-                    nees_per_epoch[k] += r.nees[v][k] / runs;
-                    nis_per_epoch[k] += r.nis[v][k] / runs;
-                    nis_all.push(r.nis[v][k], 1);
-                }
-                sq_err += r.sq_err[v];
-                sq_sigma += r.sq_sigma[v];
-            }
-            let (lo, hi) = nees_epoch_bounds;
-            let inside = nees_per_epoch
-                .iter()
-                .filter(|m| (lo..=hi).contains(*m))
-                .count() as f64
-                / epochs as f64;
-            let nis_inside = nis_all.is_consistent(s.confidence);
-            VariantResult {
-                name: names[v].to_string(),
-                q_scale: scales[v].0,
-                r_scale: scales[v].1,
-                mean_nees: nees_per_epoch.iter().sum::<f64>() / epochs as f64,
-                mean_nis: nis_all.mean(),
-                nis_bounds: nis_all.bounds(s.confidence),
-                nis_inside,
-                fraction_epochs_nees_inside: inside,
-                consistent: nis_inside && inside >= MIN_FRACTION_INSIDE,
-                rms_position_error_m: (sq_err / samples).sqrt(),
-                rms_position_sigma_m: (sq_sigma / samples).sqrt(),
-                nees_per_epoch,
-                nis_per_epoch,
-            }
-        })
+        .map(|v| variant_result(s, &per_run, v, names[v], scales[v], nees_epoch_bounds))
         .collect();
     Ok(ConsistencyResult {
         nees_epoch_bounds,
         variants,
     })
+}
+
+/// One variant's scores over every run: per-epoch mean NEES and NIS, the
+/// fraction of epochs inside the NEES bounds, the NIS test, RMS error and σ.
+fn variant_result(
+    s: &ConsistencyScenario,
+    per_run: &[RunSums],
+    v: usize,
+    name: &str,
+    (q_scale, r_scale): (f64, f64),
+    nees_epoch_bounds: (f64, f64),
+) -> VariantResult {
+    let epochs = s.epochs;
+    let runs = per_run.len() as f64;
+    let samples = runs * epochs as f64;
+    let mut nees_per_epoch = vec![0.0; epochs];
+    let mut nis_per_epoch = vec![0.0; epochs];
+    let mut nis_all = Chi2Mean::default();
+    let (mut sq_err, mut sq_sigma) = (0.0, 0.0);
+    for r in per_run {
+        for k in 0..epochs {
+            nees_per_epoch[k] += r.nees[v][k] / runs;
+            nis_per_epoch[k] += r.nis[v][k] / runs;
+            nis_all.push(r.nis[v][k], 1);
+        }
+        sq_err += r.sq_err[v];
+        sq_sigma += r.sq_sigma[v];
+    }
+    let (lo, hi) = nees_epoch_bounds;
+    let inside = nees_per_epoch
+        .iter()
+        .filter(|m| (lo..=hi).contains(*m))
+        .count() as f64
+        / epochs as f64;
+    let nis_inside = nis_all.is_consistent(s.confidence);
+    VariantResult {
+        name: name.to_string(),
+        q_scale,
+        r_scale,
+        mean_nees: nees_per_epoch.iter().sum::<f64>() / epochs as f64,
+        mean_nis: nis_all.mean(),
+        nis_bounds: nis_all.bounds(s.confidence),
+        nis_inside,
+        fraction_epochs_nees_inside: inside,
+        consistent: nis_inside && inside >= MIN_FRACTION_INSIDE,
+        rms_position_error_m: (sq_err / samples).sqrt(),
+        rms_position_sigma_m: (sq_sigma / samples).sqrt(),
+        nees_per_epoch,
+        nis_per_epoch,
+    }
 }
 
 #[cfg(test)]
