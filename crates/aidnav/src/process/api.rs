@@ -31,7 +31,7 @@ use super::{Inputs, ProcessError};
 /// cfg.initial.attitude_deg = Some([0.0; 3]);
 /// cfg.outage_bridge.enabled = false;
 /// let place = Geodetic { latitude_rad: 0.6, longitude_rad: 0.2, height_m: 10.0 };
-/// let g = aidnav::ins::ned::gravity_ned(&place).z;
+/// let g = aidnav::ins::ned::gravity_ned(&place).z();
 /// let imu = (0..1200)
 ///     .map(|k| ImuSample {
 ///         time_s: k as f64 * 0.01,
