@@ -72,7 +72,7 @@ pub struct FrequencyGrid {
     pub min: f64,
     /// Highest ω [rad/s], > min.
     pub max: f64,
-    /// Number of grid points (log-spaced), ≥ 1.
+    /// Number of grid points (log-spaced), 1 … [`MAX_SEARCH_COUNT`].
     pub count: usize,
 }
 
@@ -80,17 +80,18 @@ pub struct FrequencyGrid {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct GmdhConfig {
-    /// Highest polynomial degree among the candidates. Default 2.
+    /// Highest polynomial degree among the candidates, 0 … [`MAX_DEGREE`]. Default 2.
     pub max_degree: u32,
-    /// Given frequencies [rad/s] (e.g. Schuler, Earth rate). Default none.
+    /// Given frequencies [rad/s] (e.g. Schuler, Earth rate), each within
+    /// [`MIN_OMEGA_RAD_S`] … [`MAX_OMEGA_RAD_S`], at most [`MAX_FREQUENCIES`]. Default none.
     pub frequencies: Vec<f64>,
     /// Searched frequencies. Default none.
     pub search: Option<FrequencyGrid>,
     /// Training / checking split. Default alternating.
     pub split: Split,
-    /// Most units in a structure. Default 4.
+    /// Most units in a structure, 1 … [`MAX_UNITS`]. Default 4.
     pub max_units: usize,
-    /// Structures of each complexity carried to the next. Default 8.
+    /// Structures of each complexity carried to the next, 1 … [`MAX_BEAM`]. Default 8.
     pub beam: usize,
     /// Relative improvement of the criterion needed to accept one more unit.
     /// Default 0.02.
@@ -170,6 +171,198 @@ pub enum GmdhError {
     /// A configuration value out of range.
     #[error("invalid configuration: {0}")]
     Config(String),
+    /// A configuration key out of its bounds (see [`GmdhConfig::check`]).
+    #[error("{key} = {value}: allowed {allowed}")]
+    OutOfRange {
+        /// Key inside the GMDH table (`max_degree`, `search.count`, …).
+        key: &'static str,
+        /// The offending value, as text.
+        value: String,
+        /// The allowed range, and for a size the memory it would need.
+        allowed: String,
+    },
+}
+
+/// Highest polynomial degree allowed ([`GmdhConfig::max_degree`]): τᵖ on
+/// [−1, 1] beyond this is numerically indistinguishable from its neighbours.
+pub const MAX_DEGREE: u32 = 12;
+/// Most given frequencies ([`GmdhConfig::frequencies`]).
+pub const MAX_FREQUENCIES: usize = 64;
+/// Most searched frequencies ([`FrequencyGrid::count`]).
+pub const MAX_SEARCH_COUNT: usize = 1024;
+/// Highest angular frequency of a harmonic unit [rad/s] (≈ 160 Hz, far
+/// above any navigation-error dynamics a bridge models).
+pub const MAX_OMEGA_RAD_S: f64 = 1e3;
+/// Lowest angular frequency of a harmonic unit [rad/s] (a period of ≈ 200 years).
+pub const MIN_OMEGA_RAD_S: f64 = 1e-9;
+/// Most units in a structure ([`GmdhConfig::max_units`]).
+pub const MAX_UNITS: usize = 16;
+/// Most structures carried per complexity ([`GmdhConfig::beam`]).
+pub const MAX_BEAM: usize = 1024;
+/// Longest forecast horizon [s] ([`GmdhConfig::horizon_s`]): 10 days.
+pub const MAX_HORIZON_S: f64 = 864_000.0;
+/// Memory the candidate structures of one selection may take \[bytes\].
+pub const MEMORY_BUDGET_BYTES: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// `bytes` as text with a decimal unit (`19.2 GB`).
+pub fn human_bytes(bytes: f64) -> String {
+    let units = ["B", "kB", "MB", "GB", "TB", "PB", "EB"];
+    let mut v = bytes;
+    let mut u = 0;
+    while v >= 1000.0 && u + 1 < units.len() {
+        v /= 1000.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{v:.0} {}", units[u])
+    } else {
+        format!("{v:.1} {}", units[u])
+    }
+}
+
+fn out_of_range(key: &'static str, value: impl std::fmt::Display, allowed: String) -> GmdhError {
+    GmdhError::OutOfRange {
+        key,
+        value: value.to_string(),
+        allowed,
+    }
+}
+
+impl GmdhConfig {
+    /// Number of candidate units: powers, given and searched frequencies
+    /// (saturating, so a huge key cannot overflow).
+    pub fn candidate_count(&self) -> usize {
+        (self.max_degree as usize)
+            .saturating_add(1)
+            .saturating_add(self.frequencies.len())
+            .saturating_add(self.search.map_or(0, |g| g.count))
+    }
+
+    /// Memory the candidate structures of a selection need at most
+    /// \[bytes\]: the exhaustive pairs of complexity 2, or a beam times the
+    /// candidates of each later complexity, each a criterion and a list of
+    /// `max_units` indices.
+    pub fn memory_bytes(&self) -> f64 {
+        let n = self.candidate_count() as f64;
+        let structure = (std::mem::size_of::<(f64, Vec<usize>)>()
+            + self.max_units.min(MAX_UNITS.max(1)) * std::mem::size_of::<usize>())
+            as f64;
+        let pairs = n * (n - 1.0) / 2.0;
+        let beam = self.beam as f64 * n;
+        pairs.max(beam).max(n) * structure
+    }
+
+    /// Every key within its bounds and the selection within
+    /// [`MEMORY_BUDGET_BYTES`]; the error names the key.
+    pub fn check(&self) -> Result<(), GmdhError> {
+        if self.max_degree > MAX_DEGREE {
+            return Err(out_of_range(
+                "max_degree",
+                self.max_degree,
+                format!("0 ≤ max_degree ≤ {MAX_DEGREE}"),
+            ));
+        }
+        if self.frequencies.len() > MAX_FREQUENCIES {
+            return Err(out_of_range(
+                "frequencies",
+                format!("{} frequencies", self.frequencies.len()),
+                format!("at most {MAX_FREQUENCIES}"),
+            ));
+        }
+        let omega_range = format!("{MIN_OMEGA_RAD_S:e} ≤ ω ≤ {MAX_OMEGA_RAD_S:e} rad/s");
+        for &w in &self.frequencies {
+            if !(w.is_finite() && (MIN_OMEGA_RAD_S..=MAX_OMEGA_RAD_S).contains(&w)) {
+                return Err(out_of_range("frequencies", format!("{w:e}"), omega_range));
+            }
+        }
+        if let Some(g) = self.search {
+            if !(g.count >= 1 && g.count <= MAX_SEARCH_COUNT) {
+                let bytes = g.count as f64 * std::mem::size_of::<Unit>() as f64;
+                return Err(out_of_range(
+                    "search.count",
+                    g.count,
+                    format!(
+                        "1 ≤ search.count ≤ {MAX_SEARCH_COUNT} ({} would need {} for the candidate units alone)",
+                        g.count,
+                        human_bytes(bytes)
+                    ),
+                ));
+            }
+            for (key, w) in [("search.min", g.min), ("search.max", g.max)] {
+                if !(w.is_finite() && (MIN_OMEGA_RAD_S..=MAX_OMEGA_RAD_S).contains(&w)) {
+                    return Err(out_of_range(key, format!("{w:e}"), omega_range));
+                }
+            }
+            if g.max <= g.min {
+                return Err(out_of_range(
+                    "search.max",
+                    format!("{:e}", g.max),
+                    "search.max > search.min".into(),
+                ));
+            }
+        }
+        if !(1..=MAX_UNITS).contains(&self.max_units) {
+            return Err(out_of_range(
+                "max_units",
+                self.max_units,
+                format!("1 ≤ max_units ≤ {MAX_UNITS}"),
+            ));
+        }
+        if !(1..=MAX_BEAM).contains(&self.beam) {
+            return Err(out_of_range(
+                "beam",
+                self.beam,
+                format!("1 ≤ beam ≤ {MAX_BEAM}"),
+            ));
+        }
+        if !(self.min_improvement.is_finite() && (0.0..1.0).contains(&self.min_improvement)) {
+            return Err(out_of_range(
+                "min_improvement",
+                self.min_improvement,
+                "0 ≤ min_improvement < 1".into(),
+            ));
+        }
+        if !(self.noise_guard.is_finite() && (0.0..=1e6).contains(&self.noise_guard)) {
+            return Err(out_of_range(
+                "noise_guard",
+                self.noise_guard,
+                "0 ≤ noise_guard ≤ 1e6".into(),
+            ));
+        }
+        if let Split::Latest { fraction } = self.split
+            && !(fraction > 0.0 && fraction < 1.0)
+        {
+            return Err(out_of_range(
+                "split.fraction",
+                fraction,
+                "0 < fraction < 1".into(),
+            ));
+        }
+        if let Some(h) = self.horizon_s
+            && !(h.is_finite() && h > 0.0 && h <= MAX_HORIZON_S)
+        {
+            return Err(out_of_range(
+                "horizon_s",
+                h,
+                format!("0 < horizon_s ≤ {MAX_HORIZON_S}"),
+            ));
+        }
+        let bytes = self.memory_bytes();
+        if bytes > MEMORY_BUDGET_BYTES {
+            return Err(out_of_range(
+                "beam",
+                self.beam,
+                format!(
+                    "a selection within {}: {} candidates, beam {} would need {}",
+                    human_bytes(MEMORY_BUDGET_BYTES),
+                    self.candidate_count(),
+                    self.beam,
+                    human_bytes(bytes)
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// A fitted structure.
@@ -243,8 +436,19 @@ fn fit(units: &[Unit], w: &Window<'_>, idx: &[usize]) -> Option<Vec<f64>> {
             a[(r, c)] = *v;
         }
     }
+    // A non-finite entry (an overflowing ω·t) would make the SVD panic: such
+    // a structure is not identifiable and is skipped like a rank-deficient one.
+    if a.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
     let b = DVector::from_iterator(idx.len(), idx.iter().map(|&i| y[i]));
+    if b.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
     let svd = a.svd(true, true);
+    if svd.singular_values.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
     let smax = svd.singular_values.max();
     // Rank test: a structure whose columns are (nearly) dependent on A is
     // not identifiable there and is skipped rather than regularised.
@@ -283,6 +487,10 @@ fn harmonic_residual(omega: f64, degree: u32, w: &Window<'_>, train: &[usize]) -
         None => f64::INFINITY,
     }
 }
+
+/// Largest phase ω·t of a harmonic unit [rad]: beyond it an f64 no longer
+/// resolves a fraction of a period.
+const MAX_PHASE_RAD: f64 = 1e12;
 
 /// Points on the forecast horizon where the balance criterion compares forecasts.
 const BALANCE_POINTS: usize = 64;
@@ -387,8 +595,21 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
             needed: MIN_SAMPLES,
         });
     }
-    if config.max_units == 0 || config.beam == 0 {
-        return Err(GmdhError::Config("max_units and beam must be ≥ 1".into()));
+    config.check()?;
+    // The phase ω·t must stay where sin and cos still resolve it (and finite).
+    let t_abs = t.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let highest = config
+        .frequencies
+        .iter()
+        .copied()
+        .chain(config.search.map(|g| g.max))
+        .fold(0.0_f64, f64::max);
+    if !(highest * t_abs <= MAX_PHASE_RAD) {
+        return Err(out_of_range(
+            "frequencies",
+            format!("{highest:e}"),
+            format!("ω · |t| ≤ {MAX_PHASE_RAD:e} rad over the samples (|t| up to {t_abs:e} s)"),
+        ));
     }
     let mut candidates: Vec<Unit> = (0..=config.max_degree).map(|p| Unit::Power { p }).collect();
     for &omega in &config.frequencies {
@@ -558,4 +779,94 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
         criterion: crit,
         best_by_complexity,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn samples() -> (Vec<f64>, Vec<f64>) {
+        let t: Vec<f64> = (0..200).map(|k| k as f64).collect();
+        let y = t.iter().map(|&t| 0.5 + 0.01 * t).collect();
+        (t, y)
+    }
+
+    fn key_of(e: GmdhError) -> &'static str {
+        match e {
+            GmdhError::OutOfRange { key, .. } => key,
+            other => panic!("expected OutOfRange, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_huge_frequency_is_an_error_not_an_svd_panic() {
+        let (t, y) = samples();
+        let cfg = GmdhConfig {
+            frequencies: vec![1e308],
+            ..GmdhConfig::default()
+        };
+        assert_eq!(key_of(select(&t, &y, &cfg).unwrap_err()), "frequencies");
+    }
+
+    #[test]
+    fn a_non_finite_design_matrix_is_skipped_not_decomposed() {
+        let (t, y) = samples();
+        let w = Window {
+            t: &t,
+            y: &y,
+            t_mid: 100.0,
+            half_span: 100.0,
+        };
+        let idx: Vec<usize> = (0..t.len()).collect();
+        assert_eq!(fit(&[Unit::Harmonic { omega: 1e308 }], &w, &idx), None);
+    }
+
+    #[test]
+    fn a_huge_max_degree_is_refused_before_allocating() {
+        let (t, y) = samples();
+        let cfg = GmdhConfig {
+            max_degree: 2_147_483_648,
+            ..GmdhConfig::default()
+        };
+        assert_eq!(key_of(select(&t, &y, &cfg).unwrap_err()), "max_degree");
+    }
+
+    #[test]
+    fn a_huge_search_count_is_refused_with_its_memory() {
+        let (t, y) = samples();
+        let cfg = GmdhConfig {
+            search: Some(FrequencyGrid {
+                min: 1e-3,
+                max: 1e-1,
+                count: 1 << 32,
+            }),
+            ..GmdhConfig::default()
+        };
+        let e = select(&t, &y, &cfg).unwrap_err();
+        assert!(e.to_string().contains("GB"), "{e}");
+        assert_eq!(key_of(e), "search.count");
+    }
+
+    #[test]
+    fn the_largest_allowed_configuration_fits_the_memory_budget() {
+        let cfg = GmdhConfig {
+            max_degree: MAX_DEGREE,
+            frequencies: vec![1e-3; MAX_FREQUENCIES],
+            search: Some(FrequencyGrid {
+                min: 1e-3,
+                max: 1e-1,
+                count: MAX_SEARCH_COUNT,
+            }),
+            max_units: MAX_UNITS,
+            beam: MAX_BEAM,
+            ..GmdhConfig::default()
+        };
+        assert!(
+            cfg.memory_bytes() <= MEMORY_BUDGET_BYTES,
+            "{}",
+            cfg.memory_bytes()
+        );
+        assert!(cfg.check().is_ok());
+        assert!(GmdhConfig::default().check().is_ok());
+    }
 }
