@@ -67,6 +67,36 @@ impl Default for ConsistencyScenario {
     }
 }
 
+/// Memory the run records computed ahead of the campaign's fold may take
+/// \[bytes\] (256 MB): fewer runs are computed at once when epochs are many.
+const IN_FLIGHT_BYTES: usize = 256 * 1024 * 1024;
+
+/// Most runs computed before they are folded (enough for 16 threads).
+const MAX_RUNS_IN_FLIGHT: usize = 64;
+
+impl ConsistencyScenario {
+    /// Bytes of one run's record: NEES and NIS per epoch of each variant.
+    fn run_record_bytes(&self) -> usize {
+        self.epochs
+            .saturating_mul(2 * VARIANTS * std::mem::size_of::<f64>())
+            .max(1)
+    }
+
+    /// Most runs computed before they are folded: [`MAX_RUNS_IN_FLIGHT`],
+    /// fewer when their records would exceed [`IN_FLIGHT_BYTES`].
+    fn runs_in_flight(&self) -> usize {
+        (IN_FLIGHT_BYTES / self.run_record_bytes()).clamp(1, MAX_RUNS_IN_FLIGHT)
+    }
+
+    /// Memory the campaign holds at most \[bytes\]: the run records in
+    /// flight and the per-epoch sums (NEES and NIS of each variant). It does
+    /// not grow with `runs`: runs are folded in as they finish.
+    pub fn memory_bytes(&self) -> f64 {
+        let record = self.run_record_bytes() as f64;
+        record * self.runs_in_flight().min(self.runs.max(1)) as f64 + record
+    }
+}
+
 impl Validate for ConsistencyScenario {
     fn validate(&self) -> Result<(), Invalid> {
         count_in_range("runs", self.runs, 1, 1_000_000)?;
@@ -82,6 +112,13 @@ impl Validate for ConsistencyScenario {
         probability("confidence", self.confidence)?;
         positive("mistuned_q_scale", self.mistuned_q_scale)?;
         positive("mistuned_r_scale", self.mistuned_r_scale)?;
+        crate::within_memory(
+            "epochs",
+            self.epochs,
+            self.memory_bytes(),
+            "the per-epoch NEES and NIS sums",
+            "2 ≤ epochs ≤ 1000000",
+        )?;
         if self.runs.saturating_mul(self.epochs) > 2_000_000_000 {
             return Err(Invalid::new("runs", self.runs, "runs × epochs ≤ 2·10⁹"));
         }
@@ -169,7 +206,10 @@ pub fn run(
     ];
     let names = ["tuned", "q_too_small", "r_too_large"];
     let epochs = s.epochs;
-    let per_run = mc.try_run(
+    let runs = mc.runs as f64;
+    let sums = mc.try_fold_chunked(
+        s.runs_in_flight(),
+        CampaignSums::new(epochs),
         |_, rng| -> Result<RunSums, aidnav_estimation::EstimationError> {
             let mut out = RunSums {
                 nees: std::array::from_fn(|_| Vec::with_capacity(epochs)),
@@ -205,10 +245,14 @@ pub fn run(
             }
             Ok(out)
         },
+        |acc, _, run| acc.add(&run, runs),
     )?;
-    let nees_epoch_bounds = mean_chi2_bounds(2, per_run.len(), s.confidence);
-    let variants = (0..VARIANTS)
-        .map(|v| variant_result(s, &per_run, v, names[v], scales[v], nees_epoch_bounds))
+    let nees_epoch_bounds = mean_chi2_bounds(2, mc.runs, s.confidence);
+    let variants = sums
+        .variants
+        .into_iter()
+        .enumerate()
+        .map(|(v, sums)| variant_result(s, sums, runs, names[v], scales[v], nees_epoch_bounds))
         .collect();
     Ok(ConsistencyResult {
         nees_epoch_bounds,
@@ -216,32 +260,69 @@ pub fn run(
     })
 }
 
-/// One variant's scores over every run: per-epoch mean NEES and NIS, the
-/// fraction of epochs inside the NEES bounds, the NIS test, RMS error and σ.
+/// One variant's sums over the runs folded so far: the run-averaged NEES
+/// and NIS per epoch (each run's value / runs, added in run order), every
+/// NIS, and the squared errors and variances.
+struct VariantSums {
+    nees_per_epoch: Vec<f64>,
+    nis_per_epoch: Vec<f64>,
+    nis_all: Chi2Mean,
+    sq_err: f64,
+    sq_sigma: f64,
+}
+
+/// The campaign's running sums: memory of one run's per-epoch record, not
+/// of every run's.
+struct CampaignSums {
+    variants: [VariantSums; VARIANTS],
+}
+
+impl CampaignSums {
+    fn new(epochs: usize) -> Self {
+        Self {
+            variants: std::array::from_fn(|_| VariantSums {
+                nees_per_epoch: vec![0.0; epochs],
+                nis_per_epoch: vec![0.0; epochs],
+                nis_all: Chi2Mean::default(),
+                sq_err: 0.0,
+                sq_sigma: 0.0,
+            }),
+        }
+    }
+
+    /// Fold in the next run (runs come in run order).
+    fn add(&mut self, r: &RunSums, runs: f64) {
+        for (v, acc) in self.variants.iter_mut().enumerate() {
+            for k in 0..acc.nees_per_epoch.len() {
+                acc.nees_per_epoch[k] += r.nees[v][k] / runs;
+                acc.nis_per_epoch[k] += r.nis[v][k] / runs;
+                acc.nis_all.push(r.nis[v][k], 1);
+            }
+            acc.sq_err += r.sq_err[v];
+            acc.sq_sigma += r.sq_sigma[v];
+        }
+    }
+}
+
+/// One variant's scores over every run: the fraction of epochs inside the
+/// NEES bounds, the NIS test, RMS error and σ.
 fn variant_result(
     s: &ConsistencyScenario,
-    per_run: &[RunSums],
-    v: usize,
+    sums: VariantSums,
+    runs: f64,
     name: &str,
     (q_scale, r_scale): (f64, f64),
     nees_epoch_bounds: (f64, f64),
 ) -> VariantResult {
     let epochs = s.epochs;
-    let runs = per_run.len() as f64;
     let samples = runs * epochs as f64;
-    let mut nees_per_epoch = vec![0.0; epochs];
-    let mut nis_per_epoch = vec![0.0; epochs];
-    let mut nis_all = Chi2Mean::default();
-    let (mut sq_err, mut sq_sigma) = (0.0, 0.0);
-    for r in per_run {
-        for k in 0..epochs {
-            nees_per_epoch[k] += r.nees[v][k] / runs;
-            nis_per_epoch[k] += r.nis[v][k] / runs;
-            nis_all.push(r.nis[v][k], 1);
-        }
-        sq_err += r.sq_err[v];
-        sq_sigma += r.sq_sigma[v];
-    }
+    let VariantSums {
+        nees_per_epoch,
+        nis_per_epoch,
+        nis_all,
+        sq_err,
+        sq_sigma,
+    } = sums;
     let (lo, hi) = nees_epoch_bounds;
     let inside = nees_per_epoch
         .iter()
@@ -269,6 +350,29 @@ fn variant_result(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_documented_maximum_run_count_needs_memory_independent_of_runs() {
+        let max = ConsistencyScenario {
+            runs: 1_000_000,
+            ..Default::default()
+        };
+        assert!(max.validate().is_ok());
+        let few = ConsistencyScenario {
+            runs: 200_000,
+            ..Default::default()
+        };
+        assert_eq!(max.memory_bytes(), few.memory_bytes());
+        // The default scenario holds well under 100 MB whatever the run count.
+        assert!(max.memory_bytes() < 1e8, "{}", max.memory_bytes());
+        let longest = ConsistencyScenario {
+            runs: 2000,
+            epochs: 1_000_000,
+            ..Default::default()
+        };
+        assert!(longest.validate().is_ok());
+        assert!(longest.memory_bytes() <= 512.0 * 1024.0 * 1024.0);
+    }
 
     #[test]
     fn reduced_run_demo_separates_tuned_from_mistuned() {

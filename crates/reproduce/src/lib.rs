@@ -14,28 +14,94 @@ pub mod group;
 pub mod outages;
 pub mod published;
 
-use aidnav_io::config::{Invalid, non_negative, positive};
+use aidnav_estimation::gmdh::{GmdhConfig, GmdhError, human_bytes};
+use aidnav_io::config::{Invalid, in_range};
 use aidnav_models::PlatformChannel;
 
-/// Range checks of a `[platform]` table, shared by the spec-20 scenarios.
+/// Physical ranges of the `[platform]` keys (spec-20 scenarios). Each is
+/// far wider than any real platform yet keeps every variance σ² and every
+/// Φ, Q entry a normal f64 (no underflow to 0, no overflow to ∞):
+///
+/// | key | range |
+/// | --- | --- |
+/// | `dt_s` | 1e-3 … 100 s |
+/// | `beta_per_s` | 1e-8 … 1 1/s |
+/// | `drift_sigma_rad_s` | 1e-12 … 1e-2 rad/s |
+/// | `gnss_velocity_sigma_mps` | 1e-6 … 1e3 m/s |
+/// | `accel_bias_m_s2` | −100 … 100 m/s² |
+/// | `accel_bias_variation_m_s2` | 0, or 1e-9 … 100 m/s² |
+/// | `accel_bias_correlation_s` | 1e-3 … 1e7 s |
+pub const PLATFORM_RANGES: [(&str, f64, f64); 7] = [
+    ("dt_s", 1e-3, 100.0),
+    ("beta_per_s", 1e-8, 1.0),
+    ("drift_sigma_rad_s", 1e-12, 1e-2),
+    ("gnss_velocity_sigma_mps", 1e-6, 1e3),
+    ("accel_bias_m_s2", -100.0, 100.0),
+    ("accel_bias_variation_m_s2", 1e-9, 100.0),
+    ("accel_bias_correlation_s", 1e-3, 1e7),
+];
+
+/// Range checks of a `[platform]` table, shared by the spec-20 scenarios
+/// (ranges in [`PLATFORM_RANGES`]).
 pub(crate) fn validate_platform(p: &PlatformChannel) -> Result<(), Invalid> {
-    positive("dt_s", p.dt_s).map_err(|e| e.within("platform"))?;
-    positive("beta_per_s", p.beta_per_s).map_err(|e| e.within("platform"))?;
-    positive("drift_sigma_rad_s", p.drift_sigma_rad_s).map_err(|e| e.within("platform"))?;
-    positive("gnss_velocity_sigma_mps", p.gnss_velocity_sigma_mps)
-        .map_err(|e| e.within("platform"))?;
-    non_negative("accel_bias_variation_m_s2", p.accel_bias_variation_m_s2)
-        .map_err(|e| e.within("platform"))?;
-    positive("accel_bias_correlation_s", p.accel_bias_correlation_s)
-        .map_err(|e| e.within("platform"))?;
-    if !p.accel_bias_m_s2.is_finite() {
-        return Err(Invalid::new(
-            "platform.accel_bias_m_s2",
-            p.accel_bias_m_s2,
-            "a finite number",
-        ));
+    let values = [
+        p.dt_s,
+        p.beta_per_s,
+        p.drift_sigma_rad_s,
+        p.gnss_velocity_sigma_mps,
+        p.accel_bias_m_s2,
+        p.accel_bias_variation_m_s2,
+        p.accel_bias_correlation_s,
+    ];
+    for (&(key, lo, hi), v) in PLATFORM_RANGES.iter().zip(values) {
+        // b(t) may be switched off exactly.
+        if key == "accel_bias_variation_m_s2" && v == 0.0 {
+            continue;
+        }
+        in_range(key, v, lo, hi).map_err(|e| e.within("platform"))?;
     }
     Ok(())
+}
+
+/// Memory one experiment may plan to hold at once \[bytes\] (4 GB): a
+/// size key that would need more is refused at load, before allocating.
+pub const MEMORY_BUDGET_BYTES: f64 = 4e9;
+
+/// Error naming `key` unless `bytes` (what `value` of `key` would make the
+/// experiment hold for `what`) is within [`MEMORY_BUDGET_BYTES`].
+pub(crate) fn within_memory(
+    key: &str,
+    value: impl std::fmt::Display,
+    bytes: f64,
+    what: &str,
+    bound: &str,
+) -> Result<(), Invalid> {
+    if bytes.is_finite() && bytes <= MEMORY_BUDGET_BYTES {
+        return Ok(());
+    }
+    Err(Invalid::new(
+        key,
+        &value,
+        format!(
+            "{bound} ({key} = {value} would need {} for {what}; at most {})",
+            human_bytes(bytes),
+            human_bytes(MEMORY_BUDGET_BYTES)
+        ),
+    ))
+}
+
+/// A GMDH table's bounds ([`GmdhConfig::check`]) as a scenario [`Invalid`]
+/// under `table` (e.g. `bridge.gmdh`).
+pub(crate) fn validate_gmdh(table: &str, g: &GmdhConfig) -> Result<(), Invalid> {
+    match g.check() {
+        Ok(()) => Ok(()),
+        Err(GmdhError::OutOfRange {
+            key,
+            value,
+            allowed,
+        }) => Err(Invalid::new(key, value, allowed).within(table)),
+        Err(other) => Err(Invalid::new(table, other, "a valid GMDH configuration")),
+    }
 }
 
 /// Range checks of a scenario's list of fault specs (`[[faults]]`,
@@ -82,3 +148,48 @@ monte_carlo_scenario!(
     group::GroupScenario,
     outages::OutagesScenario
 );
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aidnav_io::config::Validate;
+
+    #[test]
+    fn every_default_scenario_is_within_its_bounds() {
+        assert_eq!(anomalies::AnomaliesScenario::default().validate(), Ok(()));
+        assert_eq!(
+            consistency::ConsistencyScenario::default().validate(),
+            Ok(())
+        );
+        assert_eq!(
+            extended_state::ExtendedStateScenario::default().validate(),
+            Ok(())
+        );
+        assert_eq!(formation::FormationScenario::default().validate(), Ok(()));
+        assert_eq!(group::GroupScenario::default().validate(), Ok(()));
+        assert_eq!(outages::OutagesScenario::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn platform_sigmas_are_bounded_physically_not_just_positive() {
+        let p = PlatformChannel {
+            gnss_velocity_sigma_mps: 1e-170,
+            ..PlatformChannel::default()
+        };
+        let e = validate_platform(&p).unwrap_err();
+        assert_eq!(e.key, "platform.gnss_velocity_sigma_mps");
+        let p = PlatformChannel {
+            drift_sigma_rad_s: 1e-170,
+            ..PlatformChannel::default()
+        };
+        assert_eq!(
+            validate_platform(&p).unwrap_err().key,
+            "platform.drift_sigma_rad_s"
+        );
+        // Every bound keeps σ² a normal number.
+        for (key, lo, hi) in PLATFORM_RANGES {
+            assert!((lo * lo).is_normal() || lo < 0.0, "{key}");
+            assert!((hi * hi).is_normal(), "{key}");
+        }
+    }
+}

@@ -100,6 +100,76 @@ impl MonteCarlo {
     }
 }
 
+/// Runs computed in parallel before [`MonteCarlo::try_fold`] folds them:
+/// this many per thread.
+const FOLD_CHUNK_PER_THREAD: usize = 4;
+
+impl MonteCarlo {
+    /// Run `f(run_index, rng)` for every run and fold the results into
+    /// `init` with `fold(acc, run_index, result)` **in run order**, so the
+    /// fold's arithmetic is the same whatever the thread count. Runs are
+    /// computed in parallel a chunk at a time (a few per thread), so only a
+    /// chunk of results is held at once: memory does not grow with `runs`.
+    /// The first error (lowest run index) wins, as in [`try_run`](Self::try_run).
+    pub fn try_fold<T, E, A, F, G>(&self, init: A, f: F, fold: G) -> Result<A, E>
+    where
+        T: Send,
+        E: Send,
+        F: Fn(usize, &mut RunRng) -> Result<T, E> + Sync,
+        G: FnMut(&mut A, usize, T),
+    {
+        self.try_fold_chunked(usize::MAX, init, f, fold)
+    }
+
+    /// As [`try_fold`](Self::try_fold) holding at most `max_chunk` run
+    /// results at once (for runs whose results are large), still at most a
+    /// few per thread.
+    pub fn try_fold_chunked<T, E, A, F, G>(
+        &self,
+        max_chunk: usize,
+        init: A,
+        f: F,
+        mut fold: G,
+    ) -> Result<A, E>
+    where
+        T: Send,
+        E: Send,
+        F: Fn(usize, &mut RunRng) -> Result<T, E> + Sync,
+        G: FnMut(&mut A, usize, T),
+    {
+        let bar = self.bar();
+        let chunk = (rayon::current_num_threads() * FOLD_CHUNK_PER_THREAD)
+            .min(max_chunk)
+            .max(1);
+        let mut acc = init;
+        let mut first = 0;
+        while first < self.runs {
+            let last = (first + chunk).min(self.runs);
+            let results: Vec<Result<T, E>> = (first..last)
+                .into_par_iter()
+                .map(|k| {
+                    let mut rng = run_rng(self.seed, k as u64);
+                    let r = f(k, &mut rng);
+                    bar.inc(1);
+                    r
+                })
+                .collect();
+            for (k, r) in (first..last).zip(results) {
+                match r {
+                    Ok(t) => fold(&mut acc, k, t),
+                    Err(e) => {
+                        bar.finish_and_clear();
+                        return Err(e);
+                    }
+                }
+            }
+            first = last;
+        }
+        bar.finish_and_clear();
+        Ok(acc)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -124,6 +194,40 @@ mod tests {
         let parallel = four.install(|| mc.run(work));
         assert_eq!(serial, parallel);
         assert!(serial.iter().enumerate().all(|(i, (k, _))| i == *k));
+    }
+
+    #[test]
+    fn try_fold_folds_in_run_order_whatever_the_thread_count() {
+        let mc = MonteCarlo::new(1000, 3).quiet();
+        let work = |_: usize, rng: &mut RunRng| -> Result<f64, ()> { Ok(rng.random::<f64>()) };
+        let fold = |acc: &mut Vec<usize>, k: usize, x: f64| {
+            acc.push(k);
+            let _ = x;
+        };
+        let order = mc.try_fold(Vec::new(), work, fold).unwrap();
+        assert_eq!(order, (0..1000).collect::<Vec<_>>());
+        // The same floating-point sum as summing the collected runs in order.
+        let sum_fold = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| mc.try_fold(0.0, work, |a: &mut f64, _, x| *a += x / 1000.0))
+                .unwrap()
+        };
+        let collected: f64 = mc
+            .try_run(work)
+            .unwrap()
+            .iter()
+            .fold(0.0, |a, x| a + x / 1000.0);
+        assert_eq!(sum_fold(1).to_bits(), collected.to_bits());
+        assert_eq!(sum_fold(3).to_bits(), collected.to_bits());
+        let r: Result<(), usize> = mc.try_fold(
+            (),
+            |k, _| if k >= 517 { Err(k) } else { Ok(()) },
+            |_, _, _| {},
+        );
+        assert_eq!(r, Err(517));
     }
 
     #[test]

@@ -3,6 +3,8 @@
 
 use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_range, non_negative};
 
+use aidnav_estimation::gmdh::{GmdhConfig, GmdhError};
+
 use super::config::{ImuFormat, ProcessConfig};
 
 impl Validate for ProcessConfig {
@@ -65,6 +67,25 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
     Ok(())
 }
 
+/// The outage bridge's GMDH table: every key within the bounds of
+/// [`GmdhConfig::check`] (degree, frequencies, grid size, units, beam and the
+/// memory of a selection), the error naming `outage_bridge.gmdh.<key>`.
+fn validate_gmdh(g: &GmdhConfig) -> Result<(), Invalid> {
+    match g.check() {
+        Ok(()) => Ok(()),
+        Err(GmdhError::OutOfRange {
+            key,
+            value,
+            allowed,
+        }) => Err(Invalid::new(key, value, allowed).within("outage_bridge.gmdh")),
+        Err(other) => Err(Invalid::new(
+            "outage_bridge.gmdh",
+            other,
+            "a valid GMDH configuration",
+        )),
+    }
+}
+
 /// Outage bridge, efficiency criterion, outputs and scoring settings.
 fn validate_supervision_and_scores(cfg: &ProcessConfig) -> Result<(), Invalid> {
     let b = &cfg.outage_bridge;
@@ -85,6 +106,7 @@ fn validate_supervision_and_scores(cfg: &ProcessConfig) -> Result<(), Invalid> {
     }
     count_in_range("model_decimation", b.model_decimation, 1, 1000)
         .map_err(|e| e.within("outage_bridge"))?;
+    validate_gmdh(&b.gmdh)?;
     if let Some(sg) = cfg.efficiency.sigma_gnss_m {
         all_positive("efficiency", &[("sigma_gnss_m", sg)])?;
     }
@@ -121,4 +143,26 @@ fn validate_supervision_and_scores(cfg: &ProcessConfig) -> Result<(), Invalid> {
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outage_bridge_gmdh_keys_are_bounded_before_allocating() {
+        let mut cfg = GmdhConfig {
+            max_degree: 2_147_483_648,
+            ..GmdhConfig::default()
+        };
+        let e = validate_gmdh(&cfg).unwrap_err();
+        assert_eq!(e.key, "outage_bridge.gmdh.max_degree");
+        cfg.max_degree = 2;
+        cfg.frequencies = vec![1e308];
+        assert_eq!(
+            validate_gmdh(&cfg).unwrap_err().key,
+            "outage_bridge.gmdh.frequencies"
+        );
+        assert_eq!(validate_gmdh(&GmdhConfig::default()), Ok(()));
+    }
 }

@@ -71,7 +71,8 @@ pub struct ExtendedStateScenario {
     /// (t_B = 400 s, φ = 30°).
     pub figure_target: usize,
     /// Forced switch times for the sweep figure: every this many seconds of
-    /// fusion. Default 10.
+    /// fusion, fix_interval_s … 3600 (a switch between two fixes is the
+    /// same switch). Default 10.
     pub sweep_step_s: f64,
     /// Runs of the sweep. Default 20.
     pub sweep_runs: usize,
@@ -107,6 +108,18 @@ impl Default for ExtendedStateScenario {
     }
 }
 
+impl ExtendedStateScenario {
+    /// Memory the forced-switch sweep holds at most \[bytes\]: per forced
+    /// switch time (every `sweep_step_s` up to the latest t_B), its time, the
+    /// filter state saved there in a run and every sweep run's error ratio.
+    pub fn sweep_memory_bytes(&self) -> f64 {
+        let t_b = self.targets.iter().map(|t| t.t_b_s).fold(0.0, f64::max);
+        let points = ((t_b - self.fusion_start_s).max(0.0) / self.sweep_step_s).ceil();
+        let snapshot = std::mem::size_of::<Option<super::Snapshot>>() as f64;
+        points * (8.0 * (self.sweep_runs as f64 + 1.0) + snapshot)
+    }
+}
+
 impl Validate for ExtendedStateScenario {
     fn validate(&self) -> Result<(), Invalid> {
         count_in_range("runs", self.runs, 1, 100_000)?;
@@ -129,6 +142,19 @@ impl Validate for ExtendedStateScenario {
         positive("prior_instrument_variance", self.prior_instrument_variance)?;
         non_negative("velocity_process_noise", self.velocity_process_noise)?;
         positive("sweep_step_s", self.sweep_step_s)?;
+        crate::within_memory(
+            "sweep_step_s",
+            self.sweep_step_s,
+            self.sweep_memory_bytes(),
+            "the forced-switch sweep",
+            "fix_interval_s ≤ sweep_step_s ≤ 3600",
+        )?;
+        in_range(
+            "sweep_step_s",
+            self.sweep_step_s,
+            self.fix_interval_s,
+            3600.0,
+        )?;
         if self.thresholds.is_empty() || self.thresholds.len() > 10 {
             return Err(Invalid::new(
                 "thresholds",

@@ -132,3 +132,19 @@ fn reduced_reproduction_improves_every_case() {
         assert!(c.error_outputs_only_m < c.error_free_ins_m, "{c:?}");
     }
 }
+
+#[test]
+fn a_tiny_sweep_step_names_the_key_and_the_memory_it_would_need() {
+    let e = aidnav_io::config::parse_toml::<ExtendedStateScenario>(
+        "runs = 2\nsweep_step_s = 1e-9\n",
+        std::path::Path::new("s.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.starts_with("s.toml:2: sweep_step_s:"), "{e}");
+    assert!(e.contains("GB") && e.contains("at most"), "{e}");
+    assert_eq!(
+        aidnav_io::config::Validate::validate(&ExtendedStateScenario::default()),
+        Ok(())
+    );
+}

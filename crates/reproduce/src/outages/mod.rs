@@ -15,7 +15,7 @@
 use aidnav_estimation::EstimationError;
 use aidnav_estimation::gmdh::{FrequencyGrid, GmdhConfig, Split};
 use aidnav_frames::constants::EARTH_MEAN_RADIUS_M;
-use aidnav_io::config::{Invalid, Validate, count_in_range, positive};
+use aidnav_io::config::{Invalid, Validate, count_in_range, in_range};
 use aidnav_models::PlatformChannel;
 use aidnav_models::platform::PLATFORM_G_M_S2;
 use aidnav_sim::faults::{FaultSpec, SigmaRange};
@@ -51,25 +51,26 @@ pub struct OutagesScenario {
     pub runs: usize,
     /// The platform channel and its truth parameters.
     pub platform: PlatformChannel,
-    /// Prior σ of δV [m/s]. Default 1.
+    /// Prior σ of δV [m/s], 1e-6 … 1e3. Default 1.
     pub initial_velocity_sigma_mps: f64,
-    /// Prior σ of the tilt \[rad\]. Default 1e-3.
+    /// Prior σ of the tilt \[rad\], 1e-9 … 1. Default 1e-3.
     pub initial_tilt_sigma_rad: f64,
-    /// GNSS lost at this time \[s\]. Default 3000.
+    /// GNSS lost at this time \[s\], dt_s … [`MAX_TIME_S`]. Default 3000.
     pub outage_start_s: f64,
-    /// Short outage length \[s\]. Default 200.
+    /// Short outage length \[s\], dt_s … long_outage_s. Default 200.
     pub short_outage_s: f64,
-    /// Long outage length \[s\]. Default 3000.
+    /// Long outage length \[s\], dt_s … [`MAX_TIME_S`]. Default 3000.
     pub long_outage_s: f64,
     /// Predictors and relay schedule.
     pub bridge: BridgeConfig,
-    /// GNSS is back for this long after the long outage \[s\] (efficiency criterion phase). Default 600.
+    /// GNSS is back for this long after the long outage \[s\] (efficiency criterion phase), dt_s … [`MAX_TIME_S`] and within
+    /// [`crate::MEMORY_BUDGET_BYTES`] (see [`OutagesScenario::memory_bytes`]). Default 600.
     pub recovery_s: f64,
     /// Faults on the returning GNSS (the paper stresses bursts right after an outage).
     pub recovery_faults: Vec<FaultSpec>,
-    /// σ_GNSS of the efficiency criterion (prior data) [m/s]. Default: the GNSS noise σ, 0.1.
+    /// σ_GNSS of the efficiency criterion (prior data) [m/s], 1e-6 … 1e3. Default: the GNSS noise σ, 0.1.
     pub efficiency_sigma_gnss_mps: f64,
-    /// Anomaly level γ of the filter's limiting during recovery. Default 9.
+    /// Anomaly level γ of the filter's limiting during recovery, 1 … 10⁴. Default 9.
     pub recovery_gamma: f64,
 }
 
@@ -124,18 +125,84 @@ impl Default for OutagesScenario {
     }
 }
 
+/// Longest time key of the scenario (`outage_start_s`, the outage lengths,
+/// `recovery_s`, the bridge windows and relay times) \[s\]: 10⁶ s ≈ 11.6 days.
+pub const MAX_TIME_S: f64 = 1e6;
+
+impl OutagesScenario {
+    /// Memory the experiment holds at most \[bytes\]: one run's filter
+    /// history (time and estimate per epoch before the outage) and recovery
+    /// fault plan (error and loss flag per epoch), run 0's plotted example
+    /// (truth, six predictions and K_eff per outage epoch; K_eff and four
+    /// errors per recovery epoch) and every run's summed record. Each
+    /// further thread holds one more run's history and plan.
+    pub fn memory_bytes(&self) -> f64 {
+        let dt = self.platform.dt_s;
+        let epochs = |s: f64| (s / dt).max(1.0);
+        let (start, long, recovery) = (
+            epochs(self.outage_start_s),
+            epochs(self.long_outage_s),
+            epochs(self.recovery_s),
+        );
+        let f = std::mem::size_of::<f64>() as f64;
+        let run = start * 2.0 * f + recovery * (f + 1.0);
+        let example = long * (2.0 + PREDICTORS.len() as f64 + 1.0) * f + recovery * 5.0 * f;
+        run + example + self.runs as f64 * 512.0
+    }
+}
+
 impl Validate for OutagesScenario {
     fn validate(&self) -> Result<(), Invalid> {
         count_in_range("runs", self.runs, 1, 100_000)?;
         super::validate_platform(&self.platform)?;
-        positive(
+        in_range(
             "initial_velocity_sigma_mps",
             self.initial_velocity_sigma_mps,
+            1e-6,
+            1e3,
         )?;
-        positive("initial_tilt_sigma_rad", self.initial_tilt_sigma_rad)?;
-        positive("outage_start_s", self.outage_start_s)?;
-        positive("short_outage_s", self.short_outage_s)?;
-        positive("long_outage_s", self.long_outage_s)?;
+        in_range(
+            "initial_tilt_sigma_rad",
+            self.initial_tilt_sigma_rad,
+            1e-9,
+            1.0,
+        )?;
+        let dt = self.platform.dt_s;
+        let what = "the history, fault plan and plotted example of a run";
+        let only = |start: f64, long: f64, recovery: f64| {
+            OutagesScenario {
+                outage_start_s: start,
+                long_outage_s: long,
+                recovery_s: recovery,
+                runs: 0,
+                ..self.clone()
+            }
+            .memory_bytes()
+        };
+        for (key, v, bytes) in [
+            (
+                "outage_start_s",
+                self.outage_start_s,
+                only(self.outage_start_s, 0.0, 0.0),
+            ),
+            (
+                "long_outage_s",
+                self.long_outage_s,
+                only(0.0, self.long_outage_s, 0.0),
+            ),
+            (
+                "recovery_s",
+                self.recovery_s,
+                only(0.0, 0.0, self.recovery_s),
+            ),
+        ] {
+            crate::within_memory(key, v, bytes, what, &format!("{key} ≤ {MAX_TIME_S} s"))?;
+        }
+        let bytes = self.memory_bytes();
+        crate::within_memory("runs", self.runs, bytes, what, "runs ≤ 100000")?;
+        in_range("outage_start_s", self.outage_start_s, dt, MAX_TIME_S)?;
+        in_range("short_outage_s", self.short_outage_s, dt, MAX_TIME_S)?;
+        in_range("long_outage_s", self.long_outage_s, dt, MAX_TIME_S)?;
         if self.short_outage_s > self.long_outage_s {
             return Err(Invalid::new(
                 "short_outage_s",
@@ -151,6 +218,10 @@ impl Validate for OutagesScenario {
                 "(outage_start_s + long_outage_s) / dt_s ≤ 10⁷ epochs",
             ));
         }
+        in_range("trend_window_s", self.bridge.trend_window_s, dt, MAX_TIME_S)
+            .map_err(|e| e.within("bridge"))?;
+        in_range("model_window_s", self.bridge.model_window_s, dt, MAX_TIME_S)
+            .map_err(|e| e.within("bridge"))?;
         if self.bridge.model_window_s > self.outage_start_s
             || self.bridge.trend_window_s > self.outage_start_s
         {
@@ -163,17 +234,44 @@ impl Validate for OutagesScenario {
         count_in_range("model_decimation", self.bridge.model_decimation, 1, 1000)
             .map_err(|e| e.within("bridge"))?;
         let r = self.bridge.relay;
-        if !(0.0 <= r.t1_s && r.t1_s <= r.t2_s && r.t2_s <= r.t3_s) {
+        if !(0.0 <= r.t1_s && r.t1_s <= r.t2_s && r.t2_s <= r.t3_s && r.t3_s <= MAX_TIME_S) {
             return Err(Invalid::new(
                 "bridge.relay",
                 format!("{}, {}, {}", r.t1_s, r.t2_s, r.t3_s),
-                "0 ≤ t1_s ≤ t2_s ≤ t3_s",
+                format!("0 ≤ t1_s ≤ t2_s ≤ t3_s ≤ {MAX_TIME_S}"),
             ));
         }
-        positive("recovery_s", self.recovery_s)?;
+        crate::validate_gmdh("bridge.gmdh", &self.bridge.gmdh)?;
+        // A harmonic above the Nyquist frequency of the fitted history
+        // (sampled every dt_s · model_decimation) cannot be identified.
+        let nyquist = std::f64::consts::PI / (dt * self.bridge.model_decimation as f64);
+        let g = &self.bridge.gmdh;
+        for (key, w) in g
+            .frequencies
+            .iter()
+            .map(|w| ("frequencies", *w))
+            .chain(g.search.map(|s| ("search.max", s.max)))
+        {
+            if w > nyquist {
+                return Err(Invalid::new(
+                    key,
+                    w,
+                    format!(
+                        "ω ≤ π / (platform.dt_s · bridge.model_decimation) = {nyquist} rad/s (the history's Nyquist frequency)"
+                    ),
+                )
+                .within("bridge.gmdh"));
+            }
+        }
+        in_range("recovery_s", self.recovery_s, dt, MAX_TIME_S)?;
         crate::validate_faults("recovery_faults", &self.recovery_faults)?;
-        positive("efficiency_sigma_gnss_mps", self.efficiency_sigma_gnss_mps)?;
-        positive("recovery_gamma", self.recovery_gamma)?;
+        in_range(
+            "efficiency_sigma_gnss_mps",
+            self.efficiency_sigma_gnss_mps,
+            1e-6,
+            1e3,
+        )?;
+        in_range("recovery_gamma", self.recovery_gamma, 1.0, 1e4)?;
         Ok(())
     }
 }
@@ -289,8 +387,90 @@ pub enum OutagesError {
     /// The self-organising model selection at the outage start.
     #[error("model selection at the outage start: {0}")]
     Model(#[from] aidnav_estimation::gmdh::GmdhError),
+    /// A quantity the scenario's bounds keep valid was not (σ² of the GNSS
+    /// velocity, the filter's variance): an error, never a panic.
+    #[error("{0} is not a positive finite variance")]
+    Variance(&'static str),
 }
 
 mod simulate;
 
 pub use simulate::run;
+
+#[cfg(test)]
+mod validation_tests {
+    use super::*;
+    use aidnav_io::config::parse_toml;
+    use std::path::Path;
+
+    /// The error of loading `text` as a scenario file `s.toml`.
+    fn load_error(text: &str) -> String {
+        parse_toml::<OutagesScenario>(text, Path::new("s.toml"))
+            .unwrap_err()
+            .to_string()
+    }
+
+    /// The `[bridge]` table's required keys (defaults), lines 1–5.
+    const BRIDGE: &str = "[bridge]\ntrend_window_s = 120\nmodel_window_s = 2400\n\
+                          model_decimation = 5\nrelay = { t1_s = 10, t2_s = 150, t3_s = 600 }\n";
+
+    #[test]
+    fn the_default_scenario_is_valid() {
+        assert_eq!(OutagesScenario::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn an_underflowing_gnss_sigma_is_refused_at_load() {
+        let e = load_error("runs = 2\n[platform]\ngnss_velocity_sigma_mps = 1e-170\n");
+        assert!(
+            e.starts_with("s.toml:3: platform.gnss_velocity_sigma_mps:"),
+            "{e}"
+        );
+        assert!(e.contains("0.000001"), "{e}");
+    }
+
+    #[test]
+    fn the_smallest_allowed_gnss_sigma_runs_without_panic() {
+        let mut sc = OutagesScenario {
+            runs: 1,
+            outage_start_s: 2400.0,
+            short_outage_s: 10.0,
+            long_outage_s: 20.0,
+            recovery_s: 20.0,
+            ..Default::default()
+        };
+        sc.platform.gnss_velocity_sigma_mps = 1e-6;
+        sc.efficiency_sigma_gnss_mps = 1e-6;
+        assert_eq!(sc.validate(), Ok(()));
+        let mc = aidnav_sim::monte_carlo::MonteCarlo::new(1, 1).quiet();
+        assert!(run(&sc, &mc).is_ok());
+    }
+
+    #[test]
+    fn a_huge_recovery_names_the_key_and_the_memory_it_would_need() {
+        let e = load_error("recovery_s = 6e8\n");
+        assert!(e.starts_with("s.toml:1: recovery_s:"), "{e}");
+        assert!(e.contains("GB") && e.contains("at most"), "{e}");
+    }
+
+    #[test]
+    fn a_huge_gmdh_frequency_is_refused_at_load() {
+        let e = load_error(&format!("{BRIDGE}[bridge.gmdh]\nfrequencies = [1e308]\n"));
+        assert!(e.starts_with("s.toml:7: bridge.gmdh.frequencies:"), "{e}");
+        // Above the history's Nyquist frequency though below the GMDH bound.
+        let e = load_error(&format!("{BRIDGE}[bridge.gmdh]\nfrequencies = [1.0]\n"));
+        assert!(e.starts_with("s.toml:7: bridge.gmdh.frequencies:"), "{e}");
+        assert!(e.contains("Nyquist"), "{e}");
+    }
+
+    #[test]
+    fn a_huge_gmdh_degree_or_grid_is_refused_at_load() {
+        let e = load_error(&format!("{BRIDGE}[bridge.gmdh]\nmax_degree = 2147483648\n"));
+        assert!(e.starts_with("s.toml:7: bridge.gmdh.max_degree:"), "{e}");
+        let e = load_error(&format!(
+            "{BRIDGE}[bridge.gmdh.search]\nmin = 0.0003\nmax = 0.01\ncount = 4294967296\n"
+        ));
+        assert!(e.contains("bridge.gmdh.search.count:"), "{e}");
+        assert!(e.contains("GB"), "{e}");
+    }
+}

@@ -249,7 +249,9 @@ fn recovery(
             window: ADAPTIVE_VARIANCE_WINDOW,
         },
     )
-    .unwrap_or_else(|| unreachable!("R > 0 is validated"));
+    .ok_or(OutagesError::Variance(
+        "the GNSS velocity variance or the filter's variance at the outage end",
+    ))?;
     let mut policy = Limiting {
         detector: AnomalyDetector {
             gamma: sc.recovery_gamma,
