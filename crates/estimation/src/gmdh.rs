@@ -604,7 +604,8 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
         .copied()
         .chain(config.search.map(|g| g.max))
         .fold(0.0_f64, f64::max);
-    if !(highest * t_abs <= MAX_PHASE_RAD) {
+    let phase = highest * t_abs;
+    if !phase.is_finite() || phase > MAX_PHASE_RAD {
         return Err(out_of_range(
             "frequencies",
             format!("{highest:e}"),
