@@ -39,7 +39,7 @@ use aidnav_estimation::adaptive::{AnomalyDetector, InnovationFeedbackNoise};
 use aidnav_estimation::{
     EstimationError, KalmanFilter, NoiseRule, Scheme, SchemeParameters, SchemePolicy,
 };
-use aidnav_io::config::{Invalid, Validate, count_in_range, positive, probability};
+use aidnav_io::config::{Invalid, Validate, count_in_range, in_range, probability};
 use aidnav_models::{PlatformChannel, PlatformTruth};
 use nalgebra::{Matrix1, Matrix3, Vector1, Vector3};
 use serde::{Deserialize, Serialize};
@@ -251,18 +251,24 @@ impl Validate for AnomaliesScenario {
         count_in_range("runs", self.runs, 1, 100_000)?;
         count_in_range("epochs", self.epochs, 10, 1_000_000)?;
         super::validate_platform(&self.platform)?;
-        positive(
+        crate::within(
             "initial_velocity_sigma_mps",
             self.initial_velocity_sigma_mps,
+            crate::SIGMA_MPS_RANGE,
         )?;
-        positive("initial_tilt_sigma_rad", self.initial_tilt_sigma_rad)?;
-        positive("wrong_q_scale", self.wrong_q_scale)?;
-        positive("wrong_r_scale", self.wrong_r_scale)?;
-        positive("gamma", self.gamma)?;
+        in_range(
+            "initial_tilt_sigma_rad",
+            self.initial_tilt_sigma_rad,
+            1e-9,
+            1.0,
+        )?;
+        crate::within("wrong_q_scale", self.wrong_q_scale, crate::SCALE_RANGE)?;
+        crate::within("wrong_r_scale", self.wrong_r_scale, crate::SCALE_RANGE)?;
+        in_range("gamma", self.gamma, 1.0, 1e4)?;
         count_in_range("stable_window", self.stable_window, 1, 10_000)?;
         count_in_range("gain_window", self.gain_window, 1, 10_000)?;
         probability("chi2_probability", self.chi2_probability)?;
-        positive("huber_k", self.huber_k)?;
+        in_range("huber_k", self.huber_k, 0.1, 100.0)?;
         let il = &self.illustration;
         count_in_range("illustration.epochs", il.epochs, 10, 1_000_000)?;
         count_in_range("illustration.at_epoch", il.at_epoch, 0, il.epochs - 1)?;

@@ -8,7 +8,7 @@
 //! random numbers), so their differences are the tuning, not the luck.
 
 use aidnav_estimation::{Chi2Mean, KalmanFilter, mean_chi2_bounds, nees};
-use aidnav_io::config::{Invalid, Validate, count_in_range, positive, probability};
+use aidnav_io::config::{Invalid, Validate, count_in_range, in_range, probability};
 use aidnav_models::ConstantVelocity;
 use nalgebra::{Matrix2, Vector1, Vector2};
 use serde::{Deserialize, Serialize};
@@ -101,17 +101,34 @@ impl Validate for ConsistencyScenario {
     fn validate(&self) -> Result<(), Invalid> {
         count_in_range("runs", self.runs, 1, 1_000_000)?;
         count_in_range("epochs", self.epochs, 2, 1_000_000)?;
-        positive("dt_s", self.dt_s)?;
-        positive("accel_psd", self.accel_psd)?;
-        positive("position_sigma_m", self.position_sigma_m)?;
-        positive("initial_position_sigma_m", self.initial_position_sigma_m)?;
-        positive(
+        in_range("dt_s", self.dt_s, 1e-4, 100.0)?;
+        in_range("accel_psd", self.accel_psd, 1e-12, 1e6)?;
+        crate::within(
+            "position_sigma_m",
+            self.position_sigma_m,
+            crate::SIGMA_RANGE,
+        )?;
+        crate::within(
+            "initial_position_sigma_m",
+            self.initial_position_sigma_m,
+            crate::SIGMA_RANGE,
+        )?;
+        crate::within(
             "initial_velocity_sigma_mps",
             self.initial_velocity_sigma_mps,
+            crate::SIGMA_MPS_RANGE,
         )?;
         probability("confidence", self.confidence)?;
-        positive("mistuned_q_scale", self.mistuned_q_scale)?;
-        positive("mistuned_r_scale", self.mistuned_r_scale)?;
+        crate::within(
+            "mistuned_q_scale",
+            self.mistuned_q_scale,
+            crate::SCALE_RANGE,
+        )?;
+        crate::within(
+            "mistuned_r_scale",
+            self.mistuned_r_scale,
+            crate::SCALE_RANGE,
+        )?;
         crate::within_memory(
             "epochs",
             self.epochs,

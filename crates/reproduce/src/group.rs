@@ -16,7 +16,7 @@
 //! with that prior.
 
 use aidnav_estimation::{EstimationError, KalmanFilter, steady_state_covariance};
-use aidnav_io::config::{Invalid, Validate, count_in_range, positive};
+use aidnav_io::config::{Invalid, Validate, count_in_range, in_range};
 use aidnav_models::AxisGroup;
 use nalgebra::{DMatrix, DVector, Dyn};
 use serde::{Deserialize, Serialize};
@@ -77,14 +77,18 @@ impl Default for GroupScenario {
 fn validate_group(key: &str, g: &AxisGroup) -> Result<(), Invalid> {
     let inner = || -> Result<(), Invalid> {
         count_in_range("members", g.members, 1, 200)?;
-        positive("dt_s", g.dt_s)?;
-        positive("accel_sigma_m_s2", g.accel_sigma_m_s2)?;
-        positive("own_position_sigma_m", g.own_position_sigma_m)?;
+        in_range("dt_s", g.dt_s, 1e-4, 100.0)?;
+        crate::within("accel_sigma_m_s2", g.accel_sigma_m_s2, crate::SIGMA_RANGE)?;
+        crate::within(
+            "own_position_sigma_m",
+            g.own_position_sigma_m,
+            crate::SIGMA_RANGE,
+        )?;
         if let Some(s) = g.own_velocity_sigma_mps {
-            positive("own_velocity_sigma_mps", s)?;
+            crate::within("own_velocity_sigma_mps", s, crate::SIGMA_MPS_RANGE)?;
         }
         if let Some(s) = g.relative_sigma_m {
-            positive("relative_sigma_m", s)?;
+            crate::within("relative_sigma_m", s, crate::SIGMA_RANGE)?;
         }
         Ok(())
     };
@@ -95,11 +99,12 @@ impl Validate for GroupScenario {
     fn validate(&self) -> Result<(), Invalid> {
         count_in_range("runs", self.runs, 1, 1_000_000)?;
         count_in_range("epochs", self.epochs, 2, 100_000)?;
-        positive(
+        crate::within(
             "initial_velocity_sigma_mps",
             self.initial_velocity_sigma_mps,
+            crate::SIGMA_MPS_RANGE,
         )?;
-        if !(self.settle_s >= 0.0 && self.settle_s.is_finite()) {
+        if !(self.settle_s >= 0.0 && self.settle_s <= 1e6) {
             return Err(Invalid::new(
                 "settle_s",
                 self.settle_s,

@@ -63,6 +63,22 @@ pub(crate) fn validate_platform(p: &PlatformChannel) -> Result<(), Invalid> {
     Ok(())
 }
 
+/// Range of every σ key of the reproduction scenarios without a narrower
+/// physical range of its own (m, m/s, m/s², rad): 1e-9 … 1e6, so σ² stays a
+/// normal f64 (1e-18 … 1e12), never 0 or ∞.
+pub const SIGMA_RANGE: (f64, f64) = (1e-9, 1e6);
+
+/// Range of a velocity σ [m/s]: 1e-6 … 1e3.
+pub const SIGMA_MPS_RANGE: (f64, f64) = (1e-6, 1e3);
+
+/// Range of a factor on a believed Q or R (mistuning): 1e-6 … 1e6.
+pub const SCALE_RANGE: (f64, f64) = (1e-6, 1e6);
+
+/// Error unless `lo ≤ value ≤ hi` for `(lo, hi) = range`.
+pub(crate) fn within(key: &str, value: f64, range: (f64, f64)) -> Result<(), Invalid> {
+    in_range(key, value, range.0, range.1)
+}
+
 /// Memory one experiment may plan to hold at once \[bytes\] (4 GB): a
 /// size key that would need more is refused at load, before allocating.
 pub const MEMORY_BUDGET_BYTES: f64 = 4e9;

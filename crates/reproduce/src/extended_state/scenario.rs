@@ -1,7 +1,7 @@
 //! The extended-state experiment's scenario (TOML) and its validation.
 
 use aidnav_estimation::EstimationError;
-use aidnav_io::config::{Invalid, Validate, count_in_range, in_range, non_negative, positive};
+use aidnav_io::config::{Invalid, Validate, count_in_range, in_range, positive};
 use aidnav_models::extended_state::TransitionForm;
 use aidnav_supervisors::convergence::SwitchRule;
 use serde::{Deserialize, Serialize};
@@ -134,13 +134,36 @@ impl Validate for ExtendedStateScenario {
                 "a whole number of imu_dt_s",
             ));
         }
-        non_negative("fusion_start_s", self.fusion_start_s)?;
-        positive("position_sigma_m", self.position_sigma_m)?;
-        positive("velocity_sigma_mps", self.velocity_sigma_mps)?;
+        in_range("fusion_start_s", self.fusion_start_s, 0.0, 3600.0)?;
+        crate::within(
+            "position_sigma_m",
+            self.position_sigma_m,
+            crate::SIGMA_RANGE,
+        )?;
+        crate::within(
+            "velocity_sigma_mps",
+            self.velocity_sigma_mps,
+            crate::SIGMA_MPS_RANGE,
+        )?;
         in_range("fix_noise_scale", self.fix_noise_scale, 0.0, 100.0)?;
-        positive("prior_navigation_variance", self.prior_navigation_variance)?;
-        positive("prior_instrument_variance", self.prior_instrument_variance)?;
-        non_negative("velocity_process_noise", self.velocity_process_noise)?;
+        in_range(
+            "prior_navigation_variance",
+            self.prior_navigation_variance,
+            1e-12,
+            1e12,
+        )?;
+        in_range(
+            "prior_instrument_variance",
+            self.prior_instrument_variance,
+            1e-12,
+            1e12,
+        )?;
+        in_range(
+            "velocity_process_noise",
+            self.velocity_process_noise,
+            0.0,
+            1e6,
+        )?;
         positive("sweep_step_s", self.sweep_step_s)?;
         crate::within_memory(
             "sweep_step_s",
@@ -165,8 +188,10 @@ impl Validate for ExtendedStateScenario {
         for t in &self.thresholds {
             in_range("thresholds", *t, 1e-9, 1.0)?;
         }
-        non_negative("arm_after_s", self.switch.arm_after_s).map_err(|e| e.within("switch"))?;
-        non_negative("falling_s", self.switch.falling_s).map_err(|e| e.within("switch"))?;
+        in_range("arm_after_s", self.switch.arm_after_s, 0.0, 3600.0)
+            .map_err(|e| e.within("switch"))?;
+        in_range("falling_s", self.switch.falling_s, 0.0, 3600.0)
+            .map_err(|e| e.within("switch"))?;
         count_in_range("confirm_epochs", self.switch.confirm_epochs, 1, 100_000)
             .map_err(|e| e.within("switch"))?;
         count_in_range("targets", self.targets.len(), 1, 100)?;
