@@ -199,7 +199,7 @@ pub const MIN_OMEGA_RAD_S: f64 = 1e-9;
 pub const MAX_UNITS: usize = 16;
 /// Most structures carried per complexity ([`GmdhConfig::beam`]).
 pub const MAX_BEAM: usize = 1024;
-/// Longest forecast horizon [s] ([`GmdhConfig::horizon_s`]): 10 days.
+/// Longest forecast horizon \[s\] ([`GmdhConfig::horizon_s`]): 10 days.
 pub const MAX_HORIZON_S: f64 = 864_000.0;
 /// Memory the candidate structures of one selection may take \[bytes\].
 pub const MEMORY_BUDGET_BYTES: f64 = 1024.0 * 1024.0 * 1024.0;
