@@ -56,14 +56,25 @@ pub fn read_measurements(
     names: &[String],
     max_epochs: usize,
 ) -> Result<MeasurementTable> {
-    let file = std::fs::File::open(path).map_err(|source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse_measurements(file, path, names, max_epochs)
+    read_measurements_from(&crate::text::read_bytes(path)?, path, names, max_epochs)
 }
 
-/// Parse measurement CSV from any reader; `origin` names it in errors.
+/// [`read_measurements`] on the file's bytes; `origin` names it in
+/// messages. A UTF-8 byte-order mark is stripped; invalid UTF-8 is an error
+/// naming the line and byte.
+pub fn read_measurements_from(
+    bytes: &[u8],
+    origin: &Path,
+    names: &[String],
+    max_epochs: usize,
+) -> Result<MeasurementTable> {
+    let text = crate::text::decode(bytes, origin)?;
+    parse_measurements(text.as_bytes(), origin, names, max_epochs)
+}
+
+/// Parse measurement CSV from any reader; `origin` names it in errors
+/// (prefer [`read_measurements_from`], which also strips a BOM and names the
+/// line and byte of invalid UTF-8).
 pub fn parse_measurements<R: std::io::Read>(
     reader: R,
     origin: &Path,
@@ -73,7 +84,7 @@ pub fn parse_measurements<R: std::io::Read>(
     let data_err = |line: usize, column: &str, message: String| IoError::Data {
         path: origin.to_path_buf(),
         line,
-        column: column.to_string(),
+        column: crate::text::excerpt(column),
         message,
     };
     let mut rdr = csv::ReaderBuilder::new()
@@ -172,7 +183,11 @@ pub fn parse_measurements<R: std::io::Read>(
                     return Err(data_err(
                         line,
                         col,
-                        format!("time {time} is not after the previous {prev}"),
+                        format!(
+                            "time {} is not after the previous {}",
+                            crate::text::num(time),
+                            crate::text::num(prev)
+                        ),
                     ));
                 }
             } else {
@@ -194,7 +209,10 @@ fn parse_number(cell: &str) -> std::result::Result<Option<f64>, String> {
         Ok(v) => Err(format!(
             "non-finite value {v}; leave the cell empty for a missing value"
         )),
-        Err(_) => Err(format!("{cell:?} is not a number")),
+        Err(_) => Err(format!(
+            "\"{}\" is not a number",
+            crate::text::excerpt(cell)
+        )),
     }
 }
 
