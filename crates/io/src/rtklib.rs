@@ -796,4 +796,141 @@ mod tests {
         let e = read_tagged_imu(&csv, &tag).unwrap_err().to_string();
         assert!(e.contains("i.csv:3: column `tick [ms]`"), "{e}");
     }
+
+    const GOOD: &str = "2025/07/08 19:34:18.499 40.0966268 -105.1474483 1601.474 1 21 0.0099 0.0099 0.01 0 0 0 0 0 0.01 -0.002 0.009 0.05 0.05 0.05";
+
+    fn pos(text: &str) -> Result<(Vec<GnssFix>, Vec<String>)> {
+        read_pos_from(text.as_bytes(), Path::new("x.pos"))
+    }
+
+    /// A tag file with the given (ms, offset) records.
+    fn tag_bytes(records: &[(u32, u32)]) -> Vec<u8> {
+        let mut t = b"TIMETAG RTKLIB demo5".to_vec();
+        t.resize(60, 0);
+        t.extend(0u32.to_le_bytes());
+        t.extend(1_750_000_000u32.to_le_bytes());
+        t.extend(0.5f64.to_le_bytes());
+        for (ms, off) in records {
+            t.extend(ms.to_le_bytes());
+            t.extend(off.to_le_bytes());
+        }
+        t
+    }
+
+    fn imu(csv: &str, tags: &[(u32, u32)]) -> Result<(Vec<ImuSample>, Vec<String>)> {
+        read_tagged_imu_from(
+            csv.as_bytes(),
+            Path::new("i.csv"),
+            &tag_bytes(tags),
+            Path::new("i.csv.tag"),
+        )
+    }
+
+    const IMU_CSV: &str =
+        "0,0,1,0,0,0,0\n0,0,1,0,0,0,10\n0,0,1,0,0,0,20\n0,0,1,0,0,0,30\n0,0,1,0,0,0,40\n";
+
+    #[test]
+    fn impossible_calendar_dates_are_errors() {
+        // 2025/02/30 used to be read as 2025-03-02.
+        let e = pos(&GOOD.replace("2025/07/08", "2025/02/30"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("x.pos:1: column `GPST`: `2025/02/30` is not a calendar date"),
+            "{e}"
+        );
+        assert!(pos(&GOOD.replace("2025/07/08", "2024/02/29")).is_ok());
+        assert!(pos(&GOOD.replace("2025/07/08", "2025/04/31")).is_err());
+    }
+
+    #[test]
+    fn a_degenerate_tag_file_is_an_error() {
+        // Last tag at 0 ms: every sample would map to one instant.
+        let e = imu(IMU_CSV, &[(0, 0), (0, 100)]).unwrap_err().to_string();
+        assert!(
+            e.contains("i.csv.tag:0: column `(tags)`") && e.contains("degenerate"),
+            "{e}"
+        );
+        // Decreasing milliseconds.
+        let e = imu(IMU_CSV, &[(10, 0), (5, 50), (20, 100)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must not decrease"), "{e}");
+        // A tag file that does not fit the log's ticks.
+        let e = imu(IMU_CSV, &[(0, 0), (2000, 100)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("does not fit the log"), "{e}");
+        assert!(imu(IMU_CSV, &[(0, 0), (20, 100)]).is_ok());
+    }
+
+    #[test]
+    fn a_scaled_gyro_is_refused_at_its_line() {
+        // Gyro ×1000 (milli-degrees/s): 20 000 °/s ≈ 349 rad/s.
+        let csv = IMU_CSV.replace("0,0,1,0,0,0,20", "0,0,1,0,0,20000,20");
+        let e = imu(&csv, &[(0, 0), (20, 100)]).unwrap_err().to_string();
+        assert!(
+            e.starts_with("i.csv:3: column `gx [deg/s]`: |ω| = 349"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_positions_name_line_and_column() {
+        let e = pos(&format!(
+            "{GOOD}\n{}",
+            GOOD.replace(
+                "18.499 40.0966268 -105.1474483 1601.474",
+                "19.0 40.0966268 -105.1474483 160147.4"
+            )
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("x.pos:2: column `height`: 160147.4 m is outside"),
+            "{e}"
+        );
+        let e = pos(&GOOD.replace("0.01 -0.002 0.009", "5000 -0.002 0.009"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("column `vn`"), "{e}");
+    }
+
+    #[test]
+    fn bom_cr_only_and_invalid_utf8() {
+        let next = GOOD.replace("18.499", "18.749");
+        let (f, _) = pos(&format!("\u{FEFF}% header\r{GOOD}\r{next}\r")).unwrap();
+        assert_eq!(f.len(), 2);
+        let mut bytes = format!("{GOOD}\n").into_bytes();
+        bytes.extend(b"2025/07/08 \xFF");
+        let e = read_pos_from(&bytes, Path::new("x.pos"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!(
+                "x.pos:2: column `(text)`: invalid UTF-8 at byte {}",
+                GOOD.len() + 12
+            )),
+            "{e}"
+        );
+        let e = imu(
+            "\u{FEFF}0,0,1,0,0,0,0\r0,0,1,0,0,0,10\r0,0,1,0,0,0,20\r0,0,1,0,0,0,30\r0,0,1,0,0,0,40",
+            &[(0, 0), (20, 100)],
+        );
+        assert_eq!(e.unwrap().0.len(), 3);
+    }
+
+    #[test]
+    fn large_numbers_and_long_tokens_stay_short() {
+        let huge = format!("-1{}", "0".repeat(308));
+        let e = pos(&GOOD.replace("0.0099 0.0099 0.01", &format!("{huge} 0.0099 0.01")))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("σ = -1e308 m"), "{e}");
+        let long = "x".repeat(5000);
+        let e = pos(&GOOD.replace("1601.474", &long))
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 200 && e.contains('…'), "{e}");
+    }
 }
