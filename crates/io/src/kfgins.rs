@@ -426,4 +426,118 @@ mod tests {
         let e = read_generic_imu(&p).unwrap_err().to_string();
         assert!(e.contains("imu.csv:2: column `az_m_s2`"), "{e}");
     }
+
+    const HEADER: &str = "time_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2";
+
+    fn generic(text: &str) -> Result<(Vec<ImuSample>, Vec<String>)> {
+        read_generic_imu_from(text.as_bytes(), Path::new("g.csv"))
+    }
+
+    fn kf_gnss(text: &str) -> Result<(Vec<GnssFix>, Vec<String>)> {
+        read_kfgins_gnss_from(text.as_bytes(), Path::new("gnss.txt"))
+    }
+
+    #[test]
+    fn accelerometers_in_g_are_refused() {
+        let e = generic(&format!("{HEADER}\n1.0,0,0,0,0,0,-1\n1.01,0,0,0,0,0,-1\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("g.csv:2: column `ax_m_s2`: median |f| = 1 m/s²") && e.contains("in g"),
+            "{e}"
+        );
+        // KF-GINS: dv of 1 g · 5 ms written in g · s.
+        let e = read_kfgins_imu_from(
+            b"100.000 0 0 0 0 0 0\n100.005 0 0 0 0 0 -0.005\n100.010 0 0 0 0 0 -0.005\n",
+            Path::new("imu.txt"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("imu.txt:2: column `dvx`: median |f|") && e.contains("in g"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_rates_and_forces_name_their_line() {
+        let e = generic(&format!(
+            "{HEADER}\n1.0,0,0,0,0,0,-9.8\n1.01,0,0,57.3,0,0,-9.8\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("g.csv:3: column `gx_rad_s`: |ω| = 57.3 rad/s"),
+            "{e}"
+        );
+        let e = generic(&format!(
+            "{HEADER}\n1.0,0,0,0,0,0,-9.8\n1.01,0,0,0,0,0,-9800\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("g.csv:3: column `ax_m_s2`: |f| = 9800 m/s²"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn kfgins_gnss_columns_must_be_7_or_13() {
+        // Velocity without its σ used to be dropped silently.
+        let e = kf_gnss("100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n101.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("gnss.txt:1: column `(line)`: 10 fields, expected 7 or 13"),
+            "{e}"
+        );
+        let e = kf_gnss("100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3 0.1 0.1 0.1 9\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("14 fields, expected 7 or 13"), "{e}");
+        let e = read_kfgins_imu_from(b"100.0 0 0 0 0 0 0 0\n", Path::new("imu.txt"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("8 fields, expected 7"), "{e}");
+    }
+
+    #[test]
+    fn kfgins_positions_are_range_checked() {
+        let e = kf_gnss("100.0 30.5 114.3 -5000 0.01 0.01 0.02\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("gnss.txt:1: column `height`: -5000 m is outside [-1000, 100000] m"),
+            "{e}"
+        );
+        let e = kf_gnss("100.0 30.5 414.3 20 0.01 0.01 0.02\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("column `longitude`"), "{e}");
+    }
+
+    #[test]
+    fn cr_only_bom_and_long_headers() {
+        // A CR-only file used to be one row (and its message quoted the file).
+        let (s, _) = generic(&format!(
+            "\u{FEFF}{HEADER}\r1.0,0,0,0,0,0,-9.8\r1.01,0,0,0,0,0,-9.8\r"
+        ))
+        .unwrap();
+        assert_eq!(s.len(), 2);
+        let header = format!("time_s,{}", "y".repeat(100_000));
+        let e = generic(&format!("{header}\n1\n")).unwrap_err().to_string();
+        assert!(e.len() < 200 && e.contains('…'), "{} chars", e.len());
+        let (f, _) = kf_gnss(
+            "\u{FEFF}100.0 30.5 114.3 20.0 0.01 0.01 0.02\r101.0 30.5 114.3 20.0 0.01 0.01 0.02",
+        )
+        .unwrap();
+        assert_eq!(f.len(), 2);
+        let e = read_kfgins_gnss_from(b"100.0 30.5\xC3 114.3", Path::new("gnss.txt"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("gnss.txt:1: column `(text)`: invalid UTF-8 at byte 10"),
+            "{e}"
+        );
+    }
 }

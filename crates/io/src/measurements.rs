@@ -272,4 +272,27 @@ mod tests {
         let e = parse(&text).unwrap_err().to_string();
         assert!(e.contains("more than 100 epochs"), "{e}");
     }
+
+    #[test]
+    fn bom_invalid_utf8_long_cells_and_large_numbers() {
+        let names = vec!["a".to_string(), "b".to_string()];
+        let from = |b: &[u8]| read_measurements_from(b, Path::new("z.csv"), &names, 100);
+        // A BOM used to make the first column `\u{FEFF}time` unknown.
+        let t = from("\u{FEFF}time,a,b\n0,1,2\n".as_bytes()).unwrap();
+        assert!(t.has_time);
+        let e = from(b"time,a,b\n0,1,\xFF\n").unwrap_err().to_string();
+        assert!(
+            e.starts_with("z.csv:2: column `(text)`: invalid UTF-8 at byte 13"),
+            "{e}"
+        );
+        let e = from(format!("time,a,b\n0,1,{}\n", "x".repeat(10_000)).as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 200 && e.contains('…'), "{e}");
+        let huge = format!("1{}", "0".repeat(308));
+        let e = from(format!("time,a,b\n{huge},1,2\n0,1,2\n").as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("time 0 is not after the previous 1e308"), "{e}");
+    }
 }

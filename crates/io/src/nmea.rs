@@ -577,4 +577,49 @@ mod tests {
             "{warnings:?}"
         );
     }
+
+    #[test]
+    fn april_31_is_not_a_date() {
+        let mut l = log();
+        l[0] = sentence("GNRMC,235959.00,A,4807.038000,N,01131.000000,E,10.0,90.0,310425,,,A");
+        let e = read(&l).unwrap_err().to_string();
+        assert!(
+            e.contains("log.nmea:1: column `date`: `310425` is not a ddmmyy calendar date"),
+            "{e}"
+        );
+        l[0] = sentence("GNRMC,235959.00,A,4807.038000,N,01131.000000,E,10.0,90.0,290224,,,A");
+        assert!(read(&l).is_ok());
+    }
+
+    #[test]
+    fn a_bom_is_stripped_and_invalid_utf8_named() {
+        // The BOM used to hide the first RMC: "a GGA before any RMC".
+        let text = format!("\u{FEFF}{}", log().join("\r\n"));
+        let (fixes, _) = read_nmea_from(text.as_bytes(), Path::new("log.nmea")).unwrap();
+        assert_eq!(fixes.len(), 2);
+        let mut bytes = log().join("\n").into_bytes();
+        let at = bytes.len();
+        bytes.extend(b"\n$GN\xFE");
+        let e = read_nmea_from(&bytes, Path::new("log.nmea"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!(
+                "log.nmea:8: column `(text)`: invalid UTF-8 at byte {}",
+                at + 4
+            )),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_heights_are_refused() {
+        let mut l = log();
+        l[1] = sentence("GNGGA,235959.00,4807.038,N,01131.000,E,4,12,0.9,545400.0,M,46.9,M,,");
+        let e = read(&l).unwrap_err().to_string();
+        assert!(
+            e.contains("log.nmea:2: column `height`: 545446.9 m is outside"),
+            "{e}"
+        );
+    }
 }

@@ -269,3 +269,96 @@ fn align(
     let v = moving.velocity_ned.expect("checked");
     Ok((levelling.attitude(course(&v)), levelling.mean_angular_rate))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aidnav_frames::earth::Geodetic;
+
+    fn imu_at(times: impl Iterator<Item = f64>) -> Vec<ImuSample> {
+        times
+            .map(|t| ImuSample {
+                time_s: t,
+                specific_force: Vector3::new(0.0, 0.0, -9.8),
+                angular_rate: Vector3::zeros(),
+            })
+            .collect()
+    }
+
+    fn gnss_at(times: impl Iterator<Item = f64>) -> Vec<GnssFix> {
+        times
+            .map(|t| GnssFix {
+                time_s: t,
+                position: Geodetic {
+                    latitude_rad: 0.6,
+                    longitude_rad: 0.2,
+                    height_m: 10.0,
+                },
+                quality: 1,
+                satellites: 20,
+                position_sigma_neu: Vector3::repeat(0.02),
+                velocity_ned: None,
+                velocity_sigma_neu: None,
+            })
+            .collect()
+    }
+
+    /// 2025-07-08 19:34:18 GPST in seconds since 1970.
+    const T0: f64 = 1_752_003_258.0;
+
+    #[test]
+    fn imu_and_gnss_times_that_do_not_overlap_are_an_error() {
+        // KF-GINS GNSS in seconds of week against IMU seconds since 1970.
+        let imu = imu_at((0..100).map(|k| T0 + k as f64 * 0.01));
+        let gnss = gnss_at((0..4).map(|k| 243_258.0 + k as f64));
+        let e = check_overlap(&imu, &gnss, Path::new("imu.csv"), Path::new("gnss.txt"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("do not overlap"), "{e}");
+        assert!(
+            e.contains("IMU  imu.csv: 2025-07-08 19:34:18.000 to 2025-07-08 19:34:18.990"),
+            "{e}"
+        );
+        assert!(
+            e.contains("GNSS gnss.txt: 1970-01-03 19:34:18.000 to 1970-01-03 19:34:21.000"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn gnss_epochs_outside_the_imu_span_are_counted() {
+        let imu = imu_at((0..1000).map(|k| T0 + k as f64 * 0.01));
+        let gnss = gnss_at((0..20).map(|k| T0 - 1.0 + k as f64));
+        let w = check_overlap(&imu, &gnss, Path::new("imu.csv"), Path::new("g.pos"))
+            .unwrap()
+            .unwrap();
+        // Epochs at −1 s (before) and 10…18 s (after); 0…9 s inside.
+        assert!(
+            w.starts_with("g.pos: 10 of 20 GNSS epochs lie outside the IMU span")
+                && w.contains("(1 before its start, 9 after its end)"),
+            "{w}"
+        );
+        let inside = gnss_at((0..5).map(|k| T0 + k as f64));
+        assert!(
+            check_overlap(&imu, &inside, Path::new("i"), Path::new("g"))
+                .unwrap()
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn a_run_without_a_gnss_update_is_an_error() {
+        let mut cfg: ProcessConfig =
+            toml::from_str("[data]\ndir = \".\"\nimu = \"none\"\ngnss = \"none\"\n").unwrap();
+        cfg.initial.attitude_deg = Some([0.0; 3]);
+        // The only fix is at the last IMU sample's time: the filter starts
+        // there and no update follows.
+        let inputs = Inputs {
+            imu: imu_at((0..100).map(|k| k as f64 * 0.01)),
+            gnss: gnss_at([0.99].into_iter()),
+            warnings: Vec::new(),
+        };
+        let e = initialise(&cfg, &inputs).unwrap_err().to_string();
+        assert!(e.contains("the run would make no update"), "{e}");
+    }
+}
