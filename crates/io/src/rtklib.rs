@@ -433,7 +433,7 @@ pub fn read_time_tags_from(bytes: &[u8], path: &Path) -> Result<TimeTags> {
         return Err(bad("start-time fraction outside [0, 1)"));
     }
     let body = &bytes[76..];
-    if body.len() % 8 != 0 {
+    if !body.len().is_multiple_of(8) {
         return Err(bad("tag records are not whole (u32, u32) pairs"));
     }
     let tags: Vec<(u32, u32)> = body
