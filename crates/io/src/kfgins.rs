@@ -16,9 +16,13 @@
 //! sigma_vd_mps`.
 //!
 //! Errors name the file, line and column: non-numbers, non-finite values,
-//! σ ≤ 0, time that does not increase, a rate that cannot be in rad/s
-//! (|ω| > 35 rad/s, i.e. degrees given); a truncated last line is skipped
-//! with a warning.
+//! σ ≤ 0, time that does not increase, a KF-GINS row with another number of
+//! columns than 7 (IMU) or 7 / 13 (GNSS), values outside the physical bounds
+//! of [`crate::limits`] (a rate that cannot be in rad/s, a latitude beyond
+//! the poles, a height below the lowest land or above 100 km), and a median
+//! specific force far from 1 g (an accelerometer in g); a truncated last
+//! line is skipped with a warning. Every reader has an in-memory entry point
+//! (`…_from`), its `&Path` form reads the file and calls it.
 
 use std::path::Path;
 
@@ -26,7 +30,10 @@ use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;
 
 use crate::error::Result;
-use crate::rtklib::{GnssFix, ImuSample, data_error, read_text};
+use crate::rtklib::{
+    GnssFix, ImuSample, check_force, check_median_force, check_position, check_rate, data_error,
+};
+use crate::text::{decode, excerpt, num, read_bytes};
 
 /// Numeric rows of a text file: (line number, values); comment lines (`#`,
 /// `%`) and blank lines skipped; a last line with fewer than `min` fields
@@ -34,57 +41,74 @@ use crate::rtklib::{GnssFix, ImuSample, data_error, read_text};
 /// Parsed rows (line number, values) and the warnings.
 type Rows = (Vec<(usize, Vec<f64>)>, Vec<String>);
 
-fn rows(path: &Path, min: usize, names: &[&str]) -> Result<Rows> {
-    let text = read_text(path)?;
-    let lines: Vec<(usize, String)> = text
-        .lines()
+/// The numeric rows of `bytes` with exactly one of `counts` fields each.
+fn rows(bytes: &[u8], path: &Path, counts: &[usize], names: &[&str]) -> Result<Rows> {
+    let text = decode(bytes, path)?;
+    let lines: Vec<(usize, String)> = crate::text::lines(text)
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim().to_string()))
         .collect();
-    parse_rows(path, lines, min, names)
+    parse_rows(path, lines, counts, names)
 }
 
-/// The row checks on (line number, text) pairs.
+/// The row checks on (line number, text) pairs: each row has one of
+/// `counts` fields (a last row with fewer than the least is skipped with a
+/// warning).
 fn parse_rows(
     path: &Path,
     lines: Vec<(usize, String)>,
-    min: usize,
+    counts: &[usize],
     names: &[&str],
 ) -> Result<Rows> {
+    let min = counts.iter().copied().min().unwrap_or(1);
     let lines: Vec<(usize, String)> = lines
         .into_iter()
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#') && !l.starts_with('%'))
         .collect();
     let mut out: Vec<(usize, Vec<f64>)> = Vec::with_capacity(lines.len());
     let mut warnings = Vec::new();
+    let expected = counts
+        .iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(" or ");
     for (k, (line, l)) in lines.iter().enumerate() {
         let line = *line;
         let fields: Vec<&str> = l
             .split(|c: char| c == ',' || c.is_whitespace())
             .filter(|f| !f.is_empty())
             .collect();
-        if fields.len() < min {
-            if k + 1 == lines.len() {
-                warnings.push(format!(
-                    "{}:{line}: truncated last line skipped ({} fields)",
-                    path.display(),
-                    fields.len()
-                ));
-                continue;
-            }
+        if fields.len() < min && k + 1 == lines.len() {
+            warnings.push(format!(
+                "{}:{line}: truncated last line skipped ({} fields)",
+                path.display(),
+                fields.len()
+            ));
+            continue;
+        }
+        if !counts.contains(&fields.len()) {
             return Err(data_error(
                 path,
                 line,
                 "(line)",
-                format!("{} fields, expected at least {min}", fields.len()),
+                format!(
+                    "{} fields, expected {expected} ({})",
+                    fields.len(),
+                    names[..min.min(names.len())].join(" ")
+                ),
             ));
         }
         let mut v = Vec::with_capacity(fields.len());
         for (i, f) in fields.iter().enumerate() {
             let name = names.get(i).copied().unwrap_or("(extra)");
-            let x: f64 = f
-                .parse()
-                .map_err(|_| data_error(path, line, name, format!("`{f}` is not a number")))?;
+            let x: f64 = f.parse().map_err(|_| {
+                data_error(
+                    path,
+                    line,
+                    name,
+                    format!("`{}` is not a number", excerpt(f)),
+                )
+            })?;
             if !x.is_finite() {
                 return Err(data_error(path, line, name, "not finite"));
             }
@@ -99,7 +123,8 @@ fn parse_rows(
                 names[0],
                 format!(
                     "time {} does not increase (line {prev_line}: {})",
-                    v[0], prev[0]
+                    num(v[0]),
+                    num(prev[0])
                 ),
             ));
         }
@@ -145,28 +170,35 @@ const KF_GNSS: [&str; 13] = [
 /// assert!((imu[0].specific_force.z + 9.8).abs() < 1e-9); // −0.049 m/s over 5 ms
 /// ```
 pub fn read_kfgins_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
-    let (rows, warnings) = rows(path, 7, &KF_IMU)?;
+    read_kfgins_imu_from(&read_bytes(path)?, path)
+}
+
+/// [`read_kfgins_imu`] on the file's bytes; `path` names the origin in
+/// messages.
+pub fn read_kfgins_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    let (rows, warnings) = rows(bytes, path, &[7], &KF_IMU)?;
     let mut out = Vec::with_capacity(rows.len());
     for w in rows.windows(2) {
-        let (line, v) = (&w[1].0, &w[1].1);
+        let (line, v) = (w[1].0, &w[1].1);
         let dt = v[0] - w[0].1[0];
         let rate = Vector3::new(v[1], v[2], v[3]) / dt;
-        if rate.amax() > 35.0 {
-            return Err(data_error(
-                path,
-                *line,
-                "dθx",
-                format!(
-                    "|ω| = {:.1} rad/s: are the angle increments in degrees?",
-                    rate.amax()
-                ),
-            ));
-        }
+        check_rate(
+            path,
+            line,
+            "dθx",
+            &rate,
+            " — are the angle increments in degrees?",
+        )?;
+        let force = Vector3::new(v[4], v[5], v[6]) / dt;
+        check_force(path, line, "dvx", &force)?;
         out.push(ImuSample {
             time_s: v[0],
             angular_rate: rate,
-            specific_force: Vector3::new(v[4], v[5], v[6]) / dt,
+            specific_force: force,
         });
+    }
+    if let Some(&(line, _)) = rows.get(1) {
+        check_median_force(path, line, "dvx", out.iter().map(|s| s.specific_force))?;
     }
     Ok((out, warnings))
 }
@@ -178,7 +210,7 @@ fn sigma_checked(path: &Path, line: usize, names: &[&str], v: &[f64]) -> Result<
                 path,
                 line,
                 names[k],
-                format!("σ = {x}: must be > 0"),
+                format!("σ = {}: must be > 0", num(*x)),
             ));
         }
     }
@@ -199,22 +231,32 @@ fn sigma_checked(path: &Path, line: usize, names: &[&str], v: &[f64]) -> Result<
 /// assert!(fixes[0].velocity_ned.is_none());
 /// ```
 pub fn read_kfgins_gnss(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
-    let (rows, warnings) = rows(path, 7, &KF_GNSS)?;
+    read_kfgins_gnss_from(&read_bytes(path)?, path)
+}
+
+/// [`read_kfgins_gnss`] on the file's bytes; `path` names the origin in
+/// messages. Rows have 7 columns, or 13 with velocity and its σ.
+pub fn read_kfgins_gnss_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
+    let (rows, warnings) = rows(bytes, path, &[7, 13], &KF_GNSS)?;
     let fixes = rows
         .iter()
         .map(|(line, v)| {
-            if v[1].abs() > 90.0 {
-                return Err(data_error(
-                    path,
-                    *line,
-                    "latitude",
-                    format!("{} deg is outside ±90", v[1]),
-                ));
-            }
+            check_position(path, *line, v[1], v[2], v[3])?;
             let sigma = sigma_checked(path, *line, &KF_GNSS[4..7], &v[4..7])?;
             let (velocity_ned, velocity_sigma_neu) = if v.len() >= 13 {
                 let s = sigma_checked(path, *line, &KF_GNSS[10..13], &v[10..13])?;
-                (Some(Vector3::new(v[7], v[8], v[9])), Some(s))
+                let velocity = Vector3::new(v[7], v[8], v[9]);
+                crate::rtklib::in_range(
+                    path,
+                    *line,
+                    "vN",
+                    velocity.norm(),
+                    0.0,
+                    crate::limits::MAX_SPEED_M_S,
+                    "m/s",
+                    "faster than any vehicle a receiver reports",
+                )?;
+                (Some(velocity), Some(s))
             } else {
                 (None, None)
             };
@@ -247,7 +289,7 @@ fn columns(path: &Path, header: &str, wanted: &[&str]) -> Result<Vec<usize>> {
                     path,
                     1,
                     w,
-                    format!("column missing from the header `{header}`"),
+                    format!("column missing from the header `{}`", excerpt(header)),
                 )
             })
         })
@@ -269,15 +311,20 @@ fn columns(path: &Path, header: &str, wanted: &[&str]) -> Result<Vec<usize>> {
 /// assert_eq!((imu[0].angular_rate.z, imu[1].specific_force.z), (0.1, -9.8));
 /// ```
 pub fn read_generic_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
-    let text = read_text(path)?;
-    let header = text.lines().next().unwrap_or("");
+    read_generic_imu_from(&read_bytes(path)?, path)
+}
+
+/// [`read_generic_imu`] on the file's bytes; `path` names the origin in
+/// messages.
+pub fn read_generic_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    let text = decode(bytes, path)?;
+    let header = crate::text::lines(text).next().unwrap_or("");
     let wanted = [
         "time_s", "gx_rad_s", "gy_rad_s", "gz_rad_s", "ax_m_s2", "ay_m_s2", "az_m_s2",
     ];
     let idx = columns(path, header, &wanted)?;
     // The named columns, in order, with their original line numbers.
-    let lines = text
-        .lines()
+    let lines = crate::text::lines(text)
         .enumerate()
         .skip(1)
         .map(|(i, l)| {
@@ -286,26 +333,26 @@ pub fn read_generic_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
             (i + 1, picked.join(","))
         })
         .collect();
-    let (rows, warnings) = parse_rows(path, lines, 7, &wanted)?;
-    let out: Vec<ImuSample> = rows
-        .into_iter()
-        .map(|(_, v)| ImuSample {
+    let (rows, warnings) = parse_rows(path, lines, &[7], &wanted)?;
+    let mut out = Vec::with_capacity(rows.len());
+    for (line, v) in &rows {
+        let sample = ImuSample {
             time_s: v[0],
             angular_rate: Vector3::new(v[1], v[2], v[3]),
             specific_force: Vector3::new(v[4], v[5], v[6]),
-        })
-        .collect();
-    if let Some(s) = out.iter().find(|s| s.angular_rate.amax() > 35.0) {
-        return Err(data_error(
+        };
+        check_rate(
             path,
-            0,
+            *line,
             "gx_rad_s",
-            format!(
-                "|ω| = {:.1} rad/s at t = {}: degrees given?",
-                s.angular_rate.amax(),
-                s.time_s
-            ),
-        ));
+            &sample.angular_rate,
+            " — degrees given?",
+        )?;
+        check_force(path, *line, "ax_m_s2", &sample.specific_force)?;
+        out.push(sample);
+    }
+    if let Some(&(line, _)) = rows.first() {
+        check_median_force(path, line, "ax_m_s2", out.iter().map(|s| s.specific_force))?;
     }
     Ok((out, warnings))
 }
@@ -378,5 +425,119 @@ mod tests {
         .unwrap();
         let e = read_generic_imu(&p).unwrap_err().to_string();
         assert!(e.contains("imu.csv:2: column `az_m_s2`"), "{e}");
+    }
+
+    const HEADER: &str = "time_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2";
+
+    fn generic(text: &str) -> Result<(Vec<ImuSample>, Vec<String>)> {
+        read_generic_imu_from(text.as_bytes(), Path::new("g.csv"))
+    }
+
+    fn kf_gnss(text: &str) -> Result<(Vec<GnssFix>, Vec<String>)> {
+        read_kfgins_gnss_from(text.as_bytes(), Path::new("gnss.txt"))
+    }
+
+    #[test]
+    fn accelerometers_in_g_are_refused() {
+        let e = generic(&format!("{HEADER}\n1.0,0,0,0,0,0,-1\n1.01,0,0,0,0,0,-1\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("g.csv:2: column `ax_m_s2`: median |f| = 1 m/s²") && e.contains("in g"),
+            "{e}"
+        );
+        // KF-GINS: dv of 1 g · 5 ms written in g · s.
+        let e = read_kfgins_imu_from(
+            b"100.000 0 0 0 0 0 0\n100.005 0 0 0 0 0 -0.005\n100.010 0 0 0 0 0 -0.005\n",
+            Path::new("imu.txt"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("imu.txt:2: column `dvx`: median |f|") && e.contains("in g"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_rates_and_forces_name_their_line() {
+        let e = generic(&format!(
+            "{HEADER}\n1.0,0,0,0,0,0,-9.8\n1.01,0,0,57.3,0,0,-9.8\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("g.csv:3: column `gx_rad_s`: |ω| = 57.3 rad/s"),
+            "{e}"
+        );
+        let e = generic(&format!(
+            "{HEADER}\n1.0,0,0,0,0,0,-9.8\n1.01,0,0,0,0,0,-9800\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("g.csv:3: column `ax_m_s2`: |f| = 9800 m/s²"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn kfgins_gnss_columns_must_be_7_or_13() {
+        // Velocity without its σ used to be dropped silently.
+        let e = kf_gnss("100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n101.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("gnss.txt:1: column `(line)`: 10 fields, expected 7 or 13"),
+            "{e}"
+        );
+        let e = kf_gnss("100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3 0.1 0.1 0.1 9\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("14 fields, expected 7 or 13"), "{e}");
+        let e = read_kfgins_imu_from(b"100.0 0 0 0 0 0 0 0\n", Path::new("imu.txt"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("8 fields, expected 7"), "{e}");
+    }
+
+    #[test]
+    fn kfgins_positions_are_range_checked() {
+        let e = kf_gnss("100.0 30.5 114.3 -5000 0.01 0.01 0.02\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("gnss.txt:1: column `height`: -5000 m is outside [-1000, 100000] m"),
+            "{e}"
+        );
+        let e = kf_gnss("100.0 30.5 414.3 20 0.01 0.01 0.02\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("column `longitude`"), "{e}");
+    }
+
+    #[test]
+    fn cr_only_bom_and_long_headers() {
+        // A CR-only file used to be one row (and its message quoted the file).
+        let (s, _) = generic(&format!(
+            "\u{FEFF}{HEADER}\r1.0,0,0,0,0,0,-9.8\r1.01,0,0,0,0,0,-9.8\r"
+        ))
+        .unwrap();
+        assert_eq!(s.len(), 2);
+        let header = format!("time_s,{}", "y".repeat(100_000));
+        let e = generic(&format!("{header}\n1\n")).unwrap_err().to_string();
+        assert!(e.len() < 200 && e.contains('…'), "{} chars", e.len());
+        let (f, _) = kf_gnss(
+            "\u{FEFF}100.0 30.5 114.3 20.0 0.01 0.01 0.02\r101.0 30.5 114.3 20.0 0.01 0.01 0.02",
+        )
+        .unwrap();
+        assert_eq!(f.len(), 2);
+        let e = read_kfgins_gnss_from(b"100.0 30.5\xC3 114.3", Path::new("gnss.txt"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("gnss.txt:1: column `(text)`: invalid UTF-8 at byte 10"),
+            "{e}"
+        );
     }
 }

@@ -9,15 +9,23 @@
 //! - [`plot`]: SVG line charts.
 //! - [`kfgins`]: KF-GINS IMU and GNSS text files, aidnav's generic IMU CSV.
 //! - [`rtklib`]: RTKLIB `.pos` solutions and the raw IMU CSV with its `.tag` time tags.
+//! - [`nmea`]: NMEA 0183 GNSS logs.
+//! - [`text`]: UTF-8 decoding with line and byte, BOM, line splitting, excerpts.
+//! - [`limits`]: the physical bounds every reader checks values against.
+//!
+//! Every reader has an in-memory entry point (`…_from(bytes, origin)`) beside
+//! the `&Path` one, which is a thin wrapper reading the file.
 
 pub mod config;
 pub mod error;
 pub mod kfgins;
+pub mod limits;
 pub mod measurements;
 pub mod model_file;
 pub mod nmea;
 pub mod plot;
 pub mod rtklib;
+pub mod text;
 pub mod writers;
 
 pub use config::{Invalid, Validate, load_toml, parse_toml};

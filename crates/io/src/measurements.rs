@@ -56,14 +56,25 @@ pub fn read_measurements(
     names: &[String],
     max_epochs: usize,
 ) -> Result<MeasurementTable> {
-    let file = std::fs::File::open(path).map_err(|source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse_measurements(file, path, names, max_epochs)
+    read_measurements_from(&crate::text::read_bytes(path)?, path, names, max_epochs)
 }
 
-/// Parse measurement CSV from any reader; `origin` names it in errors.
+/// [`read_measurements`] on the file's bytes; `origin` names it in
+/// messages. A UTF-8 byte-order mark is stripped; invalid UTF-8 is an error
+/// naming the line and byte.
+pub fn read_measurements_from(
+    bytes: &[u8],
+    origin: &Path,
+    names: &[String],
+    max_epochs: usize,
+) -> Result<MeasurementTable> {
+    let text = crate::text::decode(bytes, origin)?;
+    parse_measurements(text.as_bytes(), origin, names, max_epochs)
+}
+
+/// Parse measurement CSV from any reader; `origin` names it in errors
+/// (prefer [`read_measurements_from`], which also strips a BOM and names the
+/// line and byte of invalid UTF-8).
 pub fn parse_measurements<R: std::io::Read>(
     reader: R,
     origin: &Path,
@@ -73,7 +84,7 @@ pub fn parse_measurements<R: std::io::Read>(
     let data_err = |line: usize, column: &str, message: String| IoError::Data {
         path: origin.to_path_buf(),
         line,
-        column: column.to_string(),
+        column: crate::text::excerpt(column),
         message,
     };
     let mut rdr = csv::ReaderBuilder::new()
@@ -172,7 +183,11 @@ pub fn parse_measurements<R: std::io::Read>(
                     return Err(data_err(
                         line,
                         col,
-                        format!("time {time} is not after the previous {prev}"),
+                        format!(
+                            "time {} is not after the previous {}",
+                            crate::text::num(time),
+                            crate::text::num(prev)
+                        ),
                     ));
                 }
             } else {
@@ -194,7 +209,10 @@ fn parse_number(cell: &str) -> std::result::Result<Option<f64>, String> {
         Ok(v) => Err(format!(
             "non-finite value {v}; leave the cell empty for a missing value"
         )),
-        Err(_) => Err(format!("{cell:?} is not a number")),
+        Err(_) => Err(format!(
+            "\"{}\" is not a number",
+            crate::text::excerpt(cell)
+        )),
     }
 }
 
@@ -253,5 +271,28 @@ mod tests {
         }
         let e = parse(&text).unwrap_err().to_string();
         assert!(e.contains("more than 100 epochs"), "{e}");
+    }
+
+    #[test]
+    fn bom_invalid_utf8_long_cells_and_large_numbers() {
+        let names = vec!["a".to_string(), "b".to_string()];
+        let from = |b: &[u8]| read_measurements_from(b, Path::new("z.csv"), &names, 100);
+        // A BOM used to make the first column `\u{FEFF}time` unknown.
+        let t = from("\u{FEFF}time,a,b\n0,1,2\n".as_bytes()).unwrap();
+        assert!(t.has_time);
+        let e = from(b"time,a,b\n0,1,\xFF\n").unwrap_err().to_string();
+        assert!(
+            e.starts_with("z.csv:2: column `(text)`: invalid UTF-8 at byte 13"),
+            "{e}"
+        );
+        let e = from(format!("time,a,b\n0,1,{}\n", "x".repeat(10_000)).as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 200 && e.contains('…'), "{e}");
+        let huge = format!("1{}", "0".repeat(308));
+        let e = from(format!("time,a,b\n{huge},1,2\n0,1,2\n").as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("time 0 is not after the previous 1e308"), "{e}");
     }
 }

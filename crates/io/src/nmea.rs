@@ -20,8 +20,9 @@
 //!   vertical velocity: it is left practically unobserved).
 //!
 //! Errors name the file and line: a bad checksum, a field that is not a
-//! number, latitude beyond 90°, minutes ≥ 60, time going backwards, a GGA
-//! before any RMC (no date). A truncated last line, lines that are not NMEA
+//! number, latitude beyond 90°, minutes ≥ 60, an impossible date (31 April),
+//! a height outside the bounds of [`crate::limits`], time going backwards, a
+//! GGA before any RMC (no date). A UTF-8 byte-order mark is stripped. A truncated last line, lines that are not NMEA
 //! sentences and sentences of other types are skipped with a warning.
 
 use std::collections::HashMap;
@@ -31,7 +32,8 @@ use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;
 
 use crate::error::Result;
-use crate::rtklib::{GnssFix, data_error, days_from_civil, read_text};
+use crate::rtklib::{GnssFix, check_position, data_error, days_from_civil};
+use crate::text::{excerpt, num};
 
 /// GPS − UTC [s] from each date on (IERS bulletins; 18 s since 2017).
 const LEAP_SECONDS: [((i64, i64, i64), f64); 18] = [
@@ -93,8 +95,14 @@ fn checked_body<'a>(path: &Path, line: usize, text: &'a str) -> Result<Option<&'
     let Some((body, sum)) = rest.rsplit_once('*') else {
         return Ok(None);
     };
-    let want = u8::from_str_radix(sum.trim(), 16)
-        .map_err(|_| data_error(path, line, "checksum", format!("`{sum}` is not hex")))?;
+    let want = u8::from_str_radix(sum.trim(), 16).map_err(|_| {
+        data_error(
+            path,
+            line,
+            "checksum",
+            format!("`{}` is not hex", excerpt(sum)),
+        )
+    })?;
     let got = body.bytes().fold(0u8, |a, b| a ^ b);
     if got != want {
         return Err(data_error(
@@ -109,7 +117,14 @@ fn checked_body<'a>(path: &Path, line: usize, text: &'a str) -> Result<Option<&'
 
 /// `hhmmss.ss` → seconds of the day.
 fn time_of_day(path: &Path, line: usize, f: &str) -> Result<f64> {
-    let bad = || data_error(path, line, "time", format!("`{f}` is not hhmmss.ss"));
+    let bad = || {
+        data_error(
+            path,
+            line,
+            "time",
+            format!("`{}` is not hhmmss.ss", excerpt(f)),
+        )
+    };
     if f.len() < 6 || !f.is_char_boundary(2) || !f.is_char_boundary(4) {
         return Err(bad());
     }
@@ -127,20 +142,25 @@ fn angle(path: &Path, line: usize, column: &str, f: &str, hemi: &str, limit: f64
     let bad = |why: String| data_error(path, line, column, why);
     let v: f64 = f
         .parse()
-        .map_err(|_| bad(format!("`{f}` is not a number")))?;
+        .map_err(|_| bad(format!("`{}` is not a number", excerpt(f))))?;
     let degrees = (v / 100.0).trunc();
     let minutes = v - 100.0 * degrees;
     if !(0.0..60.0).contains(&minutes) || !v.is_finite() || v < 0.0 {
-        return Err(bad(format!("`{f}` is not (d)ddmm.mmmm")));
+        return Err(bad(format!("`{}` is not (d)ddmm.mmmm", excerpt(f))));
     }
     let value = degrees + minutes / 60.0;
     if value > limit {
-        return Err(bad(format!("{value}° is beyond {limit}°")));
+        return Err(bad(format!("{}° is beyond {limit}°", num(value))));
     }
     let sign = match hemi {
         "N" | "E" => 1.0,
         "S" | "W" => -1.0,
-        _ => return Err(bad(format!("hemisphere `{hemi}` is not N/S/E/W"))),
+        _ => {
+            return Err(bad(format!(
+                "hemisphere `{}` is not N/S/E/W",
+                excerpt(hemi)
+            )));
+        }
     };
     Ok((sign * value).to_radians())
 }
@@ -149,7 +169,14 @@ fn number(path: &Path, line: usize, column: &str, f: &str) -> Result<f64> {
     f.parse::<f64>()
         .ok()
         .filter(|v| v.is_finite())
-        .ok_or_else(|| data_error(path, line, column, format!("`{f}` is not a number")))
+        .ok_or_else(|| {
+            data_error(
+                path,
+                line,
+                column,
+                format!("`{}` is not a number", excerpt(f)),
+            )
+        })
 }
 
 /// A GGA epoch waiting for its GST / RMC of the same time.
@@ -182,8 +209,13 @@ struct Pending {
 /// assert!(fixes[0].velocity_ned.unwrap().y > 5.0); // 10 kn due east
 /// ```
 pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
-    let text = read_text(path)?;
-    let lines: Vec<&str> = text.lines().collect();
+    read_nmea_from(&crate::text::read_bytes(path)?, path)
+}
+
+/// [`read_nmea`] on the file's bytes; `path` names the origin in messages.
+pub fn read_nmea_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
+    let text = crate::text::decode(bytes, path)?;
+    let lines: Vec<&str> = crate::text::lines(text).collect();
     let mut warnings = Vec::new();
     let mut date_days: Option<i64> = None;
     let mut last_tod: Option<f64> = None;
@@ -232,18 +264,25 @@ pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
             "RMC" => {
                 need(10)?;
                 let d = f[9];
-                let bad = || data_error(path, line, "date", format!("`{d}` is not ddmmyy"));
+                let bad = || {
+                    data_error(
+                        path,
+                        line,
+                        "date",
+                        format!("`{}` is not a ddmmyy calendar date", excerpt(d)),
+                    )
+                };
                 if d.len() != 6 || !d.is_ascii() {
                     return Err(bad());
                 }
                 let dd: i64 = d[0..2].parse().map_err(|_| bad())?;
                 let mm: i64 = d[2..4].parse().map_err(|_| bad())?;
                 let yy: i64 = d[4..6].parse().map_err(|_| bad())?;
-                if !(1..=31).contains(&dd) || !(1..=12).contains(&mm) {
-                    return Err(bad());
-                }
                 // Two-digit years: 1980–2079.
                 let year = if yy >= 80 { 1900 + yy } else { 2000 + yy };
+                if !crate::text::is_date(year, mm, dd) {
+                    return Err(bad());
+                }
                 date_days = Some(days_from_civil(year, mm, dd));
                 let tod = time_of_day(path, line, f[1])?;
                 if f[2] == "A" && !f[7].is_empty() && !f[8].is_empty() {
@@ -271,7 +310,12 @@ pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                         path,
                         line,
                         "sigma",
-                        format!("σ = {s:?} must be > 0 (a receiver claiming 0 cannot be weighted)"),
+                        format!(
+                            "σ = ({}, {}, {}) m must be > 0 (a receiver claiming 0 cannot be weighted)",
+                            num(s.x),
+                            num(s.y),
+                            num(s.z)
+                        ),
                     ));
                 }
                 sigmas.insert(key(tod), s);
@@ -280,7 +324,12 @@ pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                 need(12)?;
                 let tod = time_of_day(path, line, f[1])?;
                 let gga_quality: u8 = f[6].parse().map_err(|_| {
-                    data_error(path, line, "quality", format!("`{}` is not a number", f[6]))
+                    data_error(
+                        path,
+                        line,
+                        "quality",
+                        format!("`{}` is not a number", excerpt(f[6])),
+                    )
                 })?;
                 if rtklib_quality(gga_quality).is_none() || f[2].is_empty() {
                     no_fix += 1;
@@ -307,7 +356,11 @@ pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                             path,
                             line,
                             "time",
-                            format!("{tod} s of the day after {prev} s: time goes backwards"),
+                            format!(
+                                "{} s of the day after {} s: time goes backwards",
+                                num(tod),
+                                num(prev)
+                            ),
                         ));
                     }
                 }
@@ -319,15 +372,23 @@ pub fn read_nmea(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                     number(path, line, "geoid_separation", f[11])?
                 };
                 let utc = days as f64 * 86_400.0 + tod;
+                let position = Geodetic {
+                    latitude_rad: angle(path, line, "latitude", f[2], f[3], 90.0)?,
+                    longitude_rad: angle(path, line, "longitude", f[4], f[5], 180.0)?,
+                    height_m: altitude + separation,
+                };
+                check_position(
+                    path,
+                    line,
+                    position.latitude_rad.to_degrees(),
+                    position.longitude_rad.to_degrees(),
+                    position.height_m,
+                )?;
                 epochs.push(Pending {
                     line,
                     time_of_day: tod,
                     time_s: utc + leap_seconds(days),
-                    position: Geodetic {
-                        latitude_rad: angle(path, line, "latitude", f[2], f[3], 90.0)?,
-                        longitude_rad: angle(path, line, "longitude", f[4], f[5], 180.0)?,
-                        height_m: altitude + separation,
-                    },
+                    position,
                     gga_quality,
                     satellites: f[7].parse().unwrap_or(0),
                 });
@@ -514,6 +575,51 @@ mod tests {
         assert!(
             warnings.iter().any(|w| w.contains("truncated")),
             "{warnings:?}"
+        );
+    }
+
+    #[test]
+    fn april_31_is_not_a_date() {
+        let mut l = log();
+        l[0] = sentence("GNRMC,235959.00,A,4807.038000,N,01131.000000,E,10.0,90.0,310425,,,A");
+        let e = read(&l).unwrap_err().to_string();
+        assert!(
+            e.contains("log.nmea:1: column `date`: `310425` is not a ddmmyy calendar date"),
+            "{e}"
+        );
+        l[0] = sentence("GNRMC,235959.00,A,4807.038000,N,01131.000000,E,10.0,90.0,290224,,,A");
+        assert!(read(&l).is_ok());
+    }
+
+    #[test]
+    fn a_bom_is_stripped_and_invalid_utf8_named() {
+        // The BOM used to hide the first RMC: "a GGA before any RMC".
+        let text = format!("\u{FEFF}{}", log().join("\r\n"));
+        let (fixes, _) = read_nmea_from(text.as_bytes(), Path::new("log.nmea")).unwrap();
+        assert_eq!(fixes.len(), 2);
+        let mut bytes = log().join("\n").into_bytes();
+        let at = bytes.len();
+        bytes.extend(b"\n$GN\xFE");
+        let e = read_nmea_from(&bytes, Path::new("log.nmea"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!(
+                "log.nmea:8: column `(text)`: invalid UTF-8 at byte {}",
+                at + 4
+            )),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_heights_are_refused() {
+        let mut l = log();
+        l[1] = sentence("GNGGA,235959.00,4807.038,N,01131.000,E,4,12,0.9,545400.0,M,46.9,M,,");
+        let e = read(&l).unwrap_err().to_string();
+        assert!(
+            e.contains("log.nmea:2: column `height`: 545446.9 m is outside"),
+            "{e}"
         );
     }
 }

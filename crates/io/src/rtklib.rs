@@ -23,17 +23,7 @@ pub use aidnav_ins::samples::{GnssFix, ImuSample};
 /// Standard gravity, the unit of the data set's accelerometer columns.
 const G0: f64 = 9.806_65;
 
-/// Days from 1970-01-01 to a proleptic Gregorian date (Howard Hinnant's
-/// algorithm).
-pub(crate) fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
-    let y = if m <= 2 { y - 1 } else { y };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let mp = (m + 9) % 12;
-    let doy = (153 * mp + 2) / 5 + d - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
-}
+pub(crate) use crate::text::days_from_civil;
 
 /// GPS week 0 began 1980-01-06.
 const GPS_EPOCH_1970_S: f64 = 315_964_800.0;
@@ -53,38 +43,197 @@ pub(crate) fn data_error(
     }
 }
 
-/// The whole file as text, or a read error naming it.
-pub(crate) fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).map_err(|source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    })
+/// A value checked against a physical bound ([`crate::limits`]): an error
+/// naming the file, line and column when outside `[lo, hi]`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn in_range(
+    path: &Path,
+    line: usize,
+    column: &str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+    unit: &str,
+    why: &str,
+) -> Result<()> {
+    match crate::limits::outside(value, lo, hi, unit, why) {
+        Some(m) => Err(data_error(path, line, column, m)),
+        None => Ok(()),
+    }
 }
 
-/// Parse `YYYY/MM/DD HH:MM:SS.sss` or `WEEK TOW` (two tokens) to seconds.
-fn parse_time(date: &str, time: &str) -> Option<f64> {
-    if let (Ok(week), Ok(tow)) = (date.parse::<u32>(), time.parse::<f64>()) {
-        return Some(GPS_EPOCH_1970_S + f64::from(week) * 604_800.0 + tow);
+/// Check latitude, longitude and height of a position against
+/// [`crate::limits`].
+pub(crate) fn check_position(
+    path: &Path,
+    line: usize,
+    lat_deg: f64,
+    lon_deg: f64,
+    height_m: f64,
+) -> Result<()> {
+    use crate::limits::*;
+    in_range(
+        path,
+        line,
+        "latitude",
+        lat_deg,
+        -MAX_LATITUDE_DEG,
+        MAX_LATITUDE_DEG,
+        "deg",
+        "the poles; x/y/z ECEF files are not supported",
+    )?;
+    in_range(
+        path,
+        line,
+        "longitude",
+        lon_deg,
+        -MAX_LONGITUDE_DEG,
+        MAX_LONGITUDE_DEG,
+        "deg",
+        "±180° or 0–360°",
+    )?;
+    in_range(
+        path,
+        line,
+        "height",
+        height_m,
+        MIN_HEIGHT_M,
+        MAX_HEIGHT_M,
+        "m",
+        "below the lowest land or above 100 km",
+    )
+}
+
+/// Check a rate vector against [`crate::limits::MAX_ANGULAR_RATE_RAD_S`].
+pub(crate) fn check_rate(
+    path: &Path,
+    line: usize,
+    column: &str,
+    rate_rad_s: &Vector3<f64>,
+    hint: &str,
+) -> Result<()> {
+    let w = rate_rad_s.norm();
+    if w > crate::limits::MAX_ANGULAR_RATE_RAD_S {
+        return Err(data_error(
+            path,
+            line,
+            column,
+            format!(
+                "|ω| = {} rad/s is above {} rad/s (≈ 2 900 °/s, beyond any MEMS gyro's range){hint}",
+                crate::text::num(w),
+                crate::limits::MAX_ANGULAR_RATE_RAD_S
+            ),
+        ));
     }
+    Ok(())
+}
+
+/// Check a specific force against [`crate::limits::MAX_SPECIFIC_FORCE_M_S2`].
+pub(crate) fn check_force(
+    path: &Path,
+    line: usize,
+    column: &str,
+    force_m_s2: &Vector3<f64>,
+) -> Result<()> {
+    let f = force_m_s2.norm();
+    if f > crate::limits::MAX_SPECIFIC_FORCE_M_S2 {
+        return Err(data_error(
+            path,
+            line,
+            column,
+            format!(
+                "|f| = {} m/s² is above {} m/s² (≈ 200 g, beyond navigation accelerometers)",
+                crate::text::num(f),
+                crate::limits::MAX_SPECIFIC_FORCE_M_S2
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The median specific-force magnitude of a log must be about 1 g
+/// ([`crate::limits::MEDIAN_SPECIFIC_FORCE_M_S2`]); near 1 it is in g.
+pub(crate) fn check_median_force(
+    path: &Path,
+    line: usize,
+    column: &str,
+    forces: impl Iterator<Item = Vector3<f64>>,
+) -> Result<()> {
+    let mut norms: Vec<f64> = forces.map(|f| f.norm()).collect();
+    if norms.is_empty() {
+        return Ok(());
+    }
+    norms.sort_by(f64::total_cmp);
+    let median = norms[norms.len() / 2];
+    let range = crate::limits::MEDIAN_SPECIFIC_FORCE_M_S2;
+    if !range.contains(&median) {
+        return Err(data_error(
+            path,
+            line,
+            column,
+            format!(
+                "median |f| = {} m/s², expected about 9.8 (between {} and {}){}",
+                crate::text::num(median),
+                range.start(),
+                range.end(),
+                if (0.5..2.0).contains(&median) {
+                    " — is the accelerometer in g instead of m/s²?"
+                } else {
+                    ""
+                }
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Parse `YYYY/MM/DD HH:MM:SS.sss` or `WEEK TOW` (two tokens) to seconds;
+/// an impossible date (30 February) or time of day is an error message.
+fn parse_time(date: &str, time: &str) -> std::result::Result<f64, String> {
+    use crate::text::excerpt;
+    if let (Ok(week), Ok(tow)) = (date.parse::<u32>(), time.parse::<f64>()) {
+        if !(0.0..604_800.0).contains(&tow) {
+            return Err(format!(
+                "time of week `{}` is outside [0, 604 800) s",
+                excerpt(time)
+            ));
+        }
+        return Ok(GPS_EPOCH_1970_S + f64::from(week) * 604_800.0 + tow);
+    }
+    let no_time = || {
+        format!(
+            "`{} {}` is no time (YYYY/MM/DD HH:MM:SS.sss or WEEK TOW)",
+            excerpt(date),
+            excerpt(time)
+        )
+    };
     let d: Vec<i64> = date
         .split(['/', '-'])
         .map(|s| s.parse().ok())
-        .collect::<Option<_>>()?;
+        .collect::<Option<_>>()
+        .ok_or_else(no_time)?;
     let t: Vec<&str> = time.split(':').collect();
     if d.len() != 3 || t.len() != 3 {
-        return None;
+        return Err(no_time());
     }
-    let (h, mi): (i64, i64) = (t[0].parse().ok()?, t[1].parse().ok()?);
-    let s: f64 = t[2].parse().ok()?;
-    if !(1..=12).contains(&d[1])
-        || !(1..=31).contains(&d[2])
-        || !(0..24).contains(&h)
-        || !(0..60).contains(&mi)
-        || !(0.0..61.0).contains(&s)
-    {
-        return None;
+    let (h, mi): (i64, i64) = (
+        t[0].parse().map_err(|_| no_time())?,
+        t[1].parse().map_err(|_| no_time())?,
+    );
+    let s: f64 = t[2].parse().map_err(|_| no_time())?;
+    if !(1..=9999).contains(&d[0]) || !crate::text::is_date(d[0], d[1], d[2]) {
+        return Err(format!(
+            "`{}` is not a calendar date (year 1–9999, month 1–12, day within the month)",
+            excerpt(date)
+        ));
     }
-    Some(days_from_civil(d[0], d[1], d[2]) as f64 * 86_400.0 + (h * 3600 + mi * 60) as f64 + s)
+    if !(0..24).contains(&h) || !(0..60).contains(&mi) || !(0.0..61.0).contains(&s) {
+        return Err(format!(
+            "`{}` is not a time of day (hh 0–23, mm 0–59, ss < 61)",
+            excerpt(time)
+        ));
+    }
+    Ok(days_from_civil(d[0], d[1], d[2]) as f64 * 86_400.0 + (h * 3600 + mi * 60) as f64 + s)
 }
 
 /// Column names of a `.pos` line after the two time tokens.
@@ -129,9 +278,14 @@ const POS_COLUMNS: [&str; 19] = [
 /// assert!(fixes[0].velocity_ned.is_some());
 /// ```
 pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
-    let text = read_text(path)?;
-    let lines: Vec<(usize, &str)> = text
-        .lines()
+    read_pos_from(&crate::text::read_bytes(path)?, path)
+}
+
+/// [`read_pos`] on the file's bytes; `path` names the origin in messages.
+pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
+    use crate::text::{excerpt, num};
+    let text = crate::text::decode(bytes, path)?;
+    let lines: Vec<(usize, &str)> = crate::text::lines(text)
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('%'))
@@ -160,17 +314,8 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                 ),
             ));
         }
-        let time_s = parse_time(tokens[0], tokens[1]).ok_or_else(|| {
-            data_error(
-                path,
-                line,
-                "GPST",
-                format!(
-                    "`{} {}` is no time (YYYY/MM/DD HH:MM:SS.sss or WEEK TOW)",
-                    tokens[0], tokens[1]
-                ),
-            )
-        })?;
+        let time_s =
+            parse_time(tokens[0], tokens[1]).map_err(|m| data_error(path, line, "GPST", m))?;
         let mut values = [f64::NAN; 19];
         for (i, tok) in tokens[2..].iter().take(19).enumerate() {
             let v: f64 = tok.parse().map_err(|_| {
@@ -178,7 +323,7 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                     path,
                     line,
                     POS_COLUMNS[i],
-                    format!("`{tok}` is not a number"),
+                    format!("`{}` is not a number", excerpt(tok)),
                 )
             })?;
             if !v.is_finite() {
@@ -186,32 +331,14 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
             }
             values[i] = v;
         }
-        if values[0].abs() > 90.0 {
-            return Err(data_error(
-                path,
-                line,
-                "latitude",
-                format!(
-                    "{} deg is outside ±90 (x/y/z ECEF files are not supported)",
-                    values[0]
-                ),
-            ));
-        }
-        if values[1].abs() > 360.0 {
-            return Err(data_error(
-                path,
-                line,
-                "longitude",
-                format!("{} deg is outside ±360", values[1]),
-            ));
-        }
+        check_position(path, line, values[0], values[1], values[2])?;
         for (i, name) in [(5, "sdn"), (6, "sde"), (7, "sdu")] {
             if values[i] <= 0.0 {
                 return Err(data_error(
                     path,
                     line,
                     name,
-                    format!("σ = {} m: a position σ must be > 0", values[i]),
+                    format!("σ = {} m: a position σ must be > 0", num(values[i])),
                 ));
             }
         }
@@ -223,10 +350,21 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                         path,
                         line,
                         name,
-                        format!("σ = {} m/s: a velocity σ must be > 0", values[i]),
+                        format!("σ = {} m/s: a velocity σ must be > 0", num(values[i])),
                     ));
                 }
             }
+            let speed = Vector3::new(values[13], values[14], values[15]).norm();
+            in_range(
+                path,
+                line,
+                "vn",
+                speed,
+                0.0,
+                crate::limits::MAX_SPEED_M_S,
+                "m/s",
+                "faster than any vehicle a receiver reports",
+            )?;
         }
         if let Some(prev) = fixes.last()
             && time_s <= prev.time_s
@@ -236,8 +374,9 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
                 line,
                 "GPST",
                 format!(
-                    "time {time_s:.3} s does not increase (previous epoch {:.3} s)",
-                    prev.time_s
+                    "time {} does not increase (previous epoch {})",
+                    crate::text::date_time(time_s),
+                    crate::text::date_time(prev.time_s)
                 ),
             ));
         }
@@ -273,10 +412,13 @@ pub struct TimeTags {
 
 /// Read an RTKLIB `TIMETAG` file.
 pub fn read_time_tags(path: &Path) -> Result<TimeTags> {
-    let bytes = std::fs::read(path).map_err(|source| IoError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    read_time_tags_from(&crate::text::read_bytes(path)?, path)
+}
+
+/// [`read_time_tags`] on the file's bytes; `path` names the origin in
+/// messages. Tags whose milliseconds decrease, or a last tag at 0 ms (every
+/// sample would map to one instant), are errors.
+pub fn read_time_tags_from(bytes: &[u8], path: &Path) -> Result<TimeTags> {
     let bad = |m: &str| data_error(path, 0, "(binary header)", m.to_string());
     if bytes.len() < 76 || !bytes.starts_with(b"TIMETAG") {
         return Err(bad("not an RTKLIB time-tag file (no TIMETAG header)"));
@@ -291,10 +433,10 @@ pub fn read_time_tags(path: &Path) -> Result<TimeTags> {
         return Err(bad("start-time fraction outside [0, 1)"));
     }
     let body = &bytes[76..];
-    if body.len() % 8 != 0 {
+    if !body.len().is_multiple_of(8) {
         return Err(bad("tag records are not whole (u32, u32) pairs"));
     }
-    let tags = body
+    let tags: Vec<(u32, u32)> = body
         .chunks_exact(8)
         .map(|c| {
             (
@@ -303,6 +445,28 @@ pub fn read_time_tags(path: &Path) -> Result<TimeTags> {
             )
         })
         .collect();
+    if let Some(k) = tags.windows(2).position(|w| w[1].0 < w[0].0) {
+        return Err(data_error(
+            path,
+            0,
+            "(tags)",
+            format!(
+                "tag {} (byte {}) at {} ms is before the previous tag's {} ms: the milliseconds must not decrease",
+                k + 1,
+                76 + 8 * (k + 1),
+                tags[k + 1].0,
+                tags[k].0
+            ),
+        ));
+    }
+    if tags.last().is_some_and(|&(ms, _)| ms == 0) {
+        return Err(data_error(
+            path,
+            0,
+            "(tags)",
+            "the last tag is at 0 ms: the log would span no time (every sample at one instant); a degenerate tag file",
+        ));
+    }
     Ok(TimeTags {
         start_s: seconds + fraction,
         tags,
@@ -337,12 +501,13 @@ const IMU_COLUMNS: [&str; 7] = [
 /// t.extend(0u32.to_le_bytes());
 /// t.extend(1_750_000_000u32.to_le_bytes());
 /// t.extend(0.5f64.to_le_bytes());
-/// for (ms, offset) in [(0u32, 0u32), (30, 100)] {
+/// for (ms, offset) in [(0u32, 0u32), (20, 100)] {
 ///     t.extend(ms.to_le_bytes());
 ///     t.extend(offset.to_le_bytes());
 /// }
 /// std::fs::write(&tag, &t).unwrap();
-/// // ax ay az [g], gx gy gz [deg/s], tick [ms]; first and last line dropped.
+/// // ax ay az [g], gx gy gz [deg/s], tick [ms]; first and last line dropped
+/// // (ticks 10 to 30: the 20 ms of the last tag).
 /// std::fs::write(&csv, "0,0,1,0,0,0,0\n0,0,1,0,0,0,10\n0,0,1,0,0,0,20\n0,0,1,0,0,0,30\n0,0,1,0,0,0,40\n")
 ///     .unwrap();
 /// let (imu, _warnings) = aidnav_io::rtklib::read_tagged_imu(&csv, &tag).unwrap();
@@ -353,14 +518,36 @@ const IMU_COLUMNS: [&str; 7] = [
 /// assert!(imu.windows(2).all(|w| w[1].time_s > w[0].time_s));
 /// ```
 pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
-    let tags = read_time_tags(tag_path)?;
+    read_tagged_imu_from(
+        &crate::text::read_bytes(csv_path)?,
+        csv_path,
+        &crate::text::read_bytes(tag_path)?,
+        tag_path,
+    )
+}
+
+/// Largest relative difference between the logger's tick clock and the tag
+/// file's time accepted: a crystal is off by parts per million, so 10 %
+/// means the tag file does not belong to the log.
+const MAX_TICK_SCALE_ERROR: f64 = 0.1;
+
+/// [`read_tagged_imu`] on the CSV's and the tag file's bytes; the paths name
+/// the origins in messages.
+pub fn read_tagged_imu_from(
+    csv: &[u8],
+    csv_path: &Path,
+    tag: &[u8],
+    tag_path: &Path,
+) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    use crate::text::{excerpt, num};
+    let tags = read_time_tags_from(tag, tag_path)?;
     let last_tag_ms = tags
         .tags
         .last()
         .map(|&(ms, _)| ms)
         .ok_or_else(|| data_error(tag_path, 0, "(tags)", "no time tags"))?;
-    let text = read_text(csv_path)?;
-    let lines: Vec<&str> = text.lines().collect();
+    let text = crate::text::decode(csv, csv_path)?;
+    let lines: Vec<&str> = crate::text::lines(text).collect();
     let mut warnings = Vec::new();
     if lines.len() < 4 {
         return Err(data_error(
@@ -396,13 +583,20 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
                     csv_path,
                     line,
                     IMU_COLUMNS[k],
-                    format!("`{f}` is not a number"),
+                    format!("`{}` is not a number", excerpt(f)),
                 )
             })?;
             if !v[k].is_finite() {
                 return Err(data_error(csv_path, line, IMU_COLUMNS[k], "not finite"));
             }
         }
+        check_rate(
+            csv_path,
+            line,
+            "gx [deg/s]",
+            &Vector3::new(v[3], v[4], v[5]).map(f64::to_radians),
+            " — are the gyro columns scaled (milli-degrees/s)?",
+        )?;
         // Units that cannot be right: a specific force in m/s² where g was
         // expected, or a rate in rad/s that saturates no MEMS gyro.
         let f_norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -412,7 +606,8 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
                 line,
                 "ax [g]",
                 format!(
-                    "|f| = {f_norm:.2} g: more than 16 g — are the accelerometer columns in m/s² instead of g?"
+                    "|f| = {} g: more than 16 g — are the accelerometer columns in m/s² instead of g?",
+                    num(f_norm)
                 ),
             ));
         }
@@ -424,8 +619,9 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
                 line,
                 "tick [ms]",
                 format!(
-                    "tick {} does not increase (line {prev_line}: {prev_tick})",
-                    v[6]
+                    "tick {} does not increase (line {prev_line}: {})",
+                    num(v[6]),
+                    num(prev_tick)
                 ),
             ));
         }
@@ -458,6 +654,19 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
     let first_tick = raw[0].2;
     let last_tick = raw[raw.len() - 1].2;
     let scale = (f64::from(last_tag_ms) / 1000.0) / ((last_tick - first_tick) / 1000.0);
+    if !scale.is_finite() || (scale - 1.0).abs() > MAX_TICK_SCALE_ERROR {
+        return Err(data_error(
+            tag_path,
+            0,
+            "(tags)",
+            format!(
+                "the last tag ({last_tag_ms} ms) against the CSV's ticks ({} ms) gives a tick-to-time scale of {}: more than {} % from 1, the tag file does not fit the log",
+                num(last_tick - first_tick),
+                num(scale),
+                MAX_TICK_SCALE_ERROR * 100.0
+            ),
+        ));
+    }
     if !(0.99..=1.01).contains(&scale) {
         warnings.push(format!(
             "{}: tick-to-time scale {scale:.6} is far from 1",
@@ -490,7 +699,7 @@ mod tests {
         let a = parse_time("2025/07/08", "19:34:18.499").unwrap();
         let b = parse_time("2374", "243258.499").unwrap();
         assert!((a - b).abs() < 1e-6, "{a} {b}");
-        assert!(parse_time("2025/13/08", "19:34:18").is_none());
+        assert!(parse_time("2025/13/08", "19:34:18").is_err());
     }
 
     #[test]
@@ -586,5 +795,142 @@ mod tests {
         .unwrap();
         let e = read_tagged_imu(&csv, &tag).unwrap_err().to_string();
         assert!(e.contains("i.csv:3: column `tick [ms]`"), "{e}");
+    }
+
+    const GOOD: &str = "2025/07/08 19:34:18.499 40.0966268 -105.1474483 1601.474 1 21 0.0099 0.0099 0.01 0 0 0 0 0 0.01 -0.002 0.009 0.05 0.05 0.05";
+
+    fn pos(text: &str) -> Result<(Vec<GnssFix>, Vec<String>)> {
+        read_pos_from(text.as_bytes(), Path::new("x.pos"))
+    }
+
+    /// A tag file with the given (ms, offset) records.
+    fn tag_bytes(records: &[(u32, u32)]) -> Vec<u8> {
+        let mut t = b"TIMETAG RTKLIB demo5".to_vec();
+        t.resize(60, 0);
+        t.extend(0u32.to_le_bytes());
+        t.extend(1_750_000_000u32.to_le_bytes());
+        t.extend(0.5f64.to_le_bytes());
+        for (ms, off) in records {
+            t.extend(ms.to_le_bytes());
+            t.extend(off.to_le_bytes());
+        }
+        t
+    }
+
+    fn imu(csv: &str, tags: &[(u32, u32)]) -> Result<(Vec<ImuSample>, Vec<String>)> {
+        read_tagged_imu_from(
+            csv.as_bytes(),
+            Path::new("i.csv"),
+            &tag_bytes(tags),
+            Path::new("i.csv.tag"),
+        )
+    }
+
+    const IMU_CSV: &str =
+        "0,0,1,0,0,0,0\n0,0,1,0,0,0,10\n0,0,1,0,0,0,20\n0,0,1,0,0,0,30\n0,0,1,0,0,0,40\n";
+
+    #[test]
+    fn impossible_calendar_dates_are_errors() {
+        // 2025/02/30 used to be read as 2025-03-02.
+        let e = pos(&GOOD.replace("2025/07/08", "2025/02/30"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("x.pos:1: column `GPST`: `2025/02/30` is not a calendar date"),
+            "{e}"
+        );
+        assert!(pos(&GOOD.replace("2025/07/08", "2024/02/29")).is_ok());
+        assert!(pos(&GOOD.replace("2025/07/08", "2025/04/31")).is_err());
+    }
+
+    #[test]
+    fn a_degenerate_tag_file_is_an_error() {
+        // Last tag at 0 ms: every sample would map to one instant.
+        let e = imu(IMU_CSV, &[(0, 0), (0, 100)]).unwrap_err().to_string();
+        assert!(
+            e.contains("i.csv.tag:0: column `(tags)`") && e.contains("degenerate"),
+            "{e}"
+        );
+        // Decreasing milliseconds.
+        let e = imu(IMU_CSV, &[(10, 0), (5, 50), (20, 100)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must not decrease"), "{e}");
+        // A tag file that does not fit the log's ticks.
+        let e = imu(IMU_CSV, &[(0, 0), (2000, 100)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("does not fit the log"), "{e}");
+        assert!(imu(IMU_CSV, &[(0, 0), (20, 100)]).is_ok());
+    }
+
+    #[test]
+    fn a_scaled_gyro_is_refused_at_its_line() {
+        // Gyro ×1000 (milli-degrees/s): 20 000 °/s ≈ 349 rad/s.
+        let csv = IMU_CSV.replace("0,0,1,0,0,0,20", "0,0,1,0,0,20000,20");
+        let e = imu(&csv, &[(0, 0), (20, 100)]).unwrap_err().to_string();
+        assert!(
+            e.starts_with("i.csv:3: column `gx [deg/s]`: |ω| = 349"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_positions_name_line_and_column() {
+        let e = pos(&format!(
+            "{GOOD}\n{}",
+            GOOD.replace(
+                "18.499 40.0966268 -105.1474483 1601.474",
+                "19.0 40.0966268 -105.1474483 160147.4"
+            )
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("x.pos:2: column `height`: 160147.4 m is outside"),
+            "{e}"
+        );
+        let e = pos(&GOOD.replace("0.01 -0.002 0.009", "5000 -0.002 0.009"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("column `vn`"), "{e}");
+    }
+
+    #[test]
+    fn bom_cr_only_and_invalid_utf8() {
+        let next = GOOD.replace("18.499", "18.749");
+        let (f, _) = pos(&format!("\u{FEFF}% header\r{GOOD}\r{next}\r")).unwrap();
+        assert_eq!(f.len(), 2);
+        let mut bytes = format!("{GOOD}\n").into_bytes();
+        bytes.extend(b"2025/07/08 \xFF");
+        let e = read_pos_from(&bytes, Path::new("x.pos"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!(
+                "x.pos:2: column `(text)`: invalid UTF-8 at byte {}",
+                GOOD.len() + 12
+            )),
+            "{e}"
+        );
+        let e = imu(
+            "\u{FEFF}0,0,1,0,0,0,0\r0,0,1,0,0,0,10\r0,0,1,0,0,0,20\r0,0,1,0,0,0,30\r0,0,1,0,0,0,40",
+            &[(0, 0), (20, 100)],
+        );
+        assert_eq!(e.unwrap().0.len(), 3);
+    }
+
+    #[test]
+    fn large_numbers_and_long_tokens_stay_short() {
+        let huge = format!("-1{}", "0".repeat(308));
+        let e = pos(&GOOD.replace("0.0099 0.0099 0.01", &format!("{huge} 0.0099 0.01")))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("σ = -1e308 m"), "{e}");
+        let long = "x".repeat(5000);
+        let e = pos(&GOOD.replace("1601.474", &long))
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 200 && e.contains('…'), "{e}");
     }
 }

@@ -107,6 +107,7 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
     };
     warnings.extend(w);
     aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
+    warnings.extend(check_overlap(&imu, &gnss, &imu_path, &gnss_path)?);
     if cfg.imu.smoothing_s > 0.0 && imu.len() > 2 {
         let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
         let half = ((cfg.imu.smoothing_s / dt) / 2.0).round() as usize;
@@ -121,6 +122,61 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
     })
 }
 
+/// The IMU and GNSS time spans must overlap (GNSS in seconds of week against
+/// IMU seconds since 1970, or an impossible date, would otherwise run without
+/// a single update): an error printing both spans with their dates when no
+/// GNSS epoch lies within the IMU span; the number of GNSS epochs outside it
+/// (no update is made from them) as a warning.
+pub fn check_overlap(
+    imu: &[ImuSample],
+    gnss: &[GnssFix],
+    imu_path: &Path,
+    gnss_path: &Path,
+) -> Result<Option<String>, ProcessError> {
+    use aidnav_io::text::date_time;
+    let (Some(i0), Some(i1), Some(g0), Some(g1)) =
+        (imu.first(), imu.last(), gnss.first(), gnss.last())
+    else {
+        return Err(ProcessError::Data(format!(
+            "{} holds {} IMU samples and {} {} GNSS epochs: nothing to process",
+            imu_path.display(),
+            imu.len(),
+            gnss_path.display(),
+            gnss.len()
+        )));
+    };
+    let (a, b) = (i0.time_s, i1.time_s);
+    let before = gnss.iter().filter(|g| g.time_s < a).count();
+    let after = gnss.iter().filter(|g| g.time_s > b).count();
+    let span = |x: f64, y: f64| {
+        format!(
+            "{} to {} (GPST; {}–{} s since 1970)",
+            date_time(x),
+            date_time(y),
+            aidnav_io::text::num(x),
+            aidnav_io::text::num(y)
+        )
+    };
+    if before + after == gnss.len() {
+        return Err(ProcessError::Data(format!(
+            "the IMU and GNSS times do not overlap: no GNSS update could be made\n  IMU  {}: {}\n  GNSS {}: {}\n(same time scale? KF-GINS GNSS time in seconds of week against IMU seconds since 1970, a wrong date or imu.time_offset_s)",
+            imu_path.display(),
+            span(a, b),
+            gnss_path.display(),
+            span(g0.time_s, g1.time_s)
+        )));
+    }
+    Ok((before + after > 0).then(|| {
+        format!(
+            "{}: {} of {} GNSS epochs lie outside the IMU span {} ({before} before its start, {after} after its end): no update is made from them",
+            gnss_path.display(),
+            before + after,
+            gnss.len(),
+            span(a, b)
+        )
+    }))
+}
+
 /// The initial state and the starting gyro bias.
 pub(crate) fn initialise(
     cfg: &ProcessConfig,
@@ -133,6 +189,18 @@ pub(crate) fn initialise(
         .position(|s| s.time_s >= first_fix.time_s)
         .ok_or_else(|| ProcessError::Data("no IMU sample after the first GNSS epoch".into()))?;
     let t0 = imu[start].time_s;
+    let t_end = imu[imu.len() - 1].time_s;
+    if !inputs
+        .gnss
+        .iter()
+        .any(|g| g.time_s > t0 && g.time_s <= t_end)
+    {
+        return Err(ProcessError::Data(format!(
+            "no GNSS epoch between the filter start {} and the last IMU sample {}: the run would make no update",
+            aidnav_io::text::date_time(t0),
+            aidnav_io::text::date_time(t_end)
+        )));
+    }
     let (attitude, w) = match cfg.initial.attitude_deg {
         Some([r, p, y]) => (
             UnitQuaternion::from_euler_angles(r.to_radians(), p.to_radians(), y.to_radians()),
@@ -200,4 +268,97 @@ fn align(
         })?;
     let v = moving.velocity_ned.expect("checked");
     Ok((levelling.attitude(course(&v)), levelling.mean_angular_rate))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aidnav_frames::earth::Geodetic;
+
+    fn imu_at(times: impl Iterator<Item = f64>) -> Vec<ImuSample> {
+        times
+            .map(|t| ImuSample {
+                time_s: t,
+                specific_force: Vector3::new(0.0, 0.0, -9.8),
+                angular_rate: Vector3::zeros(),
+            })
+            .collect()
+    }
+
+    fn gnss_at(times: impl Iterator<Item = f64>) -> Vec<GnssFix> {
+        times
+            .map(|t| GnssFix {
+                time_s: t,
+                position: Geodetic {
+                    latitude_rad: 0.6,
+                    longitude_rad: 0.2,
+                    height_m: 10.0,
+                },
+                quality: 1,
+                satellites: 20,
+                position_sigma_neu: Vector3::repeat(0.02),
+                velocity_ned: None,
+                velocity_sigma_neu: None,
+            })
+            .collect()
+    }
+
+    /// 2025-07-08 19:34:18 GPST in seconds since 1970.
+    const T0: f64 = 1_752_003_258.0;
+
+    #[test]
+    fn imu_and_gnss_times_that_do_not_overlap_are_an_error() {
+        // KF-GINS GNSS in seconds of week against IMU seconds since 1970.
+        let imu = imu_at((0..100).map(|k| T0 + k as f64 * 0.01));
+        let gnss = gnss_at((0..4).map(|k| 243_258.0 + k as f64));
+        let e = check_overlap(&imu, &gnss, Path::new("imu.csv"), Path::new("gnss.txt"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("do not overlap"), "{e}");
+        assert!(
+            e.contains("IMU  imu.csv: 2025-07-08 19:34:18.000 to 2025-07-08 19:34:18.990"),
+            "{e}"
+        );
+        assert!(
+            e.contains("GNSS gnss.txt: 1970-01-03 19:34:18.000 to 1970-01-03 19:34:21.000"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn gnss_epochs_outside_the_imu_span_are_counted() {
+        let imu = imu_at((0..1000).map(|k| T0 + k as f64 * 0.01));
+        let gnss = gnss_at((0..20).map(|k| T0 - 1.0 + k as f64));
+        let w = check_overlap(&imu, &gnss, Path::new("imu.csv"), Path::new("g.pos"))
+            .unwrap()
+            .unwrap();
+        // Epochs at −1 s (before) and 10…18 s (after); 0…9 s inside.
+        assert!(
+            w.starts_with("g.pos: 10 of 20 GNSS epochs lie outside the IMU span")
+                && w.contains("(1 before its start, 9 after its end)"),
+            "{w}"
+        );
+        let inside = gnss_at((0..5).map(|k| T0 + k as f64));
+        assert!(
+            check_overlap(&imu, &inside, Path::new("i"), Path::new("g"))
+                .unwrap()
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn a_run_without_a_gnss_update_is_an_error() {
+        let mut cfg: ProcessConfig =
+            toml::from_str("[data]\ndir = \".\"\nimu = \"none\"\ngnss = \"none\"\n").unwrap();
+        cfg.initial.attitude_deg = Some([0.0; 3]);
+        // The only fix is at the last IMU sample's time: the filter starts
+        // there and no update follows.
+        let inputs = Inputs {
+            imu: imu_at((0..100).map(|k| k as f64 * 0.01)),
+            gnss: gnss_at([0.99].into_iter()),
+            warnings: Vec::new(),
+        };
+        let e = initialise(&cfg, &inputs).unwrap_err().to_string();
+        assert!(e.contains("the run would make no update"), "{e}");
+    }
 }

@@ -1,0 +1,230 @@
+//! Text helpers shared by the readers: UTF-8 decoding that names the line
+//! and byte of an invalid sequence, a UTF-8 byte-order mark stripped, lines
+//! split at LF, CR LF or a lone CR, short excerpts of quoted content, and
+//! numbers printed readably (scientific notation when large or tiny), plus
+//! calendar helpers.
+
+use std::path::Path;
+
+use crate::error::{IoError, Result};
+
+/// The UTF-8 byte-order mark (some editors write it; it is no content).
+const BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// Longest excerpt of file content quoted in a message, in characters.
+pub const EXCERPT_CHARS: usize = 80;
+
+/// The bytes as text, without a leading UTF-8 BOM; invalid UTF-8 is an error
+/// naming the line and the byte offset (from the file's start) of the first
+/// invalid sequence.
+///
+/// ```
+/// use std::path::Path;
+/// let t = aidnav_io::text::decode(b"\xEF\xBB\xBFa,b\n", Path::new("x.csv")).unwrap();
+/// assert_eq!(t, "a,b\n");
+/// let e = aidnav_io::text::decode(b"a\nb\xFF\n", Path::new("x.csv")).unwrap_err();
+/// assert!(e.to_string().contains("x.csv:2:") && e.to_string().contains("byte 3"));
+/// ```
+pub fn decode<'a>(bytes: &'a [u8], origin: &Path) -> Result<&'a str> {
+    let (skip, body) = match bytes.strip_prefix(BOM) {
+        Some(rest) => (BOM.len(), rest),
+        None => (0, bytes),
+    };
+    std::str::from_utf8(body).map_err(|e| {
+        let at = e.valid_up_to();
+        let line = 1 + body[..at].iter().filter(|&&b| b == b'\n').count();
+        IoError::Data {
+            path: origin.to_path_buf(),
+            line,
+            column: "(text)".into(),
+            message: format!(
+                "invalid UTF-8 at byte {} (byte 0x{:02X}): the file must be UTF-8 or ASCII text",
+                skip + at,
+                body[at]
+            ),
+        }
+    })
+}
+
+/// Read a whole file as bytes, or a read error naming it.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|source| IoError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Lines ended by LF, CR LF or a lone CR (old Mac files), without their
+/// terminators; a final terminator does not start an empty line.
+///
+/// ```
+/// let l: Vec<&str> = aidnav_io::text::lines("a\rb\r\nc\nd").collect();
+/// assert_eq!(l, ["a", "b", "c", "d"]);
+/// ```
+pub fn lines(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = text;
+    std::iter::from_fn(move || {
+        if rest.is_empty() {
+            return None;
+        }
+        match rest.find(['\n', '\r']) {
+            Some(i) => {
+                let line = &rest[..i];
+                let skip = if rest[i..].starts_with("\r\n") { 2 } else { 1 };
+                rest = &rest[i + skip..];
+                Some(line)
+            }
+            None => {
+                let line = rest;
+                rest = "";
+                Some(line)
+            }
+        }
+    })
+}
+
+/// At most [`EXCERPT_CHARS`] characters of `s`, control characters escaped,
+/// `…` marking a cut.
+///
+/// ```
+/// let long = "x".repeat(1000);
+/// let e = aidnav_io::text::excerpt(&long);
+/// assert!(e.chars().count() <= 81 && e.ends_with('…'));
+/// assert_eq!(aidnav_io::text::excerpt("a\tb"), "a\\tb");
+/// ```
+pub fn excerpt(s: &str) -> String {
+    let mut out = String::new();
+    for (n, c) in s.chars().enumerate() {
+        if n >= EXCERPT_CHARS {
+            out.push('…');
+            break;
+        }
+        if c.is_control() || c == '\u{FEFF}' {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// A number for a message: plain when moderate, scientific notation when
+/// large or tiny (a 309-digit value prints as `1e308`).
+///
+/// ```
+/// use aidnav_io::text::num;
+/// assert_eq!(num(1.5), "1.5");
+/// assert_eq!(num(1e308), "1e308");
+/// assert_eq!(num(-2.5e-9), "-2.5e-9");
+/// assert_eq!(num(0.0), "0");
+/// ```
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v.is_finite() && a != 0.0 && !(1e-4..1e9).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// Days in a month of the proleptic Gregorian calendar (0 for a month
+/// outside 1–12).
+pub fn days_in_month(year: i64, month: i64) -> i64 {
+    match month {
+        1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,
+        4 | 6 | 9 | 11 => 30,
+        2 if (year % 4 == 0 && year % 100 != 0) || year % 400 == 0 => 29,
+        2 => 28,
+        _ => 0,
+    }
+}
+
+/// Whether `year-month-day` is a calendar date (no 30 February, no 31 April).
+///
+/// ```
+/// use aidnav_io::text::is_date;
+/// assert!(is_date(2024, 2, 29) && !is_date(2025, 2, 29) && !is_date(2025, 4, 31));
+/// ```
+pub fn is_date(year: i64, month: i64, day: i64) -> bool {
+    day >= 1 && day <= days_in_month(year, month)
+}
+
+/// Days from 1970-01-01 to a proleptic Gregorian date (Howard Hinnant's
+/// algorithm).
+pub fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+/// The date of a day count since 1970-01-01 (inverse of [`days_from_civil`]).
+pub fn civil_from_days(z: i64) -> (i64, i64, i64) {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let y = yoe + era * 400;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    (if m <= 2 { y + 1 } else { y }, m, d)
+}
+
+/// Seconds since 1970-01-01 as `YYYY-MM-DD hh:mm:ss.sss` (the scale is kept:
+/// GPST in, GPST out); values too large for a date are printed as seconds.
+///
+/// ```
+/// assert_eq!(aidnav_io::text::date_time(86_400.5), "1970-01-02 00:00:00.500");
+/// ```
+pub fn date_time(seconds: f64) -> String {
+    if !seconds.is_finite() || seconds.abs() > 1e13 {
+        return format!("{} s", num(seconds));
+    }
+    let ms = (seconds * 1000.0).round() as i64;
+    let days = ms.div_euclid(86_400_000);
+    let rest = ms.rem_euclid(86_400_000);
+    let (y, m, d) = civil_from_days(days);
+    format!(
+        "{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02}.{:03}",
+        rest / 3_600_000,
+        rest / 60_000 % 60,
+        rest / 1000 % 60,
+        rest % 1000
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn civil_round_trips() {
+        for z in [-800_000, -1, 0, 1, 20_000, 59, 60, 11_016, 2_932_896] {
+            let (y, m, d) = civil_from_days(z);
+            assert!(is_date(y, m, d));
+            assert_eq!(days_from_civil(y, m, d), z);
+        }
+    }
+
+    #[test]
+    fn invalid_utf8_names_line_and_byte_after_a_bom() {
+        let e = decode(b"\xEF\xBB\xBFab\ncd\n\xC3(", Path::new("f"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("f:3: column `(text)`: invalid UTF-8 at byte 9"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn cr_only_text_has_lines() {
+        assert_eq!(lines("a\r\rb\r").collect::<Vec<_>>(), ["a", "", "b"]);
+        assert_eq!(lines("").count(), 0);
+    }
+}
