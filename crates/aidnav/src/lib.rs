@@ -1,5 +1,6 @@
 #![doc = include_str!("../../../README.md")]
 
+pub mod fuzzing;
 pub mod jobs;
 pub mod process;
 
