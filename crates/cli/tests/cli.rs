@@ -572,3 +572,38 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
         2
     );
 }
+
+#[test]
+fn an_os_error_is_printed_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let z = dir.path().join("z.csv");
+    std::fs::write(&z, "z1\n1\n").unwrap();
+    let err = filter_failure(Path::new("/nonexistent.toml"), &z, dir.path());
+    assert_eq!(err.matches("/nonexistent.toml").count(), 1, "{err}");
+    assert_eq!(err.matches("No such file").count(), 1, "{err}");
+}
+
+#[test]
+fn a_closed_stdout_stops_the_process_quietly() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_aidnav"))
+        .args(["reproduce", "all", "--print-scenario"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader goes away before the first line is written (`| head -0`).
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.is_empty(), "{err}");
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert!(
+            out.status.success() || out.status.signal() == Some(13),
+            "{:?}",
+            out.status
+        );
+    }
+}

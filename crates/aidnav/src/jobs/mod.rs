@@ -26,23 +26,39 @@ pub enum JobError {
     /// Reading or writing files.
     #[error(transparent)]
     Io(#[from] IoError),
-    /// The estimation engine (with the file that fed it).
-    #[error("{context}: {source}")]
+    /// The estimation engine (with the file that fed it). The message holds
+    /// the engine's error, so it is not also returned as the source (an
+    /// error chain prints each level once).
+    #[error("{context}: {error}")]
     Estimation {
         /// What was being processed.
         context: String,
         /// The engine's error.
-        source: EstimationError,
+        error: EstimationError,
     },
-    /// The extended-state experiment (guidance solution or filter).
+    /// The extended-state experiment (guidance solution or filter); its
+    /// message holds the experiment's error (not also a source).
     #[error("extended-state experiment: {0}")]
-    ExtendedState(#[from] aidnav_reproduce::extended_state::ExtendedStateError),
-    /// The outages experiment (its filter or its model selection).
+    ExtendedState(aidnav_reproduce::extended_state::ExtendedStateError),
+    /// The outages experiment (its filter or its model selection); its
+    /// message holds the experiment's error (not also a source).
     #[error("outages experiment: {0}")]
-    Outages(#[from] aidnav_reproduce::outages::OutagesError),
+    Outages(aidnav_reproduce::outages::OutagesError),
     /// The job refuses the request (size limits and the like).
     #[error("{0}")]
     Refused(String),
+}
+
+impl From<aidnav_reproduce::extended_state::ExtendedStateError> for JobError {
+    fn from(e: aidnav_reproduce::extended_state::ExtendedStateError) -> Self {
+        Self::ExtendedState(e)
+    }
+}
+
+impl From<aidnav_reproduce::outages::OutagesError> for JobError {
+    fn from(e: aidnav_reproduce::outages::OutagesError) -> Self {
+        Self::Outages(e)
+    }
 }
 
 /// Result alias of the jobs.
@@ -50,9 +66,9 @@ pub type JobResult<T> = Result<T, JobError>;
 
 /// Wrap an engine error with what was being computed.
 fn estimation(context: &str) -> impl FnOnce(EstimationError) -> JobError + '_ {
-    move |source| JobError::Estimation {
+    move |error| JobError::Estimation {
         context: context.into(),
-        source,
+        error,
     }
 }
 
@@ -147,13 +163,13 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
         loaded
             .model
             .run(table.epochs(), &options, &mut both)
-            .map_err(|source| JobError::Estimation {
+            .map_err(|error| JobError::Estimation {
                 context: format!(
                     "{} with {}",
                     job.model.display(),
                     job.measurements.display()
                 ),
-                source,
+                error,
             })?
     };
     writer.finish()?;
@@ -165,9 +181,9 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
         files.push(job.out.join("covariance.csv"));
     }
     if job.smooth {
-        let smoothed = rts_smooth(&out.forward).map_err(|source| JobError::Estimation {
+        let smoothed = rts_smooth(&out.forward).map_err(|error| JobError::Estimation {
             context: format!("smoothing {}", job.measurements.display()),
-            source,
+            error,
         })?;
         files.push(write_smoothed(
             &job.out,
