@@ -248,6 +248,9 @@ fn run_filter(a: FilterArgs) -> Result<()> {
         full_covariance: a.full_covariance,
         max_epochs: a.max_epochs,
     })?;
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
     println!(
         "{} epochs filtered; mean NIS per degree of freedom {:.3}",
         report.epochs, report.mean_nis_per_dof
@@ -415,9 +418,11 @@ mod tests {
 
     #[test]
     fn error_chain_prints_each_level_once() {
-        let e = anyhow::Error::new(Repeats(std::io::Error::other("P0 is not positive definite")))
-            .context("consistency demo: epoch 0: P0 is not positive definite")
-            .context("consistency demo");
+        let e = anyhow::Error::new(Repeats(std::io::Error::other(
+            "P0 is not positive definite",
+        )))
+        .context("consistency demo: epoch 0: P0 is not positive definite")
+        .context("consistency demo");
         assert_eq!(
             error_chain(&e),
             "consistency demo: epoch 0: P0 is not positive definite"

@@ -108,6 +108,9 @@ pub struct FilterReport {
     pub mean_nis_per_dof: f64,
     /// Updates by outcome.
     pub outcomes: std::collections::BTreeMap<String, usize>,
+    /// Non-finite numbers written or computed, each naming its file, column
+    /// and first epoch (also in `summary.json`; the CLI prints them on stderr).
+    pub warnings: Vec<String>,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -116,13 +119,22 @@ pub struct FilterReport {
 #[derive(Default)]
 struct RunStats {
     nis: Chi2Mean,
+    finite_nis: usize,
+    non_finite_nis: usize,
+    first_non_finite_nis: Option<usize>,
     outcomes: std::collections::BTreeMap<String, usize>,
 }
 
 impl Observer for RunStats {
     fn observe_epoch(&mut self, r: &EpochRecord) {
-        if r.outcome != Outcome::Missing && r.nis.is_finite() {
-            self.nis.push(r.nis, r.dof);
+        if r.outcome != Outcome::Missing {
+            if r.nis.is_finite() {
+                self.nis.push(r.nis, r.dof);
+                self.finite_nis += 1;
+            } else {
+                self.non_finite_nis += 1;
+                self.first_non_finite_nis.get_or_insert(r.epoch);
+            }
         }
         *self
             .outcomes
@@ -148,6 +160,7 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             )));
         }
     }
+    aidnav_io::writers::begin_outputs(&job.out)?;
     let mut writer = FilterCsvWriter::create(
         &job.out,
         &loaded.state_names,
@@ -172,6 +185,7 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
                 error,
             })?
     };
+    let mut warnings = writer.warnings();
     writer.finish()?;
     let mut files = vec![
         job.out.join("estimates.csv"),
@@ -192,18 +206,46 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             &smoothed,
         )?);
     }
+    let mean_nis_per_dof = stats.nis.mean_per_dof();
+    if !mean_nis_per_dof.is_finite() {
+        warnings.push(format!(
+            "mean NIS per degree of freedom is {mean_nis_per_dof} ({} of {} epochs with a finite NIS)",
+            stats.finite_nis, out.epochs
+        ));
+    }
+    if stats.non_finite_nis > 0 {
+        warnings.push(format!(
+            "{} epochs with an update have a non-finite NIS (first at epoch {}); the mean NIS leaves them out",
+            stats.non_finite_nis,
+            stats.first_non_finite_nis.unwrap_or(0)
+        ));
+    }
+    let final_sigma: Vec<f64> = out
+        .final_covariance
+        .diagonal()
+        .iter()
+        .map(|v| v.max(0.0).sqrt())
+        .collect();
+    let final_state: Vec<f64> = out.final_state.iter().copied().collect();
+    for (name, (x, s)) in loaded
+        .state_names
+        .iter()
+        .zip(final_state.iter().zip(&final_sigma))
+    {
+        if !x.is_finite() || !s.is_finite() {
+            warnings.push(format!(
+                "final state `{name}`: estimate {x}, σ {s} (not finite)"
+            ));
+        }
+    }
     let report = FilterReport {
         epochs: out.epochs,
         states: loaded.state_names.clone(),
-        final_state: out.final_state.iter().copied().collect(),
-        final_sigma: out
-            .final_covariance
-            .diagonal()
-            .iter()
-            .map(|v| v.max(0.0).sqrt())
-            .collect(),
-        mean_nis_per_dof: stats.nis.mean_per_dof(),
+        final_state,
+        final_sigma,
+        mean_nis_per_dof,
         outcomes: stats.outcomes,
+        warnings,
         files: files.clone(),
     };
     let mut summary = Summary::new("filter", VERSION, None, &loaded.file);
@@ -215,6 +257,7 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
     summary.insert("final_sigma", &report.final_sigma);
     summary.insert("mean_nis_per_dof", report.mean_nis_per_dof);
     summary.insert("outcomes", &report.outcomes);
+    summary.insert("warnings", &report.warnings);
     let mut report = report;
     report.files.push(summary.write(&job.out)?);
     Ok(report)
