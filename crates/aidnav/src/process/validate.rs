@@ -119,7 +119,7 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
     )
     .map_err(|e| e.within("score"))?;
     let [lo, hi] = cfg.score.outlier_m;
-    if !(hi <= 1e6) {
+    if hi > 1e6 {
         return Err(Invalid::new(
             "score.outlier_m",
             format!("[{lo}, {hi}]"),
