@@ -192,6 +192,7 @@ struct ReproduceArgs {
 }
 
 fn main() -> ExitCode {
+    stop_quietly_on_closed_stdout();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Filter(a) => run_filter(a),
@@ -202,10 +203,40 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// `aidnav … | head`: when the reader of stdout goes away, end the process
+/// the way Unix tools do (SIGPIPE, exit status 141, no message) instead of
+/// the Rust default (SIGPIPE ignored, so `println!` panics with "Broken pipe").
+fn stop_quietly_on_closed_stdout() {
+    #[cfg(unix)]
+    #[allow(unsafe_code)]
+    // SAFETY: called first thing in `main`, before any other thread exists;
+    // restores the default disposition of one signal.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
+/// The error and its causes joined with ": ", each level once: a level whose
+/// text the level above already ends with (an error that prints its source
+/// and also returns it from `source()`) is skipped, and a context that the
+/// level below repeats at its start is replaced by that level.
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut levels: Vec<String> = Vec::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        match levels.last_mut() {
+            Some(last) if last.ends_with(&text) => {}
+            Some(last) if text.starts_with(last.as_str()) => *last = text,
+            _ => levels.push(text),
+        }
+    }
+    levels.join(": ")
 }
 
 fn run_filter(a: FilterArgs) -> Result<()> {
@@ -217,6 +248,9 @@ fn run_filter(a: FilterArgs) -> Result<()> {
         full_covariance: a.full_covariance,
         max_epochs: a.max_epochs,
     })?;
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
     println!(
         "{} epochs filtered; mean NIS per degree of freedom {:.3}",
         report.epochs, report.mean_nis_per_dof
@@ -359,4 +393,41 @@ fn run_scenario(a: RunArgs) -> Result<()> {
         jobs::formation(&file.formation, &command, &out, a.mc.quiet).context("formation flight")?;
     print_formation(&file.formation, &r, &out);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An error that prints its source and also returns it (like an
+    /// `#[error("…: {source}")]` with a `source` field).
+    #[derive(Debug)]
+    struct Repeats(std::io::Error);
+
+    impl std::fmt::Display for Repeats {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            write!(f, "epoch 0: {}", self.0)
+        }
+    }
+
+    impl std::error::Error for Repeats {
+        fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+            Some(&self.0)
+        }
+    }
+
+    #[test]
+    fn error_chain_prints_each_level_once() {
+        let e = anyhow::Error::new(Repeats(std::io::Error::other(
+            "P0 is not positive definite",
+        )))
+        .context("consistency demo: epoch 0: P0 is not positive definite")
+        .context("consistency demo");
+        assert_eq!(
+            error_chain(&e),
+            "consistency demo: epoch 0: P0 is not positive definite"
+        );
+        let e = anyhow::Error::new(std::io::Error::other("disk full")).context("writing x.csv");
+        assert_eq!(error_chain(&e), "writing x.csv: disk full");
+    }
 }

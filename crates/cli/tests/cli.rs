@@ -572,3 +572,99 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
         2
     );
 }
+
+#[test]
+fn an_os_error_is_printed_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let z = dir.path().join("z.csv");
+    std::fs::write(&z, "z1\n1\n").unwrap();
+    let err = filter_failure(Path::new("/nonexistent.toml"), &z, dir.path());
+    assert_eq!(err.matches("/nonexistent.toml").count(), 1, "{err}");
+    assert_eq!(err.matches("No such file").count(), 1, "{err}");
+}
+
+#[test]
+fn a_closed_stdout_stops_the_process_quietly() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_aidnav"))
+        .args(["reproduce", "all", "--print-scenario"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader goes away before the first line is written (`| head -0`).
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.is_empty(), "{err}");
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert!(
+            out.status.success() || out.status.signal() == Some(13),
+            "{:?}",
+            out.status
+        );
+    }
+}
+
+const SCALAR_MODEL: &str =
+    "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\n";
+
+#[test]
+fn a_non_finite_nis_is_a_warning_naming_file_column_and_epoch() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.toml");
+    std::fs::write(&model, SCALAR_MODEL).unwrap();
+    let z = dir.path().join("z.csv");
+    // 1e200² overflows: the NIS of epoch 1 is inf.
+    std::fs::write(&z, "z1\n1\n1e200\n").unwrap();
+    let out = dir.path().join("out");
+    let o = aidnav(&[
+        "filter",
+        "--model",
+        model.to_str().unwrap(),
+        "--measurements",
+        z.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(
+            "warning: innovations.csv: column `nis`: 1 non-finite value (first at epoch 1)"
+        ),
+        "{err}"
+    );
+    let summary = read_summary(&out);
+    let warnings = summary["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("column `nis`")),
+        "{warnings:?}"
+    );
+}
+
+#[test]
+fn a_failed_filter_leaves_no_file_under_a_final_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.toml");
+    std::fs::write(&model, SCALAR_MODEL).unwrap();
+    let z = dir.path().join("z.csv");
+    std::fs::write(&z, "z1\n1\n2\n").unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    // A summary of an earlier run, and a directory where innovations.csv goes.
+    std::fs::write(out.join("summary.json"), "{}").unwrap();
+    std::fs::create_dir(out.join("innovations.csv")).unwrap();
+    let err = filter_failure(&model, &z, &out);
+    assert!(err.contains("innovations.csv: cannot write"), "{err}");
+    let mut left: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, vec!["innovations.csv"]);
+}

@@ -157,11 +157,15 @@ impl Validate for ModelFile {
                 format!("1 to {MAX_MODEL_DIM} rows"),
             ));
         }
-        self.phi.to_matrix("phi", n, n)?;
-        self.q.to_matrix("q", n, n)?;
-        self.h.to_matrix("h", m, n)?;
-        self.r.to_matrix("r", m, m)?;
-        self.p0.to_matrix("p0", n, n)?;
+        finite("phi", &self.phi.to_matrix("phi", n, n)?)?;
+        let q = self.q.to_matrix("q", n, n)?;
+        covariance("q", &q, Definiteness::SemiDefinite)?;
+        finite("h", &self.h.to_matrix("h", m, n)?)?;
+        let r = self.r.to_matrix("r", m, m)?;
+        covariance("r", &r, Definiteness::Definite)?;
+        finite("x0", &DMatrix::from_column_slice(n, 1, &self.x0))?;
+        let p0 = self.p0.to_matrix("p0", n, n)?;
+        covariance("p0", &p0, Definiteness::Definite)?;
         check_names("states", self.states.as_deref(), n)?;
         check_names("measurements", self.measurements.as_deref(), m)?;
         if let Some(names) = &self.measurements
@@ -190,6 +194,77 @@ impl Validate for ModelFile {
             ));
         }
         Ok(())
+    }
+}
+
+/// Relative tolerance of the symmetry and definiteness checks (of the
+/// largest absolute entry).
+pub const COVARIANCE_TOLERANCE: f64 = 1e-9;
+
+/// What a covariance must be: Q ≥ 0, R and P0 > 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Definiteness {
+    SemiDefinite,
+    Definite,
+}
+
+fn finite(key: &str, a: &DMatrix<f64>) -> std::result::Result<(), Invalid> {
+    match a.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(k) => {
+            let (i, j) = (k % a.nrows(), k / a.nrows());
+            Err(Invalid::new(
+                key,
+                format!("element ({}, {}) = {}", i + 1, j + 1, a[(i, j)]),
+                "finite numbers",
+            ))
+        }
+    }
+}
+
+/// A covariance matrix: finite, symmetric and positive (semi-)definite
+/// within [`COVARIANCE_TOLERANCE`] of its largest entry (eigenvalues of the
+/// symmetric part).
+fn covariance(key: &str, a: &DMatrix<f64>, kind: Definiteness) -> std::result::Result<(), Invalid> {
+    finite(key, a)?;
+    let scale = a.amax();
+    let tol = COVARIANCE_TOLERANCE * scale;
+    for i in 0..a.nrows() {
+        for j in i + 1..a.ncols() {
+            if (a[(i, j)] - a[(j, i)]).abs() > tol {
+                return Err(Invalid::new(
+                    key,
+                    format!(
+                        "element ({}, {}) = {:e} against ({}, {}) = {:e}",
+                        i + 1,
+                        j + 1,
+                        a[(i, j)],
+                        j + 1,
+                        i + 1,
+                        a[(j, i)]
+                    ),
+                    "a symmetric matrix",
+                ));
+            }
+        }
+    }
+    let eigen = (a + a.transpose()).scale(0.5).symmetric_eigenvalues();
+    let min = eigen.min();
+    let (ok, allowed) = match kind {
+        Definiteness::SemiDefinite => (
+            min >= -tol,
+            "a positive semi-definite matrix (eigenvalues ≥ 0)",
+        ),
+        Definiteness::Definite => (min > tol, "a positive definite matrix (eigenvalues > 0)"),
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(Invalid::new(
+            key,
+            format!("smallest eigenvalue {min:e}"),
+            allowed,
+        ))
     }
 }
 
@@ -364,7 +439,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains(":4: r: initialise: R (measurement noise) is not positive definite"),
+            e.contains(":4: r: smallest eigenvalue -4e0 is out of range: allowed a positive definite matrix"),
             "{e}"
         );
     }
@@ -380,6 +455,41 @@ mod tests {
             ),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_negative_q_is_refused_at_load() {
+        let e = load(&GOOD.replace("q = [0.0, 0.01]", "q = [0.0, -0.01]"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":2: q: smallest eigenvalue -1e-2 is out of range: allowed a positive semi-definite matrix"),
+            "{e}"
+        );
+        let e = load(&GOOD.replace("q = [0.0, 0.01]", "q = [[1.0, 0.5], [0.4, 1.0]]"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":2: q: element (1, 2)"), "{e}");
+        assert!(e.contains("a symmetric matrix"), "{e}");
+    }
+
+    #[test]
+    fn an_indefinite_p0_is_refused_at_load() {
+        let e = load(&GOOD.replace("p0 = [100.0, 10.0]", "p0 = [[1.0, 2.0], [2.0, 1.0]]"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":6: p0: smallest eigenvalue -1e0 is out of range: allowed a positive definite matrix"),
+            "{e}"
+        );
+        let e = load(&GOOD.replace("p0 = [100.0, 10.0]", "p0 = [100.0, 0.0]"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":6: p0: smallest eigenvalue"), "{e}");
+        let e = load(&GOOD.replace("x0 = [0.0, 0.0]", "x0 = [0.0, inf]"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":5: x0: element (2, 1) = inf"), "{e}");
     }
 
     #[test]

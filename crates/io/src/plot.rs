@@ -65,8 +65,15 @@ const PALETTE: [RGBColor; 8] = [
 pub const TRUTH_COLOR: usize = 7;
 
 impl LineChart {
-    /// Render to an SVG file at `path` (800×500 px).
+    /// Render to an SVG file at `path` (800×500 px), atomically (under a
+    /// temporary name, then renamed).
     pub fn write_svg(&self, path: &Path) -> Result<()> {
+        let staged = crate::writers::Staged::new(path);
+        self.render_svg(staged.tmp(), path)?;
+        staged.commit().map(|_| ())
+    }
+
+    fn render_svg(&self, tmp: &Path, path: &Path) -> Result<()> {
         let err = |e: String| IoError::Write {
             path: path.to_path_buf(),
             message: e,
@@ -97,7 +104,7 @@ impl LineChart {
         if y1 <= y0 {
             y1 = y0 + y0.abs().max(1.0) * 0.1;
         }
-        let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+        let root = SVGBackend::new(tmp, (800, 500)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
         let mut builder = ChartBuilder::on(&root);
         builder

@@ -1,4 +1,11 @@
 //! Result writers: CSV observers for filter runs and `summary.json`.
+//!
+//! Every file is written atomically: under a temporary name in the same
+//! directory (`.NAME.tmp`), then renamed to its final name once complete, so
+//! a failed write (a full disk) never leaves a truncated file under a final
+//! name. [`begin_outputs`] removes a stale `summary.json` before a job
+//! writes, and jobs write `summary.json` last: a directory whose
+//! `summary.json` is missing holds a run that did not finish.
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -21,9 +28,110 @@ pub fn ensure_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| write_err(dir, e))
 }
 
-fn csv_writer(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
-    let f = File::create(path).map_err(|e| write_err(path, e))?;
-    Ok(csv::Writer::from_writer(BufWriter::new(f)))
+/// Create `dir` and remove a `summary.json` left by an earlier run, so a run
+/// that fails leaves no summary of another run beside its outputs.
+pub fn begin_outputs(dir: &Path) -> Result<()> {
+    ensure_dir(dir)?;
+    let summary = dir.join("summary.json");
+    match std::fs::remove_file(&summary) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(write_err(&summary, e)),
+        _ => Ok(()),
+    }
+}
+
+/// A file being written under a temporary name beside its final one; removed
+/// when dropped before [`commit`](Self::commit).
+#[derive(Debug)]
+pub struct Staged {
+    path: PathBuf,
+    tmp: PathBuf,
+    committed: bool,
+}
+
+impl Staged {
+    /// The temporary name of `path`: `.NAME.tmp` in the same directory.
+    pub fn new(path: &Path) -> Self {
+        let name = path
+            .file_name()
+            .map_or_else(|| "output".into(), |n| n.to_string_lossy().into_owned());
+        Self {
+            path: path.to_path_buf(),
+            tmp: path.with_file_name(format!(".{name}.tmp")),
+            committed: false,
+        }
+    }
+
+    /// Where to write until [`commit`](Self::commit).
+    pub fn tmp(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The final name.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Rename the complete temporary file to its final name.
+    pub fn commit(mut self) -> Result<PathBuf> {
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| write_err(&self.path, e))?;
+        self.committed = true;
+        Ok(self.path.clone())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Write `bytes` to `path` atomically (temporary name, then rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let staged = Staged::new(path);
+    std::fs::write(staged.tmp(), bytes).map_err(|e| write_err(path, e))?;
+    staged.commit().map(|_| ())
+}
+
+/// A CSV file being written under its temporary name.
+struct StagedCsv {
+    staged: Staged,
+    writer: csv::Writer<BufWriter<File>>,
+}
+
+impl StagedCsv {
+    fn create(path: &Path) -> Result<Self> {
+        let staged = Staged::new(path);
+        let f = File::create(staged.tmp()).map_err(|e| write_err(path, e))?;
+        Ok(Self {
+            staged,
+            writer: csv::Writer::from_writer(BufWriter::new(f)),
+        })
+    }
+
+    fn write_record<I, T>(&mut self, record: I) -> Result<()>
+    where
+        I: IntoIterator<Item = T>,
+        T: AsRef<[u8]>,
+    {
+        self.writer
+            .write_record(record)
+            .map_err(|e| write_err(self.staged.path(), e))
+    }
+
+    /// Flush, sync and rename to the final name.
+    fn commit(self) -> Result<PathBuf> {
+        let path = self.staged.path().to_path_buf();
+        let file = self
+            .writer
+            .into_inner()
+            .map_err(|e| write_err(&path, e.error()))?
+            .into_inner()
+            .map_err(|e| write_err(&path, e.error()))?;
+        file.sync_all().map_err(|e| write_err(&path, e))?;
+        self.staged.commit()
+    }
 }
 
 /// Writes a filter run as it happens:
@@ -31,14 +139,49 @@ fn csv_writer(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
 /// `innovations.csv` (epoch, time, each innovation and its σ, NIS, dof, outcome)
 /// and, when asked, `covariance.csv` (upper triangle of P per epoch).
 /// Errors are kept and returned by [`finish`](Self::finish): an observer cannot fail mid-run.
+/// Non-finite values found while writing are counted per column and
+/// reported by [`warnings`](Self::warnings): ±inf anywhere, and NaN where a
+/// value is never missing (states, σ, covariance). (NaN innovations and NIS
+/// of a missing measurement are written as empty cells without a warning.)
+/// The files get their final names only in [`finish`](Self::finish).
 pub struct FilterCsvWriter {
-    estimates: (PathBuf, csv::Writer<BufWriter<File>>),
-    innovations: (PathBuf, csv::Writer<BufWriter<File>>),
-    covariance: Option<(PathBuf, csv::Writer<BufWriter<File>>)>,
+    estimates: StagedCsv,
+    innovations: StagedCsv,
+    covariance: Option<StagedCsv>,
     states: Vec<String>,
     measurements: Vec<String>,
     error: Option<IoError>,
     row: Vec<String>,
+    non_finite: NonFinite,
+}
+
+/// Non-finite values per (file, column): count and first epoch.
+#[derive(Debug, Default)]
+struct NonFinite(Vec<(String, String, usize, usize)>);
+
+impl NonFinite {
+    fn note(&mut self, file: &str, column: &str, epoch: usize) {
+        match self
+            .0
+            .iter_mut()
+            .find(|(f, c, _, _)| f == file && c == column)
+        {
+            Some(entry) => entry.2 += 1,
+            None => self.0.push((file.into(), column.into(), 1, epoch)),
+        }
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.0
+            .iter()
+            .map(|(file, column, count, first)| {
+                format!(
+                    "{file}: column `{column}`: {count} non-finite value{} (first at epoch {first})",
+                    if *count == 1 { "" } else { "s" }
+                )
+            })
+            .collect()
+    }
 }
 
 impl FilterCsvWriter {
@@ -50,14 +193,11 @@ impl FilterCsvWriter {
         full_covariance: bool,
     ) -> Result<Self> {
         ensure_dir(dir)?;
-        let est = dir.join("estimates.csv");
-        let inn = dir.join("innovations.csv");
-        let cov = dir.join("covariance.csv");
         Ok(Self {
-            estimates: (est.clone(), csv_writer(&est)?),
-            innovations: (inn.clone(), csv_writer(&inn)?),
+            estimates: StagedCsv::create(&dir.join("estimates.csv"))?,
+            innovations: StagedCsv::create(&dir.join("innovations.csv"))?,
             covariance: if full_covariance {
-                Some((cov.clone(), csv_writer(&cov)?))
+                Some(StagedCsv::create(&dir.join("covariance.csv"))?)
             } else {
                 None
             },
@@ -65,28 +205,46 @@ impl FilterCsvWriter {
             measurements: measurements.to_vec(),
             error: None,
             row: Vec::new(),
+            non_finite: NonFinite::default(),
         })
     }
 
-    fn keep(&mut self, r: std::result::Result<(), (PathBuf, csv::Error)>) {
-        if let Err((p, e)) = r
+    fn keep(&mut self, r: Result<()>) {
+        if let Err(e) = r
             && self.error.is_none()
         {
-            self.error = Some(write_err(&p, e));
+            self.error = Some(e);
         }
     }
 
-    /// Flush and report the first error of the run, if any.
+    /// One warning per column that received non-finite values, naming the
+    /// file, the column, the count and the first epoch.
+    pub fn warnings(&self) -> Vec<String> {
+        self.non_finite.warnings()
+    }
+
+    /// Report the first error of the run, if any; else flush the files and
+    /// give them their final names. On error no file keeps a final name.
     pub fn finish(mut self) -> Result<()> {
         if let Some(e) = self.error.take() {
             return Err(e);
         }
-        let (p, w) = &mut self.estimates;
-        w.flush().map_err(|e| write_err(p, e))?;
-        let (p, w) = &mut self.innovations;
-        w.flush().map_err(|e| write_err(p, e))?;
-        if let Some((p, w)) = &mut self.covariance {
-            w.flush().map_err(|e| write_err(p, e))?;
+        let mut done: Vec<PathBuf> = Vec::new();
+        let files = [
+            Some(self.estimates),
+            Some(self.innovations),
+            self.covariance,
+        ];
+        for f in files.into_iter().flatten() {
+            match f.commit() {
+                Ok(p) => done.push(p),
+                Err(e) => {
+                    for p in &done {
+                        let _ = std::fs::remove_file(p);
+                    }
+                    return Err(e);
+                }
+            }
         }
         Ok(())
     }
@@ -100,13 +258,28 @@ fn fmt(v: f64) -> String {
     }
 }
 
+/// A number as a cell, noting a non-finite value (`missing_ok`: NaN is a
+/// missing value, not noted).
+fn cell(
+    v: f64,
+    non_finite: &mut NonFinite,
+    file: &str,
+    column: &str,
+    epoch: usize,
+    missing_ok: bool,
+) -> String {
+    if v.is_infinite() || (v.is_nan() && !missing_ok) {
+        non_finite.note(file, column, epoch);
+    }
+    fmt(v)
+}
+
 impl Observer for FilterCsvWriter {
     fn observe_init(&mut self, _states: usize, _measurements: usize) {
         let mut h = vec!["epoch".to_string(), "time".to_string()];
         h.extend(self.states.iter().cloned());
         h.extend(self.states.iter().map(|s| format!("sigma_{s}")));
-        let (p, w) = &mut self.estimates;
-        let r = w.write_record(&h).map_err(|e| (p.clone(), e));
+        let r = self.estimates.write_record(&h);
         self.keep(r);
         let mut h = vec!["epoch".to_string(), "time".to_string()];
         h.extend(self.measurements.iter().map(|s| format!("innovation_{s}")));
@@ -116,8 +289,7 @@ impl Observer for FilterCsvWriter {
                 .map(|s| format!("sigma_innovation_{s}")),
         );
         h.extend(["nis", "dof", "outcome"].map(String::from));
-        let (p, w) = &mut self.innovations;
-        let r = w.write_record(&h).map_err(|e| (p.clone(), e));
+        let r = self.innovations.write_record(&h);
         self.keep(r);
         if self.covariance.is_some() {
             let mut h = vec!["epoch".to_string(), "time".to_string()];
@@ -126,43 +298,61 @@ impl Observer for FilterCsvWriter {
                     h.push(format!("P_{}_{}", self.states[i], self.states[j]));
                 }
             }
-            if let Some((p, w)) = &mut self.covariance {
-                let r = w.write_record(&h).map_err(|e| (p.clone(), e));
+            if let Some(w) = &mut self.covariance {
+                let r = w.write_record(&h);
                 self.keep(r);
             }
         }
     }
 
     fn observe_epoch(&mut self, rec: &EpochRecord) {
+        let k = rec.epoch;
+        let nf = &mut self.non_finite;
         let row = &mut self.row;
         row.clear();
-        row.push(rec.epoch.to_string());
+        row.push(k.to_string());
         row.push(format!("{}", rec.time));
-        row.extend(rec.state.iter().map(|&v| fmt(v)));
-        row.extend(rec.sigma.iter().map(|&v| fmt(v)));
-        let (p, w) = &mut self.estimates;
-        let r1 = w.write_record(&*row).map_err(|e| (p.clone(), e));
+        for (v, name) in rec.state.iter().zip(&self.states) {
+            row.push(cell(*v, nf, "estimates.csv", name, k, false));
+        }
+        for (v, name) in rec.sigma.iter().zip(&self.states) {
+            row.push(cell(
+                *v,
+                nf,
+                "estimates.csv",
+                &format!("sigma_{name}"),
+                k,
+                false,
+            ));
+        }
+        let r1 = self.estimates.write_record(&*row);
         row.clear();
-        row.push(rec.epoch.to_string());
+        row.push(k.to_string());
         row.push(format!("{}", rec.time));
-        row.extend(rec.innovation.iter().map(|&v| fmt(v)));
-        row.extend(rec.innovation_sigma.iter().map(|&v| fmt(v)));
-        row.push(fmt(rec.nis));
+        for (v, name) in rec.innovation.iter().zip(&self.measurements) {
+            let column = format!("innovation_{name}");
+            row.push(cell(*v, nf, "innovations.csv", &column, k, true));
+        }
+        for (v, name) in rec.innovation_sigma.iter().zip(&self.measurements) {
+            let column = format!("sigma_innovation_{name}");
+            row.push(cell(*v, nf, "innovations.csv", &column, k, true));
+        }
+        row.push(cell(rec.nis, nf, "innovations.csv", "nis", k, true));
         row.push(rec.dof.to_string());
         row.push(rec.outcome.as_str().to_string());
-        let (p, w) = &mut self.innovations;
-        let r2 = w.write_record(&*row).map_err(|e| (p.clone(), e));
+        let r2 = self.innovations.write_record(&*row);
         let mut r3 = Ok(());
-        if let (Some((p, w)), Some(cov)) = (&mut self.covariance, &rec.covariance) {
+        if let (Some(w), Some(cov)) = (&mut self.covariance, &rec.covariance) {
             row.clear();
-            row.push(rec.epoch.to_string());
+            row.push(k.to_string());
             row.push(format!("{}", rec.time));
             for i in 0..cov.nrows() {
                 for j in i..cov.ncols() {
-                    row.push(fmt(cov[(i, j)]));
+                    let column = format!("P_{}_{}", self.states[i], self.states[j]);
+                    row.push(cell(cov[(i, j)], nf, "covariance.csv", &column, k, false));
                 }
             }
-            r3 = w.write_record(&*row).map_err(|e| (p.clone(), e));
+            r3 = w.write_record(&*row);
         }
         self.keep(r1);
         self.keep(r2);
@@ -177,47 +367,62 @@ pub fn write_smoothed(
     times: &[f64],
     smoothed: &[SmoothedEpoch<Dyn>],
 ) -> Result<PathBuf> {
-    let path = dir.join("smoothed.csv");
-    let mut w = csv_writer(&path)?;
+    let mut w = StagedCsv::create(&dir.join("smoothed.csv"))?;
     let mut h = vec!["epoch".to_string(), "time".to_string()];
     h.extend(states.iter().cloned());
     h.extend(states.iter().map(|s| format!("sigma_{s}")));
-    w.write_record(&h).map_err(|e| write_err(&path, e))?;
+    w.write_record(&h)?;
     for (k, (t, s)) in times.iter().zip(smoothed).enumerate() {
         let mut row = vec![k.to_string(), format!("{t}")];
         row.extend(s.x.iter().map(|&v| fmt(v)));
         row.extend(s.p.diagonal().iter().map(|&v| fmt(v.max(0.0).sqrt())));
-        w.write_record(&row).map_err(|e| write_err(&path, e))?;
+        w.write_record(&row)?;
     }
-    w.flush().map_err(|e| write_err(&path, e))?;
-    Ok(path)
+    w.commit()
 }
 
-/// Write a CSV with a header and numeric rows (NaN written as an empty cell).
+/// Write a CSV with a header and numeric rows (NaN written as an empty cell),
+/// atomically.
 pub fn write_table(
     path: &Path,
     header: &[&str],
     rows: impl IntoIterator<Item = Vec<f64>>,
 ) -> Result<()> {
-    let mut w = csv_writer(path)?;
-    w.write_record(header).map_err(|e| write_err(path, e))?;
-    for row in rows {
+    write_table_noting_infinities(path, header, rows).map(|_| ())
+}
+
+/// [`write_table`], returning one warning per column that received ±inf
+/// (naming the file, the column, the count and the first data row).
+pub fn write_table_noting_infinities(
+    path: &Path,
+    header: &[&str],
+    rows: impl IntoIterator<Item = Vec<f64>>,
+) -> Result<Vec<String>> {
+    let mut w = StagedCsv::create(path)?;
+    let name = path
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let mut non_finite = NonFinite::default();
+    w.write_record(header)?;
+    for (k, row) in rows.into_iter().enumerate() {
         if row.len() != header.len() {
             return Err(write_err(
                 path,
                 format!("row of {} values for {} columns", row.len(), header.len()),
             ));
         }
-        w.write_record(row.iter().map(|&v| {
-            if v.is_nan() {
-                String::new()
-            } else {
-                format!("{v}")
-            }
-        }))
-        .map_err(|e| write_err(path, e))?;
+        w.write_record(
+            row.iter()
+                .zip(header)
+                .map(|(&v, column)| cell(v, &mut non_finite, &name, column, k + 1, true)),
+        )?;
     }
-    w.flush().map_err(|e| write_err(path, e))
+    w.commit()?;
+    Ok(non_finite
+        .warnings()
+        .into_iter()
+        .map(|m| m.replace("(first at epoch", "(first at data row"))
+        .collect())
 }
 
 /// `summary.json`: the tool, its version, the command, the seed, the full
@@ -268,7 +473,70 @@ impl Summary {
         ensure_dir(dir)?;
         let path = dir.join("summary.json");
         let text = serde_json::to_string_pretty(self).map_err(|e| write_err(&path, e))?;
-        std::fs::write(&path, text + "\n").map_err(|e| write_err(&path, e))?;
+        write_atomic(&path, (text + "\n").as_bytes())?;
         Ok(path)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn a_failed_table_write_leaves_no_file_under_a_final_name() {
+        let dir = tempfile::tempdir().unwrap();
+        // The final name is taken by a directory: the rename fails.
+        std::fs::create_dir(dir.path().join("t.csv")).unwrap();
+        let e = write_table(&dir.path().join("t.csv"), &["a"], vec![vec![1.0]]).unwrap_err();
+        assert!(e.to_string().contains("t.csv: cannot write"), "{e}");
+        assert_eq!(names(dir.path()), vec!["t.csv"]);
+        assert!(dir.path().join("t.csv").is_dir());
+        // A row of the wrong length half-way: nothing under the final name.
+        let e = write_table(
+            &dir.path().join("u.csv"),
+            &["a"],
+            vec![vec![1.0], vec![1.0, 2.0]],
+        );
+        assert!(e.is_err());
+        assert_eq!(names(dir.path()), vec!["t.csv"]);
+        // A good write gets its final name and leaves no temporary file.
+        write_table(&dir.path().join("u.csv"), &["a"], vec![vec![1.0]]).unwrap();
+        assert_eq!(names(dir.path()), vec!["t.csv", "u.csv"]);
+    }
+
+    #[test]
+    fn infinities_in_a_table_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let w = write_table_noting_infinities(
+            &dir.path().join("t.csv"),
+            &["a", "b"],
+            vec![
+                vec![1.0, f64::NAN],
+                vec![f64::INFINITY, 2.0],
+                vec![f64::NEG_INFINITY, 2.0],
+            ],
+        )
+        .unwrap();
+        assert_eq!(
+            w,
+            vec!["t.csv: column `a`: 2 non-finite values (first at data row 2)".to_string()]
+        );
+    }
+
+    #[test]
+    fn begin_outputs_removes_a_stale_summary() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("summary.json"), "{}").unwrap();
+        begin_outputs(dir.path()).unwrap();
+        assert!(names(dir.path()).is_empty());
     }
 }

@@ -26,23 +26,39 @@ pub enum JobError {
     /// Reading or writing files.
     #[error(transparent)]
     Io(#[from] IoError),
-    /// The estimation engine (with the file that fed it).
-    #[error("{context}: {source}")]
+    /// The estimation engine (with the file that fed it). The message holds
+    /// the engine's error, so it is not also returned as the source (an
+    /// error chain prints each level once).
+    #[error("{context}: {error}")]
     Estimation {
         /// What was being processed.
         context: String,
         /// The engine's error.
-        source: EstimationError,
+        error: EstimationError,
     },
-    /// The extended-state experiment (guidance solution or filter).
+    /// The extended-state experiment (guidance solution or filter); its
+    /// message holds the experiment's error (not also a source).
     #[error("extended-state experiment: {0}")]
-    ExtendedState(#[from] aidnav_reproduce::extended_state::ExtendedStateError),
-    /// The outages experiment (its filter or its model selection).
+    ExtendedState(aidnav_reproduce::extended_state::ExtendedStateError),
+    /// The outages experiment (its filter or its model selection); its
+    /// message holds the experiment's error (not also a source).
     #[error("outages experiment: {0}")]
-    Outages(#[from] aidnav_reproduce::outages::OutagesError),
+    Outages(aidnav_reproduce::outages::OutagesError),
     /// The job refuses the request (size limits and the like).
     #[error("{0}")]
     Refused(String),
+}
+
+impl From<aidnav_reproduce::extended_state::ExtendedStateError> for JobError {
+    fn from(e: aidnav_reproduce::extended_state::ExtendedStateError) -> Self {
+        Self::ExtendedState(e)
+    }
+}
+
+impl From<aidnav_reproduce::outages::OutagesError> for JobError {
+    fn from(e: aidnav_reproduce::outages::OutagesError) -> Self {
+        Self::Outages(e)
+    }
 }
 
 /// Result alias of the jobs.
@@ -50,9 +66,9 @@ pub type JobResult<T> = Result<T, JobError>;
 
 /// Wrap an engine error with what was being computed.
 fn estimation(context: &str) -> impl FnOnce(EstimationError) -> JobError + '_ {
-    move |source| JobError::Estimation {
+    move |error| JobError::Estimation {
         context: context.into(),
-        source,
+        error,
     }
 }
 
@@ -92,6 +108,9 @@ pub struct FilterReport {
     pub mean_nis_per_dof: f64,
     /// Updates by outcome.
     pub outcomes: std::collections::BTreeMap<String, usize>,
+    /// Non-finite numbers written or computed, each naming its file, column
+    /// and first epoch (also in `summary.json`; the CLI prints them on stderr).
+    pub warnings: Vec<String>,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -100,13 +119,22 @@ pub struct FilterReport {
 #[derive(Default)]
 struct RunStats {
     nis: Chi2Mean,
+    finite_nis: usize,
+    non_finite_nis: usize,
+    first_non_finite_nis: Option<usize>,
     outcomes: std::collections::BTreeMap<String, usize>,
 }
 
 impl Observer for RunStats {
     fn observe_epoch(&mut self, r: &EpochRecord) {
-        if r.outcome != Outcome::Missing && r.nis.is_finite() {
-            self.nis.push(r.nis, r.dof);
+        if r.outcome != Outcome::Missing {
+            if r.nis.is_finite() {
+                self.nis.push(r.nis, r.dof);
+                self.finite_nis += 1;
+            } else {
+                self.non_finite_nis += 1;
+                self.first_non_finite_nis.get_or_insert(r.epoch);
+            }
         }
         *self
             .outcomes
@@ -132,6 +160,7 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             )));
         }
     }
+    aidnav_io::writers::begin_outputs(&job.out)?;
     let mut writer = FilterCsvWriter::create(
         &job.out,
         &loaded.state_names,
@@ -147,15 +176,16 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
         loaded
             .model
             .run(table.epochs(), &options, &mut both)
-            .map_err(|source| JobError::Estimation {
+            .map_err(|error| JobError::Estimation {
                 context: format!(
                     "{} with {}",
                     job.model.display(),
                     job.measurements.display()
                 ),
-                source,
+                error,
             })?
     };
+    let mut warnings = writer.warnings();
     writer.finish()?;
     let mut files = vec![
         job.out.join("estimates.csv"),
@@ -165,9 +195,9 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
         files.push(job.out.join("covariance.csv"));
     }
     if job.smooth {
-        let smoothed = rts_smooth(&out.forward).map_err(|source| JobError::Estimation {
+        let smoothed = rts_smooth(&out.forward).map_err(|error| JobError::Estimation {
             context: format!("smoothing {}", job.measurements.display()),
-            source,
+            error,
         })?;
         files.push(write_smoothed(
             &job.out,
@@ -176,18 +206,46 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             &smoothed,
         )?);
     }
+    let mean_nis_per_dof = stats.nis.mean_per_dof();
+    if !mean_nis_per_dof.is_finite() {
+        warnings.push(format!(
+            "mean NIS per degree of freedom is {mean_nis_per_dof} ({} of {} epochs with a finite NIS)",
+            stats.finite_nis, out.epochs
+        ));
+    }
+    if stats.non_finite_nis > 0 {
+        warnings.push(format!(
+            "{} epochs with an update have a non-finite NIS (first at epoch {}); the mean NIS leaves them out",
+            stats.non_finite_nis,
+            stats.first_non_finite_nis.unwrap_or(0)
+        ));
+    }
+    let final_sigma: Vec<f64> = out
+        .final_covariance
+        .diagonal()
+        .iter()
+        .map(|v| v.max(0.0).sqrt())
+        .collect();
+    let final_state: Vec<f64> = out.final_state.iter().copied().collect();
+    for (name, (x, s)) in loaded
+        .state_names
+        .iter()
+        .zip(final_state.iter().zip(&final_sigma))
+    {
+        if !x.is_finite() || !s.is_finite() {
+            warnings.push(format!(
+                "final state `{name}`: estimate {x}, σ {s} (not finite)"
+            ));
+        }
+    }
     let report = FilterReport {
         epochs: out.epochs,
         states: loaded.state_names.clone(),
-        final_state: out.final_state.iter().copied().collect(),
-        final_sigma: out
-            .final_covariance
-            .diagonal()
-            .iter()
-            .map(|v| v.max(0.0).sqrt())
-            .collect(),
-        mean_nis_per_dof: stats.nis.mean_per_dof(),
+        final_state,
+        final_sigma,
+        mean_nis_per_dof,
         outcomes: stats.outcomes,
+        warnings,
         files: files.clone(),
     };
     let mut summary = Summary::new("filter", VERSION, None, &loaded.file);
@@ -199,6 +257,7 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
     summary.insert("final_sigma", &report.final_sigma);
     summary.insert("mean_nis_per_dof", report.mean_nis_per_dof);
     summary.insert("outcomes", &report.outcomes);
+    summary.insert("warnings", &report.warnings);
     let mut report = report;
     report.files.push(summary.write(&job.out)?);
     Ok(report)

@@ -87,15 +87,23 @@ pub fn process(
     };
     let score_s = t_score.elapsed().as_secs_f64();
     let cfg = process.config();
-    let files = export::write_files(&result, scores.as_ref(), out, cfg.output.kf_gins_text)?;
-    let report = ProcessReport::new(
+    aidnav_io::writers::begin_outputs(out)?;
+    let (files, written) =
+        export::write_files(&result, scores.as_ref(), out, cfg.output.kf_gins_text)?;
+    let mut report = ProcessReport::new(
         result,
         scores.unwrap_or_default(),
         [read_s, run_s, score_s],
         files,
     );
+    report.warnings.extend(written);
+    if !report.tracking_rms_m.is_finite() {
+        report.warnings.push(format!(
+            "the RMS 3-D antenna error over RTK-fixed epochs is {} (no finite error to average)",
+            report.tracking_rms_m
+        ));
+    }
     let path = export::write_summary(out, cfg, &report)?;
-    let mut report = report;
     report.files.push(path);
     Ok(report)
 }

@@ -5,7 +5,24 @@ use std::path::PathBuf;
 use aidnav_estimation::gmdh::GmdhConfig;
 use aidnav_estimation::{Scheme, SchemeParameters};
 use aidnav_supervisors::outage::{BridgeConfig, RelaySchedule};
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// An array of exactly `N` numbers: serde's `[f64; N]` reads the first `N`
+/// elements of a longer TOML array and drops the rest without a word.
+fn exact_array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+    let v = Vec::<f64>::deserialize(d)?;
+    let len = v.len();
+    v.try_into().map_err(|_| {
+        serde::de::Error::invalid_length(len, &format!("an array of length {N}").as_str())
+    })
+}
+
+/// [`exact_array`] for an optional key (set only when written).
+fn exact_array_option<'de, D: Deserializer<'de>, const N: usize>(
+    d: D,
+) -> Result<Option<[f64; N]>, D::Error> {
+    exact_array(d).map(Some)
+}
 
 /// Format of the IMU file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -63,6 +80,7 @@ pub struct ImuConfig {
     /// Sensor → body rotation as (roll, pitch, yaw) \[deg\], Groves'
     /// Euler_to_CTM: `f_body = C(roll, pitch, yaw) f_sensor`. Default the
     /// data set's [180, −6.79, 185.35].
+    #[serde(deserialize_with = "exact_array")]
     pub mounting_deg: [f64; 3],
     /// Zero-phase moving-average window \[s\] (0: none). Default 0.1
     /// (the data set's gyros carry a strong vibration line).
@@ -97,8 +115,10 @@ pub struct InitialConfig {
     /// A given initial attitude (roll, pitch, yaw) \[deg\] instead of
     /// levelling and the GNSS course; the gyro bias then starts at zero.
     /// Default none.
+    #[serde(deserialize_with = "exact_array_option")]
     pub attitude_deg: Option<[f64; 3]>,
     /// A given initial NED velocity [m/s] (default: at rest).
+    #[serde(deserialize_with = "exact_array_option")]
     pub velocity_ned_mps: Option<[f64; 3]>,
 }
 
@@ -121,6 +141,7 @@ impl Default for InitialConfig {
 pub struct GnssConfig {
     /// Lever arm IMU → antenna in the body frame (forward, right, down) \[m\].
     /// Default the data set's [0, −0.05, 0].
+    #[serde(deserialize_with = "exact_array")]
     pub lever_arm_m: [f64; 3],
     /// Use the velocity columns. Default true.
     pub use_velocity: bool,
@@ -201,6 +222,7 @@ pub struct ScoreConfig {
     /// Fractions of epochs given an outlier. Default [0.1, 0.3].
     pub outlier_fractions: Vec<f64>,
     /// Outlier size range \[m\]. Default [5, 50].
+    #[serde(deserialize_with = "exact_array")]
     pub outlier_m: [f64; 2],
     /// Seed of the injected outliers. Default 20261123.
     pub seed: u64,

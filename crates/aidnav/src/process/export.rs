@@ -10,7 +10,7 @@ use aidnav_estimation::Outcome;
 use aidnav_frames::earth::Geodetic;
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
-use aidnav_io::writers::{Summary, ensure_dir, write_table};
+use aidnav_io::writers::{Summary, ensure_dir, write_table_noting_infinities};
 use serde::Serialize;
 
 use super::api::ProcessResult;
@@ -20,16 +20,19 @@ use super::scoring::Scores;
 
 /// Write every file of a result (and of its scores) into `out`, in the
 /// order `aidnav process` lists them; `navresult` adds `navresult.txt`.
+/// Each file is written atomically; returns the files and one warning per
+/// table column that received ±inf (file, column, count, first row).
 pub fn write_files(
     result: &ProcessResult,
     scores: Option<&Scores>,
     out: &Path,
     navresult: bool,
-) -> Result<Vec<PathBuf>, IoError> {
+) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
     ensure_dir(out)?;
     let mut files = Vec::new();
+    let mut warnings = Vec::new();
     let solution = out.join("solution.csv");
-    write_solution(&solution, &result.epochs, &result.between)?;
+    warnings.extend(write_solution(&solution, &result.epochs, &result.between)?);
     files.push(solution);
     if navresult {
         let path = out.join("navresult.txt");
@@ -38,14 +41,14 @@ pub fn write_files(
     }
     if !result.smoothed.is_empty() {
         let path = out.join("smoothed.csv");
-        write_smoothed(&path, &result.smoothed)?;
+        warnings.extend(write_smoothed(&path, &result.smoothed)?);
         files.push(path);
     }
     let path = out.join("trajectory.svg");
     trajectory_chart(result).write_svg(&path)?;
     files.push(path);
     let path = out.join("instruments.csv");
-    write_instruments(&path, &result.epochs)?;
+    warnings.extend(write_instruments(&path, &result.epochs)?);
     files.push(path);
     let path = out.join("innovations.svg");
     innovations_chart(result).write_svg(&path)?;
@@ -55,7 +58,7 @@ pub fn write_files(
         drift_chart(scores).write_svg(&path)?;
         files.push(path);
     }
-    Ok(files)
+    Ok((files, warnings))
 }
 
 /// Write `summary.json` with the configuration and `report` as its result.
@@ -77,7 +80,7 @@ pub fn write_solution(
     path: &Path,
     epochs: &[Epoch],
     between: &[SolutionRow],
-) -> Result<(), IoError> {
+) -> Result<Vec<String>, IoError> {
     let navigation = |row: &SolutionRow| {
         let (r, p, y) = row.attitude.euler_angles();
         vec![
@@ -116,7 +119,7 @@ pub fn write_solution(
         row
     });
     let rows = merge_in_time(epoch_rows, other_rows, |row| row[0]);
-    write_table(
+    write_table_noting_infinities(
         path,
         &[
             "time [s GPST since 1970]",
@@ -177,15 +180,12 @@ pub fn write_navresult(
             y.to_degrees()
         );
     }
-    std::fs::write(path, text).map_err(|e| IoError::Write {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })
+    aidnav_io::writers::write_atomic(path, text.as_bytes())
 }
 
 /// Write `smoothed.csv`: time and the smoothed antenna position.
-pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<(), IoError> {
-    write_table(
+pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<Vec<String>, IoError> {
+    write_table_noting_infinities(
         path,
         &[
             "time [s GPST since 1970]",
@@ -205,8 +205,8 @@ pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<(), IoError> {
 }
 
 /// Write `instruments.csv`: the instrument corrections after every epoch.
-pub fn write_instruments(path: &Path, epochs: &[Epoch]) -> Result<(), IoError> {
-    write_table(
+pub fn write_instruments(path: &Path, epochs: &[Epoch]) -> Result<Vec<String>, IoError> {
+    write_table_noting_infinities(
         path,
         &[
             "time [s GPST since 1970]",

@@ -10,8 +10,125 @@ use super::config::{ImuFormat, ProcessConfig};
 impl Validate for ProcessConfig {
     fn validate(&self) -> Result<(), Invalid> {
         validate_inputs(self)?;
+        validate_physical_bounds(self)?;
         validate_supervision_and_scores(self)
     }
+}
+
+/// Each element of a 3-vector in `lo ≤ v ≤ hi` (and finite); the key names
+/// the element (`gnss.lever_arm_m[2]`, 0-based).
+fn vector_in_range(key: &str, v: &[f64; 3], lo: f64, hi: f64) -> Result<(), Invalid> {
+    for (i, x) in v.iter().enumerate() {
+        if !(x.is_finite() && *x >= lo && *x <= hi) {
+            return Err(Invalid::new(
+                format!("{key}[{i}]"),
+                x,
+                format!("{lo} ≤ each element ≤ {hi}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `lo ≤ value ≤ hi` with `key` prefixed by `table`.
+fn bounded(table: &str, key: &str, value: f64, lo: f64, hi: f64) -> Result<(), Invalid> {
+    in_range(key, value, lo, hi).map_err(|e| e.within(table))
+}
+
+/// Physical bounds of every numeric key of `imu`, `initial`, `gnss`,
+/// `constraints`, `efficiency` and `score` beyond "> 0": angles within a
+/// turn, lever arms and speeds of a vehicle, σ that cannot underflow when
+/// squared (≥ 1e-9) — so a typo is refused at load, naming the key.
+fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
+    vector_in_range("imu.mounting_deg", &cfg.imu.mounting_deg, -360.0, 360.0)?;
+    let n = &cfg.imu.noise;
+    for (key, value, hi) in [
+        ("arw_deg_per_sqrt_h", n.arw_deg_per_sqrt_h, 1e4),
+        ("vrw_mps_per_sqrt_h", n.vrw_mps_per_sqrt_h, 1e4),
+        ("gyro_bias_deg_per_h", n.gyro_bias_deg_per_h, 1e6),
+        ("accel_bias_mg", n.accel_bias_mg, 1e4),
+        ("gyro_scale_ppm", n.gyro_scale_ppm, 1e6),
+        ("accel_scale_ppm", n.accel_scale_ppm, 1e6),
+        ("correlation_s", n.correlation_s, 1e7),
+    ] {
+        bounded("imu.noise", key, value, 1e-9, hi)?;
+    }
+    let i = &cfg.initial;
+    bounded("initial", "static_s", i.static_s, 1e-3, 3600.0)?;
+    bounded(
+        "initial",
+        "heading_speed_mps",
+        i.heading_speed_mps,
+        1e-3,
+        1000.0,
+    )?;
+    bounded(
+        "initial",
+        "heading_sigma_deg",
+        i.heading_sigma_deg,
+        1e-6,
+        180.0,
+    )?;
+    bounded("initial", "tilt_sigma_deg", i.tilt_sigma_deg, 1e-6, 90.0)?;
+    if let Some(a) = &i.attitude_deg {
+        vector_in_range("initial.attitude_deg", a, -360.0, 360.0)?;
+    }
+    if let Some(v) = &i.velocity_ned_mps {
+        vector_in_range("initial.velocity_ned_mps", v, -1000.0, 1000.0)?;
+    }
+    let g = &cfg.gnss;
+    vector_in_range("gnss.lever_arm_m", &g.lever_arm_m, -100.0, 100.0)?;
+    bounded(
+        "gnss",
+        "min_position_sigma_m",
+        g.min_position_sigma_m,
+        1e-9,
+        1e4,
+    )?;
+    bounded(
+        "gnss",
+        "min_velocity_sigma_mps",
+        g.min_velocity_sigma_mps,
+        1e-9,
+        1e3,
+    )?;
+    let c = &cfg.constraints;
+    bounded(
+        "constraints",
+        "non_holonomic_sigma_mps",
+        c.non_holonomic_sigma_mps,
+        1e-9,
+        100.0,
+    )?;
+    bounded(
+        "constraints",
+        "non_holonomic_rate_hz",
+        c.non_holonomic_rate_hz,
+        1e-3,
+        1e4,
+    )?;
+    bounded("constraints", "min_speed_mps", c.min_speed_mps, 0.0, 1000.0)?;
+    if let Some(sg) = cfg.efficiency.sigma_gnss_m {
+        bounded("efficiency", "sigma_gnss_m", sg, 1e-9, 1e4)?;
+    }
+    bounded("score", "lead_s", cfg.score.lead_s, 0.0, 1e6)?;
+    bounded("score", "gap_s", cfg.score.gap_s, 0.0, 1e6)?;
+    count_in_range(
+        "outlier_fractions",
+        cfg.score.outlier_fractions.len(),
+        0,
+        10,
+    )
+    .map_err(|e| e.within("score"))?;
+    let [lo, hi] = cfg.score.outlier_m;
+    if hi > 1e6 {
+        return Err(Invalid::new(
+            "score.outlier_m",
+            format!("[{lo}, {hi}]"),
+            "0 ≤ low ≤ high ≤ 1e6",
+        ));
+    }
+    Ok(())
 }
 
 /// Data, IMU, initialisation, GNSS and filter settings.
@@ -148,7 +265,6 @@ fn validate_supervision_and_scores(cfg: &ProcessConfig) -> Result<(), Invalid> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
     #[test]
     fn outage_bridge_gmdh_keys_are_bounded_before_allocating() {
         let mut cfg = GmdhConfig {
@@ -164,5 +280,95 @@ mod tests {
             "outage_bridge.gmdh.frequencies"
         );
         assert_eq!(validate_gmdh(&GmdhConfig::default()), Ok(()));
+    }
+
+    const DATA: &str =
+        "[data]\ndir = \".\"\nimu = \"i.csv\"\nimu_format = \"generic_csv\"\ngnss = \"g.pos\"\n";
+
+    fn err(extra: &str) -> String {
+        let text = format!("{DATA}{extra}");
+        aidnav_io::config::parse_toml::<ProcessConfig>(&text, std::path::Path::new("p.toml"))
+            .unwrap_err()
+            .to_string()
+    }
+
+    #[test]
+    fn the_base_config_loads() {
+        aidnav_io::config::parse_toml::<ProcessConfig>(DATA, std::path::Path::new("p.toml"))
+            .unwrap();
+    }
+
+    #[test]
+    fn non_holonomic_sigma_and_rate_are_bounded() {
+        for (value, shown) in [
+            ("-0.1", "-0.1"),
+            ("inf", "inf"),
+            ("-inf", "-inf"),
+            ("1e-170", "0."),
+        ] {
+            let e = err(&format!(
+                "[constraints]\nnon_holonomic_sigma_mps = {value}\n"
+            ));
+            assert!(
+                e.starts_with("p.toml:7: constraints.non_holonomic_sigma_mps: "),
+                "{e}"
+            );
+            assert!(e.contains(shown) || e.contains("e-170"), "{e}");
+        }
+        for value in ["-10.0", "inf", "0.0"] {
+            let e = err(&format!("[constraints]\nnon_holonomic_rate_hz = {value}\n"));
+            assert!(
+                e.starts_with("p.toml:7: constraints.non_holonomic_rate_hz: "),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
+    fn three_vectors_have_exactly_three_finite_elements() {
+        for (table, key) in [
+            ("imu", "mounting_deg"),
+            ("initial", "attitude_deg"),
+            ("initial", "velocity_ned_mps"),
+            ("gnss", "lever_arm_m"),
+        ] {
+            let e = err(&format!("[{table}]\n{key} = [0.0, 0.0, 0.0, 1.0]\n"));
+            assert!(e.starts_with(&format!("p.toml:7: {table}.{key}: ")), "{e}");
+            assert!(
+                e.contains("expected an array of length 3") || e.contains("length 3"),
+                "{e}"
+            );
+            let e = err(&format!("[{table}]\n{key} = [0.0, 0.0]\n"));
+            assert!(e.starts_with(&format!("p.toml:7: {table}.{key}: ")), "{e}");
+            let e = err(&format!("[{table}]\n{key} = [0.0, nan, 0.0]\n"));
+            assert!(
+                e.starts_with(&format!("p.toml:7: {table}.{key}[1]: NaN is out of range")),
+                "{e}"
+            );
+        }
+        let e = err("[gnss]\nlever_arm_m = [0.0, 1e9, 0.0]\n");
+        assert!(
+            e.contains("gnss.lever_arm_m[1]: 1000000000 is out of range"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn sigma_that_underflows_when_squared_is_refused() {
+        let e = err("[gnss]\nmin_position_sigma_m = 1e-170\n");
+        assert!(
+            e.starts_with("p.toml:7: gnss.min_position_sigma_m: "),
+            "{e}"
+        );
+        let e = err("[imu.noise]\narw_deg_per_sqrt_h = 1e-170\n");
+        assert!(
+            e.starts_with("p.toml:7: imu.noise.arw_deg_per_sqrt_h: "),
+            "{e}"
+        );
+        let e = err("[initial]\nheading_sigma_deg = 1e300\n");
+        assert!(
+            e.starts_with("p.toml:7: initial.heading_sigma_deg: "),
+            "{e}"
+        );
     }
 }
