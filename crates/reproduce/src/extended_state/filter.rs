@@ -1,0 +1,204 @@
+//! The extended-state filter pass: the 14-state Kalman filter on the
+//! closed-loop launch INS, fix by fix, with the Cramér–Rao ratio δ(n) and
+//! the switches it drives.
+
+use super::*;
+
+/// The filter's prior covariance, fix noise R and process noise Q.
+#[allow(clippy::type_complexity)]
+fn filter_matrices(
+    sc: &ExtendedStateScenario,
+) -> (Matrix14, SMatrix<f64, NAVIGATION, NAVIGATION>, Matrix14) {
+    let mut p0 = SMatrix::<f64, STATES, STATES>::zeros();
+    for i in 0..STATES {
+        p0[(i, i)] = if i < NAVIGATION {
+            sc.prior_navigation_variance
+        } else {
+            sc.prior_instrument_variance
+        };
+    }
+    let mut r = SMatrix::<f64, NAVIGATION, NAVIGATION>::zeros();
+    let mut q = Matrix14::zeros();
+    for i in 0..3 {
+        r[(i, i)] = sc.position_sigma_m.powi(2);
+        r[(3 + i, 3 + i)] = sc.velocity_sigma_mps.powi(2);
+        q[(3 + i, 3 + i)] = sc.velocity_process_noise;
+    }
+    (p0, r, q)
+}
+
+impl FilterHistory {
+    /// One fix: δ(n), the instrument estimates' error, σ and bound, the
+    /// position error, and the smallest eigenvalue of P − bound.
+    fn record(
+        &mut self,
+        t_fix: f64,
+        delta: f64,
+        instrument_error: [f64; ESTIMATED],
+        p: &Matrix14,
+        bound: &Matrix14,
+        position_error_m: f64,
+    ) {
+        self.time_s.push(t_fix);
+        self.delta.push(delta);
+        self.instrument_error.push(instrument_error);
+        self.instrument_sigma.push(std::array::from_fn(|i| {
+            p[(NAVIGATION + i, NAVIGATION + i)].sqrt()
+        }));
+        self.instrument_bound.push(std::array::from_fn(|i| {
+            bound[(NAVIGATION + i, NAVIGATION + i)].sqrt()
+        }));
+        self.position_error_m.push(position_error_m);
+        // In the basis scaled by P's own σ, where rounding is uniform
+        // (the diagonal spans fifteen orders of magnitude).
+        let scale = p.diagonal().map(|v| 1.0 / v.sqrt());
+        let scaled = Matrix14::from_fn(|i, j| (p[(i, j)] - bound[(i, j)]) * scale[i] * scale[j]);
+        self.bound_gap.push(scaled.symmetric_eigenvalues().min());
+    }
+}
+
+/// INS minus fix for one fix: the fix is the truth plus noise drawn from
+/// `rng` (position and velocity per axis, in that order).
+fn fix_residual(
+    sc: &ExtendedStateScenario,
+    ins: &LaunchIns,
+    truth_r: &Vector3<f64>,
+    truth_v: &Vector3<f64>,
+    rng: &mut RunRng,
+) -> SVector<f64, NAVIGATION> {
+    let mut z = SVector::<f64, NAVIGATION>::zeros();
+    for i in 0..3 {
+        let (np, nv) = (standard_normal(rng), standard_normal(rng));
+        let scale = sc.fix_noise_scale;
+        z[i] = ins.position[i] - (truth_r[i] + scale * sc.position_sigma_m * np);
+        z[3 + i] = ins.velocity[i] - (truth_v[i] + scale * sc.velocity_sigma_mps * nv);
+    }
+    z
+}
+
+/// Closed loop on the navigation states: the estimated position and
+/// velocity errors leave the INS and the filter's state; the instrument
+/// estimates stay. Returns the state after the reset.
+fn feed_back_navigation(
+    kf: &mut FixedKalmanFilter<STATES>,
+    ins: &mut LaunchIns,
+) -> Result<SVector<f64, STATES>, EstimationError> {
+    let mut x = *kf.state();
+    for i in 0..3 {
+        ins.position[i] -= x[i];
+        ins.velocity[i] -= x[3 + i];
+    }
+    x.rows_mut(0, NAVIGATION).fill(0.0);
+    kf.set_state(x)?;
+    Ok(x)
+}
+
+/// Filter pass: from launch to the last snapshot needed (or t_B when
+/// `history` is requested). Returns, per threshold, the snapshot at its
+/// switch (None: never), and the snapshots at the forced times.
+#[allow(clippy::type_complexity)]
+pub(super) fn filter_pass(
+    sc: &ExtendedStateScenario,
+    traj: &LaunchTrajectory,
+    errors: &LaunchInstrumentErrors,
+    rng: &mut RunRng,
+    forced: &[f64],
+    mut history: Option<&mut FilterHistory>,
+) -> Result<(Vec<Option<Snapshot>>, Vec<Option<Snapshot>>), EstimationError> {
+    let dt = traj.dt_s;
+    let per_fix = (sc.fix_interval_s / dt).round() as usize;
+    let start_step = (sc.fusion_start_s / dt).round() as usize;
+    let last = traj.samples() - 1;
+    let (p0, r, q) = filter_matrices(sc);
+    let mut kf = FixedKalmanFilter::<STATES>::new(SVector::zeros(), p0)?;
+    let mut fisher = FisherInformation::from_prior_covariance(&p0)?;
+    let c = ExtendedStateModel::measurement();
+    let truth_m = errors.estimated_components();
+    let mut switches: Vec<ConvergenceSwitch> = sc
+        .thresholds
+        .iter()
+        .map(|&threshold| {
+            ConvergenceSwitch::new(SwitchRule {
+                threshold,
+                ..sc.switch
+            })
+        })
+        .collect();
+    let mut at_switch: Vec<Option<Snapshot>> = vec![None; switches.len()];
+    let mut at_forced: Vec<Option<Snapshot>> = vec![None; forced.len()];
+    let mut ins = LaunchIns::default();
+    let mut phi = Matrix14::identity();
+    let mut first_fix = true;
+    for k in 0..last {
+        let t = k as f64 * dt;
+        if k >= start_step && sc.transition == TransitionForm::Exact {
+            let (att, f) = raw_outputs(traj, errors, t + dt / 2.0);
+            let a = ExtendedStateModel::continuous(t + dt / 2.0, &att, &f);
+            phi = ExtendedStateModel::transition(&a, dt, TransitionForm::Exact) * phi;
+        }
+        ins.step(t, dt, |tau| raw_outputs(traj, errors, tau));
+        let step = k + 1;
+        if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
+            continue;
+        }
+        let t_fix = step as f64 * dt;
+        if !first_fix {
+            if sc.transition == TransitionForm::FirstOrder {
+                let t0 = t_fix - sc.fix_interval_s;
+                let (att, f) = raw_outputs(traj, errors, t0);
+                let a = ExtendedStateModel::continuous(t0, &att, &f);
+                phi = ExtendedStateModel::transition(
+                    &a,
+                    sc.fix_interval_s,
+                    TransitionForm::FirstOrder,
+                );
+            }
+            kf.predict(&phi, &q)?;
+            fisher.propagate(&phi)?;
+        }
+        first_fix = false;
+        phi = Matrix14::identity();
+        let predicted = *kf.covariance();
+        let truth_r = traj.positions[step];
+        let truth_v = traj.velocities[step];
+        let z = fix_residual(sc, &ins, &truth_r, &truth_v, rng);
+        let rec = kf.update(&z, &c, &r)?;
+        fisher.add_measurement(&c, &r)?;
+        let bound = fisher.cramer_rao_bound()?;
+        let delta = cramer_rao_ratio(&rec.gain, &predicted, &bound, NAVIGATION);
+        // Closed loop on the navigation states.
+        let x = feed_back_navigation(&mut kf, &mut ins)?;
+        let x_m: [f64; ESTIMATED] = std::array::from_fn(|i| x[NAVIGATION + i]);
+        let snapshot = Snapshot {
+            time_s: t_fix,
+            ins,
+            estimate: x_m,
+        };
+        let fusion_s = t_fix - sc.fusion_start_s;
+        for (s, slot) in switches.iter_mut().zip(at_switch.iter_mut()) {
+            if s.observe(fusion_s, delta) {
+                *slot = Some(snapshot);
+            }
+        }
+        for (f, slot) in forced.iter().zip(at_forced.iter_mut()) {
+            if slot.is_none() && t_fix >= *f {
+                *slot = Some(snapshot);
+            }
+        }
+        if let Some(h) = history.as_deref_mut() {
+            let error = std::array::from_fn(|i| x_m[i] - truth_m[i]);
+            let position_error_m = (ins.position - truth_r).norm();
+            h.record(
+                t_fix,
+                delta,
+                error,
+                kf.covariance(),
+                &bound,
+                position_error_m,
+            );
+        } else if at_switch.iter().all(Option::is_some) && at_forced.iter().all(Option::is_some) {
+            break;
+        }
+    }
+    Ok((at_switch, at_forced))
+}
