@@ -143,22 +143,61 @@ impl Observer for RunStats {
     }
 }
 
+/// Refuse a smoothing run whose stored forward pass (two n×n matrices and
+/// two n-vectors per epoch) would exceed [`MAX_SMOOTHER_BYTES`].
+fn check_smoother_memory(measurements: &Path, n: usize, epochs: usize) -> JobResult<()> {
+    let per_epoch = (2 * n * n + 2 * n) * std::mem::size_of::<f64>();
+    if per_epoch.saturating_mul(epochs) > MAX_SMOOTHER_BYTES {
+        return Err(JobError::Refused(format!(
+            "{}: smoothing {epochs} epochs of {n} states needs {} MiB for the forward pass, over the {} MiB limit; split the file",
+            measurements.display(),
+            per_epoch.saturating_mul(epochs) >> 20,
+            MAX_SMOOTHER_BYTES >> 20
+        )));
+    }
+    Ok(())
+}
+
+/// Warnings for what a filter run produced that is not finite: the mean
+/// NIS, epochs whose NIS the mean left out, the final state and σ.
+fn non_finite_warnings(
+    stats: &RunStats,
+    epochs: usize,
+    names: &[String],
+    final_state: &[f64],
+    final_sigma: &[f64],
+) -> Vec<String> {
+    let mut warnings = Vec::new();
+    let mean_nis_per_dof = stats.nis.mean_per_dof();
+    if !mean_nis_per_dof.is_finite() {
+        warnings.push(format!(
+            "mean NIS per degree of freedom is {mean_nis_per_dof} ({} of {epochs} epochs with a finite NIS)",
+            stats.finite_nis
+        ));
+    }
+    if stats.non_finite_nis > 0 {
+        warnings.push(format!(
+            "{} epochs with an update have a non-finite NIS (first at epoch {}); the mean NIS leaves them out",
+            stats.non_finite_nis,
+            stats.first_non_finite_nis.unwrap_or(0)
+        ));
+    }
+    for (name, (x, s)) in names.iter().zip(final_state.iter().zip(final_sigma)) {
+        if !x.is_finite() || !s.is_finite() {
+            warnings.push(format!(
+                "final state `{name}`: estimate {x}, σ {s} (not finite)"
+            ));
+        }
+    }
+    warnings
+}
+
 /// Run a linear Kalman filter from a model file over a measurement CSV.
 pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
     let loaded = load_model(&job.model)?;
     let table = read_measurements(&job.measurements, &loaded.measurement_names, job.max_epochs)?;
-    let n = loaded.model.states();
     if job.smooth {
-        let per_epoch = (2 * n * n + 2 * n) * std::mem::size_of::<f64>();
-        if per_epoch.saturating_mul(table.len()) > MAX_SMOOTHER_BYTES {
-            return Err(JobError::Refused(format!(
-                "{}: smoothing {} epochs of {n} states needs {} MiB for the forward pass, over the {} MiB limit; split the file",
-                job.measurements.display(),
-                table.len(),
-                per_epoch.saturating_mul(table.len()) >> 20,
-                MAX_SMOOTHER_BYTES >> 20
-            )));
-        }
+        check_smoother_memory(&job.measurements, loaded.model.states(), table.len())?;
     }
     aidnav_io::writers::begin_outputs(&job.out)?;
     let mut writer = FilterCsvWriter::create(
@@ -207,19 +246,6 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
         )?);
     }
     let mean_nis_per_dof = stats.nis.mean_per_dof();
-    if !mean_nis_per_dof.is_finite() {
-        warnings.push(format!(
-            "mean NIS per degree of freedom is {mean_nis_per_dof} ({} of {} epochs with a finite NIS)",
-            stats.finite_nis, out.epochs
-        ));
-    }
-    if stats.non_finite_nis > 0 {
-        warnings.push(format!(
-            "{} epochs with an update have a non-finite NIS (first at epoch {}); the mean NIS leaves them out",
-            stats.non_finite_nis,
-            stats.first_non_finite_nis.unwrap_or(0)
-        ));
-    }
     let final_sigma: Vec<f64> = out
         .final_covariance
         .diagonal()
@@ -227,17 +253,13 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
         .map(|v| v.max(0.0).sqrt())
         .collect();
     let final_state: Vec<f64> = out.final_state.iter().copied().collect();
-    for (name, (x, s)) in loaded
-        .state_names
-        .iter()
-        .zip(final_state.iter().zip(&final_sigma))
-    {
-        if !x.is_finite() || !s.is_finite() {
-            warnings.push(format!(
-                "final state `{name}`: estimate {x}, σ {s} (not finite)"
-            ));
-        }
-    }
+    warnings.extend(non_finite_warnings(
+        &stats,
+        out.epochs,
+        &loaded.state_names,
+        &final_state,
+        &final_sigma,
+    ));
     let report = FilterReport {
         epochs: out.epochs,
         states: loaded.state_names.clone(),
