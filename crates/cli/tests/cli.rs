@@ -184,6 +184,26 @@ fn reproduce_writes_table_plot_and_summary_with_seed_and_scenario() {
     );
 }
 
+/// A reproduction that fails after it began writing leaves no `summary.json`
+/// (the previous run's is removed first), so the folder never looks complete.
+#[test]
+fn a_failed_reproduction_leaves_no_stale_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("summary.json"), "{\"stale\": true}").unwrap();
+    // A directory where the CSV must go: its rename fails.
+    std::fs::create_dir(dir.path().join("consistency.csv")).unwrap();
+    let err = failure(&[
+        "reproduce",
+        "consistency",
+        "--runs",
+        "5",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(err.contains("consistency.csv"), "{err}");
+    assert!(!dir.path().join("summary.json").exists(), "{err}");
+}
+
 #[test]
 fn help_explains_every_subcommand() {
     let out = aidnav(&["--help"]);

@@ -179,12 +179,16 @@ pub enum EstimationError {
         iterations: usize,
     },
     /// An error at a given epoch of a filter run (wraps the error of that epoch).
-    #[error("epoch {epoch}: {source}")]
+    ///
+    /// The wrapped error is part of the message and deliberately not also
+    /// returned by `Error::source`, so a printer walking the chain shows it
+    /// once.
+    #[error("epoch {epoch}: {error}")]
     AtEpoch {
         /// Zero-based epoch index.
         epoch: usize,
         /// The error at that epoch.
-        source: Box<EstimationError>,
+        error: Box<EstimationError>,
     },
 }
 
@@ -193,7 +197,7 @@ impl EstimationError {
     pub fn at_epoch(self, epoch: usize) -> Self {
         EstimationError::AtEpoch {
             epoch,
-            source: Box::new(self),
+            error: Box::new(self),
         }
     }
 }

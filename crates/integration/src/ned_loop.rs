@@ -138,13 +138,16 @@ pub trait EpochObserver {
 }
 
 /// The filter failed inside the loop.
+///
+/// The engine's error is part of the message and deliberately not also
+/// returned by `Error::source`, so a printer walking the chain shows it once.
 #[derive(Debug, thiserror::Error)]
-#[error("the filter failed at t = {time_s:.3} s: {source}")]
+#[error("the filter failed at t = {time_s:.3} s: {error}")]
 pub struct LoopError {
     /// Time of the IMU sample being processed (GPST s).
     pub time_s: f64,
     /// The engine's error.
-    pub source: EstimationError,
+    pub error: EstimationError,
 }
 
 /// The measurement policies of the position and the velocity updates.
@@ -176,9 +179,9 @@ pub fn run_loop(
     let mut next_nhc = t_start + nhc_interval;
     for k in start + 1..imu.len() {
         let (a, b) = (&imu[k - 1], &imu[k]);
-        let at = |source| LoopError {
+        let at = |error| LoopError {
             time_s: b.time_s,
-            source,
+            error,
         };
         let mut t = a.time_s;
         let mut r0 = Rates::of(a);

@@ -74,6 +74,22 @@ pub fn all_positive(table: &str, pairs: &[(&str, f64)]) -> std::result::Result<(
     Ok(())
 }
 
+/// [`in_range`] for each `(key, value, lo, hi)` of a table, the key named
+/// within `table` (top-level keys when `table` is empty).
+pub fn all_in_range(
+    table: &str,
+    checks: &[(&str, f64, f64, f64)],
+) -> std::result::Result<(), Invalid> {
+    for &(key, value, lo, hi) in checks {
+        in_range(key, value, lo, hi).map_err(
+            |e| {
+                if table.is_empty() { e } else { e.within(table) }
+            },
+        )?;
+    }
+    Ok(())
+}
+
 /// Error unless `value ≥ 0` (and finite).
 pub fn non_negative(key: &str, value: f64) -> std::result::Result<(), Invalid> {
     if value.is_finite() && value >= 0.0 {
@@ -109,9 +125,9 @@ pub fn count_in_range(
 /// Read, parse and validate a TOML file. Returns the value and the file's text
 /// (to echo it into `summary.json`).
 pub fn load_toml<T: DeserializeOwned + Validate>(path: &Path) -> Result<(T, String)> {
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Read {
+    let text = std::fs::read_to_string(path).map_err(|reason| IoError::Read {
         path: path.to_path_buf(),
-        source,
+        reason,
     })?;
     let value = parse_toml(&text, path)?;
     Ok((value, text))

@@ -8,12 +8,16 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum IoError {
     /// The file could not be read.
-    #[error("{path}: cannot read: {source}")]
+    ///
+    /// The operating system's reason is part of the message and deliberately
+    /// not also returned by `Error::source`, so a printer walking the chain
+    /// shows it once.
+    #[error("{path}: cannot read: {reason}")]
     Read {
         /// File.
         path: PathBuf,
-        /// Cause.
-        source: std::io::Error,
+        /// The operating system's reason.
+        reason: std::io::Error,
     },
     /// The file could not be written.
     #[error("{path}: cannot write: {message}")]
@@ -59,3 +63,20 @@ pub enum IoError {
 
 /// Result alias of the I/O layer.
 pub type Result<T> = std::result::Result<T, IoError>;
+
+#[cfg(test)]
+mod tests {
+
+    #[test]
+    fn read_error_names_the_reason_once() {
+        let err =
+            crate::text::read_bytes(std::path::Path::new("/no/such/dir/imu.csv")).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.starts_with("/no/such/dir/imu.csv: cannot read: "),
+            "{text}"
+        );
+        // The OS reason is in the message, so it is not also the source.
+        assert!(std::error::Error::source(&err).is_none(), "{text}");
+    }
+}

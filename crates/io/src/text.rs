@@ -48,9 +48,9 @@ pub fn decode<'a>(bytes: &'a [u8], origin: &Path) -> Result<&'a str> {
 
 /// Read a whole file as bytes, or a read error naming it.
 pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|source| IoError::Read {
+    std::fs::read(path).map_err(|reason| IoError::Read {
         path: path.to_path_buf(),
-        source,
+        reason,
     })
 }
 

@@ -15,7 +15,7 @@ pub mod outages;
 pub mod published;
 
 use aidnav_estimation::gmdh::{GmdhConfig, GmdhError, human_bytes};
-use aidnav_io::config::{Invalid, in_range};
+use aidnav_io::config::{Invalid, count_in_range, in_range};
 use aidnav_models::PlatformChannel;
 
 /// Physical ranges of the `[platform]` keys (spec-20 scenarios). Each is
@@ -120,6 +120,9 @@ pub(crate) fn validate_gmdh(table: &str, g: &GmdhConfig) -> Result<(), Invalid> 
     }
 }
 
+/// Most fault specs one scenario may list (each is applied to every run).
+const MAX_FAULT_SPECS: usize = 100;
+
 /// Range checks of a scenario's list of fault specs (`[[faults]]`,
 /// `[[recovery_faults]]`): sim's [`aidnav_sim::faults::InvalidFault`] as a
 /// scenario [`Invalid`] under the list's key.
@@ -127,6 +130,7 @@ pub(crate) fn validate_faults(
     key: &str,
     faults: &[aidnav_sim::faults::FaultSpec],
 ) -> Result<(), Invalid> {
+    count_in_range(key, faults.len(), 0, MAX_FAULT_SPECS)?;
     for f in faults {
         f.validate()
             .map_err(|e| Invalid::new(e.key, e.value, e.allowed).within(key))?;

@@ -111,28 +111,58 @@ pub struct FaultPlan {
     pub lost: Vec<bool>,
 }
 
+/// Upper bound of every count, length and start epoch of a fault spec: the
+/// longest run a scenario allows (10⁶ epochs). A larger count would only
+/// spin the planner (`count` draws per run) without adding anything.
+pub const MAX_FAULT_EPOCHS: usize = 1_000_000;
+/// Upper bound of a fault magnitude in units of σ (10⁶ σ is already far
+/// beyond any gate; larger values only risk overflow in squared terms).
+pub const MAX_FAULT_SIGMAS: f64 = 1e6;
+
 impl FaultSpec {
-    /// Range checks (a scenario file's `[[faults]]` entry).
+    /// Range checks (a scenario file's `[[faults]]` entry): counts, lengths
+    /// and starts at most [`MAX_FAULT_EPOCHS`], magnitudes at most
+    /// [`MAX_FAULT_SIGMAS`].
     pub fn validate(&self) -> Result<(), InvalidFault> {
+        const EPOCHS: &str = "0 … 1000000";
+        let counts: &[(&'static str, usize)] = match *self {
+            FaultSpec::SingleOutliers { count, .. } => &[("count", count)],
+            FaultSpec::Bursts {
+                count,
+                min_length,
+                max_length,
+                ..
+            } => &[
+                ("count", count),
+                ("min_length", min_length),
+                ("max_length", max_length),
+            ],
+            FaultSpec::RandomRate { .. } => &[],
+            FaultSpec::Fixed { start, length, .. } => &[("start", start), ("length", length)],
+            FaultSpec::AfterOutage { length, .. } => &[("length", length)],
+        };
+        if let Some(&(key, value)) = counts.iter().find(|(_, v)| *v > MAX_FAULT_EPOCHS) {
+            return Err(InvalidFault::new(key, value, EPOCHS));
+        }
         let magnitude = match *self {
             FaultSpec::SingleOutliers { magnitude, .. }
             | FaultSpec::Bursts { magnitude, .. }
             | FaultSpec::RandomRate { magnitude, .. }
             | FaultSpec::AfterOutage { magnitude, .. } => Some(magnitude),
             FaultSpec::Fixed { sigmas, .. } => {
-                if !sigmas.is_finite() {
-                    return Err(InvalidFault::new("sigmas", sigmas, "a finite number"));
+                if !sigmas.is_finite() || sigmas.abs() > MAX_FAULT_SIGMAS {
+                    return Err(InvalidFault::new("sigmas", sigmas, "-1e6 … 1e6"));
                 }
                 None
             }
         };
         if let Some(m) = magnitude
-            && !(m.min >= 0.0 && m.max >= m.min && m.max.is_finite())
+            && !(m.min >= 0.0 && m.max >= m.min && m.max <= MAX_FAULT_SIGMAS)
         {
             return Err(InvalidFault::new(
                 "magnitude",
                 format!("{}..{}", m.min, m.max),
-                "0 ≤ min ≤ max, finite",
+                "0 ≤ min ≤ max ≤ 1e6",
             ));
         }
         if let FaultSpec::RandomRate { rate, .. } = *self
@@ -370,5 +400,25 @@ mod tests {
             magnitude: M,
         };
         assert_eq!(rate.validate().unwrap_err().key, "rate");
+        // Counts are bounded: 2^60 draws per run would only spin.
+        let many = FaultSpec::SingleOutliers {
+            count: 1 << 60,
+            magnitude: M,
+        };
+        let e = many.validate().unwrap_err();
+        assert_eq!((e.key, e.allowed), ("count", "0 … 1000000"));
+        let huge = FaultSpec::AfterOutage {
+            length: 3,
+            magnitude: SigmaRange {
+                min: 1.0,
+                max: 1e300,
+            },
+        };
+        assert_eq!(huge.validate().unwrap_err().key, "magnitude");
+        let ok = FaultSpec::SingleOutliers {
+            count: MAX_FAULT_EPOCHS,
+            magnitude: M,
+        };
+        assert!(ok.validate().is_ok());
     }
 }

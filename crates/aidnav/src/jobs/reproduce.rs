@@ -31,7 +31,7 @@ pub fn consistency(
     let mc = campaign(scenario.runs, scenario.seed, "consistency", quiet);
     let result = aidnav_reproduce::consistency::run(scenario, &mc)
         .map_err(estimation("consistency demo"))?;
-    aidnav_io::writers::ensure_dir(out)?;
+    aidnav_io::writers::begin_outputs(out)?;
     let (lo, hi) = result.nees_epoch_bounds;
     let epochs = scenario.epochs;
     let t = |k: usize| k as f64 * scenario.dt_s;
@@ -81,7 +81,7 @@ pub fn anomalies(
     let mc = campaign(scenario.runs, scenario.seed, "anomalies", quiet);
     let result = aidnav_reproduce::anomalies::run(scenario, &mc)
         .map_err(estimation("anomalies experiment"))?;
-    aidnav_io::writers::ensure_dir(out)?;
+    aidnav_io::writers::begin_outputs(out)?;
     let ex = &result.example;
     let dt = scenario.platform.dt_s;
     let mut header: Vec<String> = vec![
@@ -136,7 +136,7 @@ pub fn anomalies(
 pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult<OutagesResult> {
     let mc = campaign(scenario.runs, scenario.seed, "outages", quiet);
     let result = aidnav_reproduce::outages::run(scenario, &mc)?;
-    aidnav_io::writers::ensure_dir(out)?;
+    aidnav_io::writers::begin_outputs(out)?;
     let ex = &result.example;
     let mut header: Vec<String> = vec!["outage age [s]".into(), "true_dv [m/s]".into()];
     header.extend(PREDICTORS.iter().map(|p| format!("{p} [m/s]")));
@@ -183,7 +183,7 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
     let mc = campaign(scenario.runs, scenario.seed, "group", quiet);
     let result =
         aidnav_reproduce::group::run(scenario, &mc).map_err(estimation("group experiment"))?;
-    aidnav_io::writers::ensure_dir(out)?;
+    aidnav_io::writers::begin_outputs(out)?;
     let dt = scenario.single.dt_s;
     let mut header = vec!["time [s]".to_string()];
     for c in &result.cases {
@@ -238,7 +238,7 @@ pub fn formation(
     let mc = campaign(scenario.runs, scenario.seed, "formation", quiet);
     let result =
         aidnav_reproduce::formation::run(scenario, &mc).map_err(estimation("formation flight"))?;
-    aidnav_io::writers::ensure_dir(out)?;
+    aidnav_io::writers::begin_outputs(out)?;
     let mut header = vec!["time [s]".to_string(), "member".to_string()];
     header.extend(SOLUTIONS.iter().map(|s| format!("{s}_position_error [m]")));
     let header_ref: Vec<&str> = header.iter().map(String::as_str).collect();
@@ -272,7 +272,7 @@ pub fn extended_state(
 ) -> JobResult<ExtendedStateResult> {
     let mc = campaign(scenario.runs, scenario.seed, "extended-state", quiet);
     let result = aidnav_reproduce::extended_state::run(scenario, &mc)?;
-    aidnav_io::writers::ensure_dir(out)?;
+    aidnav_io::writers::begin_outputs(out)?;
     write_table(
         &out.join("extended_state.csv"),
         &[

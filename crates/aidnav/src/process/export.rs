@@ -10,7 +10,7 @@ use aidnav_estimation::Outcome;
 use aidnav_frames::earth::Geodetic;
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
-use aidnav_io::writers::{Summary, ensure_dir, write_table_noting_infinities};
+use aidnav_io::writers::{Summary, begin_outputs, write_table_noting_infinities};
 use serde::Serialize;
 
 use super::api::ProcessResult;
@@ -28,7 +28,7 @@ pub fn write_files(
     out: &Path,
     navresult: bool,
 ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
-    ensure_dir(out)?;
+    begin_outputs(out)?;
     let mut files = Vec::new();
     let mut warnings = Vec::new();
     let solution = out.join("solution.csv");

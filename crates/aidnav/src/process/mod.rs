@@ -55,11 +55,20 @@ pub enum ProcessError {
     #[error(transparent)]
     Io(#[from] aidnav_io::IoError),
     /// The filter.
+    ///
+    /// The cause is part of the message and deliberately not also returned
+    /// by `Error::source`, so a printer walking the chain shows it once.
     #[error("filter: {0}")]
-    Estimation(#[from] EstimationError),
+    Estimation(EstimationError),
     /// The data do not allow processing.
     #[error("{0}")]
     Data(String),
+}
+
+impl From<EstimationError> for ProcessError {
+    fn from(error: EstimationError) -> Self {
+        ProcessError::Estimation(error)
+    }
 }
 
 /// IMU samples (body frame) and GNSS fixes ready for the filter.

@@ -316,7 +316,7 @@ pub fn run_filter_rows(
             "the filter failed {:.2} s after the first IMU sample (t = {:.3} s): {}",
             e.time_s - imu[0].time_s,
             e.time_s,
-            e.source
+            e.error
         ))
     })?;
     drop(observers);

@@ -124,6 +124,9 @@ fn run_errors_carry_the_epoch() {
         "{err}"
     );
     assert!(err.to_string().starts_with("epoch 1: predict"), "{err}");
+    // The wrapped error is in the message, so it is not also the source: a
+    // chain printer shows "predict" once.
+    assert!(std::error::Error::source(&err).is_none());
 }
 
 proptest! {

@@ -234,11 +234,11 @@ pub fn trajectories(
     sc.targets
         .iter()
         .map(|t| {
-            LaunchTrajectory::solve(t, &sc.program, sc.imu_dt_s).map_err(|source| {
+            LaunchTrajectory::solve(t, &sc.program, sc.imu_dt_s).map_err(|reason| {
                 ExtendedStateError::Trajectory {
                     t_b_s: t.t_b_s,
                     course_deg: t.course_deg,
-                    source,
+                    reason,
                 }
             })
         })

@@ -218,14 +218,14 @@ impl Validate for ExtendedStateScenario {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ExtendedStateError {
     /// A target could not be reached by the guidance program.
-    #[error("target t_B = {t_b_s} s, course {course_deg}°: {source}")]
+    #[error("target t_B = {t_b_s} s, course {course_deg}°: {reason}")]
     Trajectory {
         /// t_B of the target.
         t_b_s: f64,
         /// Course.
         course_deg: f64,
-        /// Why.
-        source: TrajectoryError,
+        /// Why (part of the message, so not also the `Error::source`).
+        reason: TrajectoryError,
     },
     /// The filter.
     #[error(transparent)]

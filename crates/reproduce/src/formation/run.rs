@@ -183,6 +183,27 @@ mod tests {
         assert_eq!(e.key, "denial[0].members");
     }
 
+    /// σ keys have physical ranges: a σ whose square underflows, or a
+    /// period that makes the weave's rate overflow, is refused by name.
+    #[test]
+    fn sigmas_and_periods_out_of_physical_range_are_named() {
+        let mut sc = FormationScenario::default();
+        sc.sensor.range_sigma_m = 1e-170;
+        assert_eq!(sc.validate().unwrap_err().key, "sensor.range_sigma_m");
+        let sc = FormationScenario {
+            weave_period_s: 1e-300,
+            ..FormationScenario::default()
+        };
+        assert_eq!(sc.validate().unwrap_err().key, "weave_period_s");
+        let mut sc = FormationScenario::default();
+        sc.model.gnss.velocity_sigma_mps = f64::INFINITY;
+        assert_eq!(
+            sc.validate().unwrap_err().key,
+            "model.gnss.velocity_sigma_mps"
+        );
+        assert!(FormationScenario::default().validate().is_ok());
+    }
+
     /// Short flight, few runs: the group beats GNSS/INS alone for every
     /// member, and the denied member's error stays bounded inside the group
     /// while alone it drifts.

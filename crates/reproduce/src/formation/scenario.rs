@@ -3,9 +3,7 @@
 
 use aidnav_ins::local_level::LocalLevelState;
 use aidnav_integration::group::FusionParams;
-use aidnav_io::config::{
-    Invalid, Validate, all_positive, count_in_range, in_range, non_negative, positive,
-};
+use aidnav_io::config::{Invalid, Validate, all_in_range, count_in_range, in_range};
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::{Denial, FormationScenario};
@@ -51,66 +49,123 @@ impl Validate for FormationScenario {
             0.0,
             self.duration_s - self.fix_interval_s,
         )?;
-        positive("speed_mps", self.speed_mps)?;
-        for (k, v) in [
-            ("altitude_m", self.altitude_m),
-            ("weave_amplitude_m", self.weave_amplitude_m),
-            ("climb_amplitude_m", self.climb_amplitude_m),
-        ] {
-            non_negative(k, v)?;
-        }
-        positive("weave_period_s", self.weave_period_s)?;
-        positive("climb_period_s", self.climb_period_s)?;
-        positive("spacing_m", self.spacing_m)?;
-        positive("group_accel_sigma_m_s2", self.group_accel_sigma_m_s2)?;
+        // Physical ranges, not just "> 0": a σ of 1e-170 squares to zero and
+        // a period of 1e-300 overflows the weave's angular rate.
+        use std::f64::consts::PI;
+        all_in_range(
+            "",
+            &[
+                ("speed_mps", self.speed_mps, 0.1, 1_000.0),
+                ("altitude_m", self.altitude_m, 0.0, 50_000.0),
+                ("weave_amplitude_m", self.weave_amplitude_m, 0.0, 100_000.0),
+                ("climb_amplitude_m", self.climb_amplitude_m, 0.0, 10_000.0),
+                ("weave_period_s", self.weave_period_s, 1.0, 1e6),
+                ("climb_period_s", self.climb_period_s, 1.0, 1e6),
+                ("spacing_m", self.spacing_m, 0.1, 100_000.0),
+                (
+                    "group_accel_sigma_m_s2",
+                    self.group_accel_sigma_m_s2,
+                    1e-6,
+                    100.0,
+                ),
+            ],
+        )?;
         let i = &self.initial;
-        all_positive(
+        all_in_range(
             "initial",
             &[
-                ("position_sigma_m", i.position_sigma_m),
-                ("velocity_sigma_mps", i.velocity_sigma_mps),
-                ("tilt_sigma_rad", i.tilt_sigma_rad),
-                ("heading_sigma_rad", i.heading_sigma_rad),
+                ("position_sigma_m", i.position_sigma_m, 1e-4, 1e6),
+                ("velocity_sigma_mps", i.velocity_sigma_mps, 1e-5, 1e4),
+                ("tilt_sigma_rad", i.tilt_sigma_rad, 1e-7, PI),
+                ("heading_sigma_rad", i.heading_sigma_rad, 1e-7, PI),
             ],
         )?;
         let imu = &self.model.imu;
-        all_positive(
+        all_in_range(
             "model.imu",
             &[
-                ("accel_bias_sigma_m_s2", imu.accel_bias_sigma_m_s2),
-                ("accel_bias_correlation_s", imu.accel_bias_correlation_s),
-                ("gyro_bias_sigma_rad_s", imu.gyro_bias_sigma_rad_s),
-                ("gyro_bias_correlation_s", imu.gyro_bias_correlation_s),
-                ("velocity_random_walk", imu.velocity_random_walk),
-                ("angle_random_walk", imu.angle_random_walk),
+                (
+                    "accel_bias_sigma_m_s2",
+                    imu.accel_bias_sigma_m_s2,
+                    1e-8,
+                    10.0,
+                ),
+                (
+                    "accel_bias_correlation_s",
+                    imu.accel_bias_correlation_s,
+                    1.0,
+                    1e8,
+                ),
+                (
+                    "gyro_bias_sigma_rad_s",
+                    imu.gyro_bias_sigma_rad_s,
+                    1e-10,
+                    0.1,
+                ),
+                (
+                    "gyro_bias_correlation_s",
+                    imu.gyro_bias_correlation_s,
+                    1.0,
+                    1e8,
+                ),
+                ("velocity_random_walk", imu.velocity_random_walk, 1e-8, 10.0),
+                ("angle_random_walk", imu.angle_random_walk, 1e-9, 1.0),
             ],
         )?;
         let gnss = &self.model.gnss;
-        all_positive(
+        all_in_range(
             "model.gnss",
             &[
                 (
                     "position_horizontal_sigma_m",
                     gnss.position_horizontal_sigma_m,
+                    1e-4,
+                    1e4,
                 ),
-                ("position_vertical_sigma_m", gnss.position_vertical_sigma_m),
-                ("position_correlation_s", gnss.position_correlation_s),
-                ("position_white_sigma_m", gnss.position_white_sigma_m),
-                ("velocity_sigma_mps", gnss.velocity_sigma_mps),
-                ("velocity_correlation_s", gnss.velocity_correlation_s),
-                ("velocity_white_sigma_mps", gnss.velocity_white_sigma_mps),
+                (
+                    "position_vertical_sigma_m",
+                    gnss.position_vertical_sigma_m,
+                    1e-4,
+                    1e4,
+                ),
+                (
+                    "position_correlation_s",
+                    gnss.position_correlation_s,
+                    0.01,
+                    1e8,
+                ),
+                (
+                    "position_white_sigma_m",
+                    gnss.position_white_sigma_m,
+                    1e-4,
+                    1e4,
+                ),
+                ("velocity_sigma_mps", gnss.velocity_sigma_mps, 1e-5, 100.0),
+                (
+                    "velocity_correlation_s",
+                    gnss.velocity_correlation_s,
+                    0.01,
+                    1e8,
+                ),
+                (
+                    "velocity_white_sigma_mps",
+                    gnss.velocity_white_sigma_mps,
+                    1e-5,
+                    100.0,
+                ),
             ],
         )?;
         let s = &self.sensor;
-        all_positive(
+        all_in_range(
             "sensor",
             &[
-                ("range_sigma_m", s.range_sigma_m),
-                ("bearing_sigma_rad", s.bearing_sigma_rad),
-                ("elevation_sigma_rad", s.elevation_sigma_rad),
-                ("range_limit_m", s.range_limit_m),
+                ("range_sigma_m", s.range_sigma_m, 1e-4, 1e4),
+                ("bearing_sigma_rad", s.bearing_sigma_rad, 1e-7, PI),
+                ("elevation_sigma_rad", s.elevation_sigma_rad, 1e-7, PI),
+                ("range_limit_m", s.range_limit_m, 1.0, 1e7),
             ],
         )?;
+        count_in_range("denial", self.denial.len(), 0, 1_000)?;
         for (i, d) in self.denial.iter().enumerate() {
             let key = format!("denial[{i}]");
             if let Some(&m) = d.members.iter().find(|&&m| m >= self.members) {

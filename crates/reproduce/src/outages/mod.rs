@@ -385,12 +385,21 @@ pub enum OutagesError {
     #[error(transparent)]
     Estimation(#[from] EstimationError),
     /// The self-organising model selection at the outage start.
+    ///
+    /// The cause is part of the message and deliberately not also returned
+    /// by `Error::source`, so a printer walking the chain shows it once.
     #[error("model selection at the outage start: {0}")]
-    Model(#[from] aidnav_estimation::gmdh::GmdhError),
+    Model(aidnav_estimation::gmdh::GmdhError),
     /// A quantity the scenario's bounds keep valid was not (σ² of the GNSS
     /// velocity, the filter's variance): an error, never a panic.
     #[error("{0} is not a positive finite variance")]
     Variance(&'static str),
+}
+
+impl From<aidnav_estimation::gmdh::GmdhError> for OutagesError {
+    fn from(error: aidnav_estimation::gmdh::GmdhError) -> Self {
+        OutagesError::Model(error)
+    }
 }
 
 mod simulate;
