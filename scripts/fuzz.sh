@@ -13,7 +13,8 @@ shift || true
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || mapfile -t targets < <(cargo +nightly fuzz list)
-cargo +nightly fuzz build -O "${targets[@]}" >/dev/null
+# `cargo fuzz build` takes one target (or none: all of them).
+for t in "${targets[@]}"; do cargo +nightly fuzz build -O "$t" >/dev/null; done
 mkdir -p logs
 run_one() {
   local t=$1
