@@ -26,7 +26,7 @@ git worktree prune
 git worktree add --detach "$tree" "$base_sha" >/dev/null
 data=${DATA:-}
 if [ -z "$data" ]; then
-  for d in "$top/examples/data/drive_0708" "$top/../shared/data/rtklibexplorer-gnss-imu/drive_0708"; do
+  for d in "$top/data/rtklibexplorer-gnss-imu/drive_0708" "$top/../shared/data/rtklibexplorer-gnss-imu/drive_0708"; do
     if [ -d "$d" ]; then data=$(cd "$d" && pwd); break; fi
   done
 fi

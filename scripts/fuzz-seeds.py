@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """Cut the fuzz targets' seed corpora (fuzz/corpus/<target>/seed-*) from the
-recorded logs in ../shared/data (or DATA=dir) and from the examples. Seeds
+recorded logs in data/ (or DATA=dir) and from the examples. Seeds
 are small on purpose (a few kB): the fuzzer grows them."""
 import math, os, pathlib, struct, sys
 
 top = pathlib.Path(__file__).resolve().parent.parent
-data = pathlib.Path(os.environ.get("DATA", top.parent / "shared/data/rtklibexplorer-gnss-imu"))
+data = pathlib.Path(os.environ.get("DATA", top / "data/rtklibexplorer-gnss-imu"))
 drive, walk = data / "drive_0708", data / "walk_0827"
 corpus = top / "fuzz/corpus"
 

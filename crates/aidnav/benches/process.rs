@@ -4,7 +4,7 @@
 //! GNSS and non-holonomic updates), and writing the solution CSV.
 //! Divide 54 858 by the time for IMU epochs per second.
 //!
-//! `cargo bench -p aidnav --bench process` (needs ../shared/data beside the
+//! `cargo bench -p aidnav --bench process` (reads data/ of the
 //! repository).
 
 use std::hint::black_box;

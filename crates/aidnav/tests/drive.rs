@@ -1,4 +1,4 @@
-//! End to end on the recorded car drive (../shared/data, as in CI): the
+//! End to end on the recorded car drive (data/ in the repository): the
 //! example configuration, GNSS withheld in 30 s windows.
 //!
 //! Bound: over 30 s a free INS built from this consumer MEMS IMU (started

@@ -69,8 +69,11 @@ enum Command {
     /// The configuration (TOML) names the files (`[data]`: GNSS as RTKLIB
     /// `.pos`, KF-GINS text or NMEA; IMU as raw CSV with its RTKLIB `.tag`,
     /// KF-GINS increments or generic CSV), the IMU mounting, smoothing and
-    /// noise, the initialisation and the lever arm; examples/drive_0708.toml
-    /// documents every key. Writes solution.csv, instruments.csv,
+    /// noise, the initialisation and the lever arm. `--print-config` writes
+    /// a complete configuration with every key, its default and a comment;
+    /// `platform = "car" | "pedestrian" | "aircraft" | "generic"` presets
+    /// the constraints and thresholds. Examples: examples/drive_0708.toml
+    /// (the car drive) and examples/walk_0827.toml (the handheld walk). Writes solution.csv, instruments.csv,
     /// smoothed.csv, trajectory.svg, innovations.svg, outage_drift.svg and
     /// summary.json, and prints the score tables: simulated GNSS outages of
     /// 10/30/60 s (RMS over windows of the maximum drift against the
@@ -84,8 +87,16 @@ enum Command {
 #[derive(Debug, Args)]
 struct ProcessArgs {
     /// Configuration file (TOML).
-    #[arg(value_name = "CONFIG.toml")]
-    config: PathBuf,
+    #[arg(value_name = "CONFIG.toml", required_unless_present = "print_config")]
+    config: Option<PathBuf>,
+    /// Print a complete configuration (every key, its default, a comment)
+    /// for `--platform` and exit.
+    #[arg(long)]
+    print_config: bool,
+    /// The platform preset of `--print-config`.
+    #[arg(long, value_name = "PLATFORM", default_value = "generic",
+          value_parser = ["car", "pedestrian", "aircraft", "generic"])]
+    platform: String,
     /// Directory of the data files (replaces data.dir of the configuration).
     #[arg(long, value_name = "DIR")]
     data: Option<PathBuf>,

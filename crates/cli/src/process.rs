@@ -8,12 +8,20 @@ use anyhow::Result;
 use super::ProcessArgs;
 
 pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
-    let stem = a
-        .config
+    if a.print_config {
+        let platform: aidnav::process::Platform =
+            serde_json::from_value(serde_json::Value::String(a.platform.clone()))?;
+        print!("{}", aidnav::process::config_template(platform));
+        return Ok(());
+    }
+    let Some(config) = a.config else {
+        anyhow::bail!("a configuration file is needed (or --print-config)");
+    };
+    let stem = config
         .file_stem()
         .map_or_else(|| "process".into(), |s| s.to_string_lossy().into_owned());
     let out = a.out.unwrap_or_else(|| Path::new("results").join(stem));
-    let r = jobs::process(&a.config, a.data.as_deref(), &out, !a.no_score)?;
+    let r = jobs::process(&config, a.data.as_deref(), &out, !a.no_score)?;
     for w in &r.warnings {
         eprintln!("warning: {w}");
     }

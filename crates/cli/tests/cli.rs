@@ -550,7 +550,7 @@ fn process_names_file_line_and_key_of_a_bad_config() {
 fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
     let dir = tempfile::tempdir().unwrap();
     let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
-    let data = repo().join("../shared/data/rtklibexplorer-gnss-imu/drive_0708");
+    let data = repo().join("data/rtklibexplorer-gnss-imu/drive_0708");
     let config = example
         .replace(
             "# attitude_deg = [0.0, 0.0, 90.0]",

@@ -690,7 +690,7 @@ mod tests {
 
     fn data() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../../shared/data/rtklibexplorer-gnss-imu/drive_0708")
+            .join("../../data/rtklibexplorer-gnss-imu/drive_0708")
     }
 
     #[test]

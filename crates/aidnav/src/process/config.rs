@@ -75,15 +75,16 @@ pub struct DataFiles {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ImuConfig {
-    /// Added to the IMU time \[s\] (logging delay). Default −0.125.
+    /// Added to the IMU time \[s\] (a logging delay). Default 0.
     pub time_offset_s: f64,
     /// Sensor → body rotation as (roll, pitch, yaw) \[deg\], Groves'
-    /// Euler_to_CTM: `f_body = C(roll, pitch, yaw) f_sensor`. Default the
-    /// data set's [180, −6.79, 185.35].
+    /// Euler_to_CTM: `f_body = C(roll, pitch, yaw) f_sensor`; body axes
+    /// forward, right, down. Default [0, 0, 0] (the sensor frame is the body
+    /// frame).
     #[serde(deserialize_with = "exact_array")]
     pub mounting_deg: [f64; 3],
-    /// Zero-phase moving-average window \[s\] (0: none). Default 0.1
-    /// (the data set's gyros carry a strong vibration line).
+    /// Zero-phase moving-average window \[s\] (0: none), against a
+    /// vibration line in the gyros. Default 0.
     pub smoothing_s: f64,
     /// Noise terms of the filter model.
     pub noise: aidnav_models::ned_ins::ImuNoise,
@@ -92,9 +93,9 @@ pub struct ImuConfig {
 impl Default for ImuConfig {
     fn default() -> Self {
         Self {
-            time_offset_s: -0.125,
-            mounting_deg: [180.0, -6.79, 185.35],
-            smoothing_s: 0.1,
+            time_offset_s: 0.0,
+            mounting_deg: [0.0; 3],
+            smoothing_s: 0.0,
             noise: aidnav_models::ned_ins::ImuNoise::default(),
         }
     }
@@ -104,14 +105,28 @@ impl Default for ImuConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct InitialConfig {
-    /// Static period at the start used for levelling and gyro bias \[s\]. Default 5.
+    /// Length of the standstill window at the start used for levelling and
+    /// the gyro bias \[s\]: the log's first `static_s` seconds when they
+    /// are a standstill (see `[standstill]`); otherwise the filter aligns in
+    /// motion. Default 5.
     pub static_s: f64,
-    /// GNSS speed above which the course gives the heading [m/s]. Default 2.
-    pub heading_speed_mps: f64,
-    /// Prior σ of the heading \[deg\]. Default 5.
+    /// GNSS speed above which the course gives the heading [m/s]. Default
+    /// from the platform (car 2, pedestrian 0.5, aircraft 10, generic 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading_speed_mps: Option<f64>,
+    /// Prior σ of the heading \[deg\]. Default 5 after a static start
+    /// (the heading from the course as the vehicle drives off), 10 after an
+    /// alignment in motion.
     pub heading_sigma_deg: f64,
-    /// Prior σ of roll and pitch \[deg\]. Default 0.5.
+    /// Prior σ of roll and pitch \[deg\]. Default 0.5 after levelling at
+    /// rest; an alignment in motion takes `moving_tilt_sigma_deg`.
     pub tilt_sigma_deg: f64,
+    /// Prior σ of roll and pitch after an alignment in motion \[deg\]
+    /// (roll is unknown, pitch from the climb angle). Default 5.
+    pub moving_tilt_sigma_deg: f64,
+    /// Prior σ of the heading after an alignment in motion \[deg\]
+    /// (body axis and course differ by a sideslip or crab angle). Default 10.
+    pub moving_heading_sigma_deg: f64,
     /// A given initial attitude (roll, pitch, yaw) \[deg\] instead of
     /// levelling and the GNSS course; the gyro bias then starts at zero.
     /// Default none.
@@ -126,9 +141,11 @@ impl Default for InitialConfig {
     fn default() -> Self {
         Self {
             static_s: 5.0,
-            heading_speed_mps: 2.0,
+            heading_speed_mps: None,
             heading_sigma_deg: 5.0,
             tilt_sigma_deg: 0.5,
+            moving_tilt_sigma_deg: 5.0,
+            moving_heading_sigma_deg: 10.0,
             attitude_deg: None,
             velocity_ned_mps: None,
         }
@@ -140,7 +157,7 @@ impl Default for InitialConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct GnssConfig {
     /// Lever arm IMU → antenna in the body frame (forward, right, down) \[m\].
-    /// Default the data set's [0, −0.05, 0].
+    /// Default [0, 0, 0].
     #[serde(deserialize_with = "exact_array")]
     pub lever_arm_m: [f64; 3],
     /// Use the velocity columns. Default true.
@@ -149,6 +166,9 @@ pub struct GnssConfig {
     pub min_position_sigma_m: f64,
     /// Floor on the velocity σ [m/s]. Default 0.02.
     pub min_velocity_sigma_mps: f64,
+    /// σ of non-fixed solutions (position and velocity) × these factors,
+    /// by fix quality.
+    pub quality_sigma_scale: QualitySigmaScale,
     /// Measurement policy of the GNSS updates (main run and outage scores):
     /// `accept`, `chi2_gate`, `recovering_gate`, `huber`, `rejection` or
     /// `limiting` (spec 20's detector with rejection or limiting). Default `accept`
@@ -173,8 +193,9 @@ pub struct GnssConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct ConstraintConfig {
     /// Non-holonomic constraint (zero lateral and vertical body velocity)
-    /// for a land vehicle. Default false.
-    pub non_holonomic: bool,
+    /// for a land vehicle. Default from the platform (car: on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub non_holonomic: Option<bool>,
     /// Its σ [m/s] (the IMU is not at the wheel contact; turns and bumps
     /// break the constraint by this much). Default 0.1.
     pub non_holonomic_sigma_mps: f64,
@@ -182,15 +203,158 @@ pub struct ConstraintConfig {
     pub non_holonomic_rate_hz: f64,
     /// Not applied below this speed [m/s]. Default 1.
     pub min_speed_mps: f64,
+    /// Zero-velocity and zero-angular-rate updates while a standstill is
+    /// detected (`[standstill]`). Default from the platform (car and
+    /// pedestrian: on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zero_velocity: Option<bool>,
+    /// σ of the zero-velocity update per axis [m/s] (a standing car rocks,
+    /// a hand trembles). Default 0.02.
+    pub zero_velocity_sigma_mps: f64,
+    /// σ of the zero-angular-rate update per axis \[deg/s\] (vibration).
+    /// Default 0.1.
+    pub zero_angular_rate_sigma_deg_s: f64,
+    /// Rate of both standstill updates \[Hz\]. Default 10.
+    pub zero_velocity_rate_hz: f64,
 }
 
 impl Default for ConstraintConfig {
     fn default() -> Self {
         Self {
-            non_holonomic: false,
+            non_holonomic: None,
             non_holonomic_sigma_mps: 0.1,
             non_holonomic_rate_hz: 10.0,
             min_speed_mps: 1.0,
+            zero_velocity: None,
+            zero_velocity_sigma_mps: 0.02,
+            zero_angular_rate_sigma_deg_s: 0.1,
+            zero_velocity_rate_hz: 10.0,
+        }
+    }
+}
+
+/// The kind of vehicle: its preset chooses the constraints and the
+/// thresholds of the keys left out of the configuration.
+///
+/// | preset | non-holonomic | standstill updates | heading speed | standstill: accel / gyro std |
+/// | --- | --- | --- | --- | --- |
+/// | `car` | on | on | 2 m/s | 0.3 m/s² / 3 °/s (engine vibration) |
+/// | `pedestrian` | off | on | 0.5 m/s | 0.25 m/s² / 1 °/s |
+/// | `aircraft` | off | off | 10 m/s | 0.1 m/s² / 0.5 °/s |
+/// | `generic` | off | off | 1 m/s | 0.2 m/s² / 1 °/s |
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Platform {
+    /// A land vehicle on wheels.
+    Car,
+    /// A walker carrying the sensors (in hand, on the body).
+    Pedestrian,
+    /// An aircraft (no constraint; it never stands still in flight).
+    Aircraft,
+    /// Nothing assumed (the default).
+    #[default]
+    Generic,
+}
+
+/// What a [`Platform`] preset sets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlatformPreset {
+    /// The non-holonomic constraint.
+    pub non_holonomic: bool,
+    /// Zero-velocity and zero-angular-rate updates at standstill.
+    pub zero_velocity: bool,
+    /// GNSS speed above which the course gives the heading [m/s].
+    pub heading_speed_mps: f64,
+    /// Standstill: largest std of each accelerometer axis over the window [m/s²].
+    pub standstill_accel_std_mps2: f64,
+    /// Standstill: largest std of each gyro axis over the window \[deg/s\].
+    pub standstill_gyro_std_deg_s: f64,
+}
+
+impl Platform {
+    /// The preset's values.
+    pub fn preset(self) -> PlatformPreset {
+        let (non_holonomic, zero_velocity, heading_speed_mps, accel, gyro) = match self {
+            // A car's engine shakes the IMU at a light: the gyro line of a
+            // consumer MEMS sensor reaches a few °/s; GNSS speed decides.
+            Platform::Car => (true, true, 2.0, 0.3, 3.0),
+            Platform::Pedestrian => (false, true, 0.5, 0.25, 1.0),
+            Platform::Aircraft => (false, false, 10.0, 0.1, 0.5),
+            Platform::Generic => (false, false, 1.0, 0.2, 1.0),
+        };
+        PlatformPreset {
+            non_holonomic,
+            zero_velocity,
+            heading_speed_mps,
+            standstill_accel_std_mps2: accel,
+            standstill_gyro_std_deg_s: gyro,
+        }
+    }
+}
+
+/// Standstill detection: a window of IMU samples whose every axis varies
+/// less than the thresholds, while the speed (the latest GNSS fix's within
+/// a second, else the filter's own) is below `max_speed_mps`. It chooses
+/// levelling at rest over an alignment in motion and drives the
+/// zero-velocity updates.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StandstillConfig {
+    /// Window of the IMU statistics \[s\]. Default 0.5.
+    pub window_s: f64,
+    /// Largest speed of a standstill [m/s]. Default 0.2.
+    pub max_speed_mps: f64,
+    /// Largest std of each accelerometer axis [m/s²]. Default from the platform.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_accel_std_mps2: Option<f64>,
+    /// Largest std of each gyro axis \[deg/s\]. Default from the platform.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_gyro_std_deg_s: Option<f64>,
+}
+
+impl Default for StandstillConfig {
+    fn default() -> Self {
+        Self {
+            window_s: 0.5,
+            max_speed_mps: 0.2,
+            max_accel_std_mps2: None,
+            max_gyro_std_deg_s: None,
+        }
+    }
+}
+
+/// σ of non-fixed GNSS solutions × these factors: receivers report
+/// optimistic σ for float and single solutions (RTKLIB explorer's settings
+/// use 2 and 5). RTK fixed is taken as reported.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct QualitySigmaScale {
+    /// RTK float (RTKLIB Q 2). Default 2.
+    pub float: f64,
+    /// DGPS / SBAS (Q 4). Default 3.
+    pub dgps: f64,
+    /// Single point (Q 5) and anything else that is not fixed. Default 5.
+    pub single: f64,
+}
+
+impl Default for QualitySigmaScale {
+    fn default() -> Self {
+        Self {
+            float: 2.0,
+            dgps: 3.0,
+            single: 5.0,
+        }
+    }
+}
+
+impl QualitySigmaScale {
+    /// The factor of a fix of RTKLIB quality `q` (1 fixed: 1).
+    pub fn factor(&self, q: u8) -> f64 {
+        match q {
+            1 => 1.0,
+            2 => self.float,
+            4 => self.dgps,
+            _ => self.single,
         }
     }
 }
@@ -198,10 +362,11 @@ impl Default for ConstraintConfig {
 impl Default for GnssConfig {
     fn default() -> Self {
         Self {
-            lever_arm_m: [0.0, -0.05, 0.0],
+            lever_arm_m: [0.0; 3],
             use_velocity: true,
             min_position_sigma_m: 0.01,
             min_velocity_sigma_mps: 0.02,
+            quality_sigma_scale: QualitySigmaScale::default(),
             policy: PolicyName::Accept,
             anomaly_gamma: 9.0,
             adaptive_window: 20,
@@ -413,6 +578,10 @@ impl Default for OutputConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProcessConfig {
+    /// The kind of vehicle: chooses the constraints and thresholds left
+    /// out of the file ([`Platform`]). Default `generic`.
+    #[serde(default)]
+    pub platform: Platform,
     /// Input files.
     pub data: DataFiles,
     /// IMU handling.
@@ -427,6 +596,9 @@ pub struct ProcessConfig {
     /// Vehicle constraints.
     #[serde(default)]
     pub constraints: ConstraintConfig,
+    /// Standstill detection.
+    #[serde(default)]
+    pub standstill: StandstillConfig,
     /// The filter.
     #[serde(default)]
     pub filter: FilterConfig,
@@ -442,6 +614,67 @@ pub struct ProcessConfig {
     /// Outputs.
     #[serde(default)]
     pub output: OutputConfig,
+}
+
+impl ProcessConfig {
+    /// Whether the non-holonomic constraint is applied (the key, else the platform).
+    pub fn non_holonomic(&self) -> bool {
+        self.constraints
+            .non_holonomic
+            .unwrap_or(self.platform.preset().non_holonomic)
+    }
+
+    /// Whether the standstill updates are applied (the key, else the platform).
+    pub fn zero_velocity(&self) -> bool {
+        self.constraints
+            .zero_velocity
+            .unwrap_or(self.platform.preset().zero_velocity)
+    }
+
+    /// GNSS speed above which the course gives the heading (the key, else
+    /// the platform) [m/s].
+    pub fn heading_speed_mps(&self) -> f64 {
+        self.initial
+            .heading_speed_mps
+            .unwrap_or(self.platform.preset().heading_speed_mps)
+    }
+
+    /// Standstill thresholds: (accelerometer std [m/s²], gyro std [rad/s]),
+    /// the keys, else the platform's.
+    pub fn standstill_thresholds(&self) -> (f64, f64) {
+        let p = self.platform.preset();
+        (
+            self.standstill
+                .max_accel_std_mps2
+                .unwrap_or(p.standstill_accel_std_mps2),
+            self.standstill
+                .max_gyro_std_deg_s
+                .unwrap_or(p.standstill_gyro_std_deg_s)
+                .to_radians(),
+        )
+    }
+
+    /// Every key that a preset decides and the file left out, set to the
+    /// platform's value (what `--print-config` writes and `summary.json`
+    /// echoes).
+    pub fn resolved(&self) -> Self {
+        let mut c = self.clone();
+        let p = self.platform.preset();
+        c.constraints.non_holonomic = Some(self.non_holonomic());
+        c.constraints.zero_velocity = Some(self.zero_velocity());
+        c.initial.heading_speed_mps = Some(self.heading_speed_mps());
+        c.standstill.max_accel_std_mps2 = Some(
+            self.standstill
+                .max_accel_std_mps2
+                .unwrap_or(p.standstill_accel_std_mps2),
+        );
+        c.standstill.max_gyro_std_deg_s = Some(
+            self.standstill
+                .max_gyro_std_deg_s
+                .unwrap_or(p.standstill_gyro_std_deg_s),
+        );
+        c
+    }
 }
 
 /// Measurement policy of a run: a scheme of the engine's registry

@@ -28,6 +28,7 @@ pub mod export;
 pub mod run;
 pub mod score;
 pub mod scoring;
+pub mod template;
 mod validate;
 
 pub use api::*;
@@ -35,6 +36,7 @@ pub use config::*;
 pub use run::*;
 pub use score::*;
 pub use scoring::*;
+pub use template::{config_template, doc_of};
 
 pub use aidnav_ins::mounting::euler_to_ctm;
 
@@ -268,7 +270,7 @@ fn align(
         .iter()
         .find(|g| {
             g.velocity_ned
-                .is_some_and(|v| v.xy().norm() > cfg.initial.heading_speed_mps)
+                .is_some_and(|v| v.xy().norm() > cfg.heading_speed_mps())
         })
         .ok_or_else(|| {
             ProcessError::Data(

@@ -21,7 +21,7 @@ use aidnav_models::ned_ins::{
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
 use nalgebra::Vector3;
 
-use super::config::{AdaptiveNoise, Feedback, PolicyName};
+use super::config::{AdaptiveNoise, Feedback, PolicyName, QualitySigmaScale};
 use super::{Inputs, ProcessConfig, ProcessError, initialise};
 
 pub use aidnav_integration::ned_loop::SolutionRow;
@@ -238,6 +238,18 @@ fn new_filter(
     Ok((filter, start))
 }
 
+/// σ of every non-fixed solution × its quality's factor (position and
+/// velocity), before the σ floors of the loop.
+fn inflate_by_quality(fixes: &mut [AidingFix], scale: &QualitySigmaScale) {
+    for f in fixes {
+        let k = scale.factor(f.fix.quality);
+        f.fix.position_sigma_neu *= k;
+        if let Some(v) = f.fix.velocity_sigma_neu.as_mut() {
+            *v *= k;
+        }
+    }
+}
+
 /// Whether a run under `plan` keeps the forward pass for the smoother.
 fn smoothing(cfg: &ProcessConfig, plan: &RunPlan) -> bool {
     plan.smooth && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed
@@ -250,7 +262,7 @@ fn loop_config(cfg: &ProcessConfig, plan: &RunPlan, interval_s: f64) -> LoopConf
         min_position_sigma_m: cfg.gnss.min_position_sigma_m,
         use_velocity: cfg.gnss.use_velocity,
         min_velocity_sigma_mps: cfg.gnss.min_velocity_sigma_mps,
-        non_holonomic: nhc.non_holonomic.then_some(NonHolonomic {
+        non_holonomic: cfg.non_holonomic().then_some(NonHolonomic {
             rate_hz: nhc.non_holonomic_rate_hz,
             sigma_mps: nhc.non_holonomic_sigma_mps,
             min_speed_mps: nhc.min_speed_mps,
@@ -273,7 +285,8 @@ pub fn run_filter_rows(
 ) -> Result<Run, ProcessError> {
     let (mut filter, start) = new_filter(cfg, inputs, plan, policy)?;
     let (imu, gnss) = (&inputs.imu, &inputs.gnss);
-    let fixes = plan.prepare(gnss);
+    let mut fixes = plan.prepare(gnss);
+    inflate_by_quality(&mut fixes, &cfg.gnss.quality_sigma_scale);
     let span = imu[imu.len() - 1].time_s - imu[start].time_s;
     let mut collector = Collector {
         fixes: Vec::with_capacity(gnss.len()),

@@ -55,12 +55,22 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
     }
     let i = &cfg.initial;
     bounded("initial", "static_s", i.static_s, 1e-3, 3600.0)?;
+    if let Some(v) = i.heading_speed_mps {
+        bounded("initial", "heading_speed_mps", v, 1e-3, 1000.0)?;
+    }
     bounded(
         "initial",
-        "heading_speed_mps",
-        i.heading_speed_mps,
-        1e-3,
-        1000.0,
+        "moving_heading_sigma_deg",
+        i.moving_heading_sigma_deg,
+        1e-6,
+        180.0,
+    )?;
+    bounded(
+        "initial",
+        "moving_tilt_sigma_deg",
+        i.moving_tilt_sigma_deg,
+        1e-6,
+        90.0,
     )?;
     bounded(
         "initial",
@@ -108,6 +118,40 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
         1e4,
     )?;
     bounded("constraints", "min_speed_mps", c.min_speed_mps, 0.0, 1000.0)?;
+    bounded(
+        "constraints",
+        "zero_velocity_sigma_mps",
+        c.zero_velocity_sigma_mps,
+        1e-6,
+        10.0,
+    )?;
+    bounded(
+        "constraints",
+        "zero_angular_rate_sigma_deg_s",
+        c.zero_angular_rate_sigma_deg_s,
+        1e-6,
+        100.0,
+    )?;
+    bounded(
+        "constraints",
+        "zero_velocity_rate_hz",
+        c.zero_velocity_rate_hz,
+        1e-3,
+        1e4,
+    )?;
+    let st = &cfg.standstill;
+    bounded("standstill", "window_s", st.window_s, 0.01, 60.0)?;
+    bounded("standstill", "max_speed_mps", st.max_speed_mps, 0.0, 10.0)?;
+    if let Some(v) = st.max_accel_std_mps2 {
+        bounded("standstill", "max_accel_std_mps2", v, 1e-6, 100.0)?;
+    }
+    if let Some(v) = st.max_gyro_std_deg_s {
+        bounded("standstill", "max_gyro_std_deg_s", v, 1e-6, 1000.0)?;
+    }
+    let q = &cfg.gnss.quality_sigma_scale;
+    for (key, value) in [("float", q.float), ("dgps", q.dgps), ("single", q.single)] {
+        bounded("gnss.quality_sigma_scale", key, value, 1.0, 1e4)?;
+    }
     if let Some(sg) = cfg.efficiency.sigma_gnss_m {
         bounded("efficiency", "sigma_gnss_m", sg, 1e-9, 1e4)?;
     }
@@ -159,7 +203,6 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
         "initial",
         &[
             ("static_s", cfg.initial.static_s),
-            ("heading_speed_mps", cfg.initial.heading_speed_mps),
             ("heading_sigma_deg", cfg.initial.heading_sigma_deg),
             ("tilt_sigma_deg", cfg.initial.tilt_sigma_deg),
         ],

@@ -1,0 +1,469 @@
+//! `aidnav process --print-config`: a complete configuration with every key,
+//! its default (the platform's where a preset decides) and a comment.
+//!
+//! The text is the serialized default configuration, so it cannot drift
+//! from the code: each `key = value` line gets its comment from [`KEY_DOCS`]
+//! (a test fails when a key has none), and the keys that default to "none"
+//! are written commented out from [`OPTIONAL_KEYS`].
+
+use super::config::{DataFiles, Platform, ProcessConfig};
+
+/// One line of help per key, by dotted path, in no particular order.
+pub const KEY_DOCS: &[(&str, &str)] = &[
+    (
+        "platform",
+        "car | pedestrian | aircraft | generic: presets the constraints and thresholds marked (preset)",
+    ),
+    ("data.dir", "directory of the files, relative to this file"),
+    ("data.imu", "IMU file"),
+    (
+        "data.imu_format",
+        "rtklib_tagged (raw CSV in g and deg/s + .tag) | kf_gins (increments) | generic_csv",
+    ),
+    ("data.gnss", "GNSS file"),
+    (
+        "data.gnss_format",
+        "rtklib_pos | kf_gins | nmea (GGA + RMC, GST for σ)",
+    ),
+    (
+        "imu.time_offset_s",
+        "added to the IMU time [s] (a logging delay)",
+    ),
+    (
+        "imu.mounting_deg",
+        "sensor → body (roll, pitch, yaw) [deg], Groves' Euler_to_CTM; body forward, right, down",
+    ),
+    (
+        "imu.smoothing_s",
+        "zero-phase moving average [s] against a gyro vibration line (0: none)",
+    ),
+    ("imu.noise.arw_deg_per_sqrt_h", "angle random walk [deg/√h]"),
+    (
+        "imu.noise.vrw_mps_per_sqrt_h",
+        "velocity random walk [m/s/√h]",
+    ),
+    (
+        "imu.noise.gyro_bias_deg_per_h",
+        "gyro bias instability σ [deg/h]",
+    ),
+    (
+        "imu.noise.accel_bias_mg",
+        "accelerometer bias instability σ [mg]",
+    ),
+    ("imu.noise.gyro_scale_ppm", "gyro scale-factor σ [ppm]"),
+    (
+        "imu.noise.accel_scale_ppm",
+        "accelerometer scale-factor σ [ppm]",
+    ),
+    (
+        "imu.noise.correlation_s",
+        "correlation time of the biases and scale factors [s]",
+    ),
+    (
+        "initial.static_s",
+        "standstill window at the start for levelling and the gyro bias [s]; not a standstill: align in motion",
+    ),
+    (
+        "initial.heading_speed_mps",
+        "(preset) GNSS speed above which the course gives the heading [m/s]",
+    ),
+    (
+        "initial.heading_sigma_deg",
+        "prior σ of the heading after a static start [deg]",
+    ),
+    (
+        "initial.tilt_sigma_deg",
+        "prior σ of roll and pitch after levelling at rest [deg]",
+    ),
+    (
+        "initial.moving_tilt_sigma_deg",
+        "prior σ of roll and pitch after an alignment in motion [deg]",
+    ),
+    (
+        "initial.moving_heading_sigma_deg",
+        "prior σ of the heading after an alignment in motion [deg]",
+    ),
+    (
+        "gnss.lever_arm_m",
+        "IMU → antenna in the body frame (forward, right, down) [m]",
+    ),
+    ("gnss.use_velocity", "update with the GNSS velocity too"),
+    (
+        "gnss.min_position_sigma_m",
+        "floor on the position σ of the file [m]",
+    ),
+    (
+        "gnss.min_velocity_sigma_mps",
+        "floor on the velocity σ of the file [m/s]",
+    ),
+    (
+        "gnss.policy",
+        "accept | chi2_gate | recovering_gate | huber | rejection | limiting | adaptive_gain | limited_adaptive_gain | developed",
+    ),
+    (
+        "gnss.anomaly_gamma",
+        "spec 20's detector: anomalous when νᵀν > γ tr S",
+    ),
+    (
+        "gnss.adaptive_window",
+        "innovations in eq. 4's window (adaptive_gain, limited_adaptive_gain)",
+    ),
+    (
+        "gnss.quality_sigma_scale.float",
+        "σ of RTK float solutions × this",
+    ),
+    (
+        "gnss.quality_sigma_scale.dgps",
+        "σ of DGPS / SBAS solutions × this",
+    ),
+    (
+        "gnss.quality_sigma_scale.single",
+        "σ of single-point solutions × this",
+    ),
+    (
+        "constraints.non_holonomic",
+        "(preset) no lateral or vertical body velocity (a car)",
+    ),
+    (
+        "constraints.non_holonomic_sigma_mps",
+        "its σ [m/s]",
+    ),
+    ("constraints.non_holonomic_rate_hz", "its rate [Hz]"),
+    (
+        "constraints.min_speed_mps",
+        "no non-holonomic update below this speed [m/s]",
+    ),
+    (
+        "constraints.zero_velocity",
+        "(preset) zero-velocity and zero-angular-rate updates at a detected standstill",
+    ),
+    (
+        "constraints.zero_velocity_sigma_mps",
+        "σ of the zero-velocity update per axis [m/s]",
+    ),
+    (
+        "constraints.zero_angular_rate_sigma_deg_s",
+        "σ of the zero-angular-rate update per axis [deg/s]",
+    ),
+    (
+        "constraints.zero_velocity_rate_hz",
+        "rate of the standstill updates [Hz]",
+    ),
+    (
+        "standstill.window_s",
+        "window of the IMU statistics [s]",
+    ),
+    (
+        "standstill.max_speed_mps",
+        "largest speed of a standstill (GNSS within 1 s, else the filter's) [m/s]",
+    ),
+    (
+        "standstill.max_accel_std_mps2",
+        "(preset) largest std of each accelerometer axis [m/s²]",
+    ),
+    (
+        "standstill.max_gyro_std_deg_s",
+        "(preset) largest std of each gyro axis [deg/s]",
+    ),
+    (
+        "filter.feedback",
+        "closed (seed 000) | open (seed 004's output correction)",
+    ),
+    (
+        "filter.convergence_monitor",
+        "spec 10's δ(n) on the instruments (per epoch in solution.csv)",
+    ),
+    (
+        "filter.adaptive_noise",
+        "spec 20 eq. 3, K ν νᵀ Kᵀ added to P before each position update: off | hard | averaged",
+    ),
+    (
+        "filter.adaptive_noise_window",
+        "epochs of the averaged term and of the anomaly guard's mean",
+    ),
+    (
+        "outage_bridge.enabled",
+        "score spec 20's predictors bridging the outage windows",
+    ),
+    ("outage_bridge.trend_window_s", "history of the trend [s]"),
+    (
+        "outage_bridge.model_window_s",
+        "history of the self-organising model [s]",
+    ),
+    (
+        "outage_bridge.model_decimation",
+        "every n-th epoch of the model history is used",
+    ),
+    ("outage_bridge.relay.t1_s", "relay: hold until [s]"),
+    ("outage_bridge.relay.t2_s", "relay: trend until [s]"),
+    (
+        "outage_bridge.relay.t3_s",
+        "relay: combined trend until [s], the model after",
+    ),
+    (
+        "outage_bridge.gmdh.max_degree",
+        "highest polynomial degree of the candidates",
+    ),
+    (
+        "outage_bridge.gmdh.frequencies",
+        "given harmonic frequencies [rad/s]",
+    ),
+    (
+        "outage_bridge.gmdh.max_units",
+        "most units in a structure",
+    ),
+    (
+        "outage_bridge.gmdh.beam",
+        "structures of each complexity carried on",
+    ),
+    (
+        "outage_bridge.gmdh.min_improvement",
+        "relative criterion improvement needed for one more unit",
+    ),
+    (
+        "outage_bridge.gmdh.noise_guard",
+        "the improvement must also exceed noise_guard / n_B",
+    ),
+    (
+        "outage_bridge.gmdh.refine",
+        "refine searched frequencies by golden section",
+    ),
+    (
+        "outage_bridge.gmdh.split.kind",
+        "training / checking split: alternating | latest (with fraction = 0.5)",
+    ),
+    (
+        "score.outages_s",
+        "simulated outage lengths [s] (spec 40's schedule)",
+    ),
+    (
+        "score.lead_s",
+        "first window this long after the first IMU sample [s]",
+    ),
+    ("score.gap_s", "GNSS between windows [s]"),
+    (
+        "score.outlier_fractions",
+        "fractions of epochs given an injected outlier",
+    ),
+    ("score.outlier_m", "outlier size range [m]"),
+    ("score.seed", "seed of the injected outliers"),
+    (
+        "score.post_outage_burst_s",
+        "a burst this long after every 30 s outage [s] (0: no burst run)",
+    ),
+    (
+        "output.smooth",
+        "also the RTS-smoothed solution and its scores",
+    ),
+    (
+        "output.kf_gins_text",
+        "also navresult.txt in KF-GINS's layout",
+    ),
+    (
+        "output.interval_s",
+        "also rows between GNSS epochs every this many s (0: one row per GNSS epoch)",
+    ),
+];
+
+/// Keys whose default is "none", written commented out after their table's
+/// keys: (table, line).
+pub const OPTIONAL_KEYS: &[(&str, &str)] = &[
+    (
+        "data",
+        "# imu_tags = \"imu.csv.tag\"        # RTKLIB time-tag file (imu_format = rtklib_tagged)",
+    ),
+    (
+        "initial",
+        "# attitude_deg = [0.0, 0.0, 90.0]   # a given initial attitude (roll, pitch, yaw) [deg]",
+    ),
+    (
+        "initial",
+        "# velocity_ned_mps = [0.0, 0.0, 0.0] # a given initial NED velocity [m/s]",
+    ),
+    (
+        "outage_bridge.gmdh",
+        "# horizon_s = 30.0                 # forecast horizon of the combined criterion [s] (default none)",
+    ),
+    (
+        "outage_bridge.gmdh",
+        "# search = { min = 1e-4, max = 1e-2, count = 20 }   # searched frequencies [rad/s] (default none)",
+    ),
+    (
+        "efficiency",
+        "# sigma_gnss_m = 1.5               # σ_GNSS of K_eff [m, 3-D] (default: each fix's own σ)",
+    ),
+];
+
+/// A complete configuration for `platform`: every key with its default,
+/// a comment per key, the data files as placeholders to edit.
+///
+/// ```
+/// use aidnav::process::{Platform, ProcessConfig, config_template};
+/// let text = config_template(Platform::Car);
+/// let cfg: ProcessConfig = toml::from_str(&text).unwrap();
+/// assert!(cfg.non_holonomic());
+/// ```
+pub fn config_template(platform: Platform) -> String {
+    let cfg = ProcessConfig {
+        platform,
+        data: DataFiles {
+            dir: ".".into(),
+            imu: "imu.csv".into(),
+            imu_format: Default::default(),
+            imu_tags: None,
+            gnss: "gnss.pos".into(),
+            gnss_format: Default::default(),
+        },
+        imu: Default::default(),
+        initial: Default::default(),
+        gnss: Default::default(),
+        constraints: Default::default(),
+        standstill: Default::default(),
+        filter: Default::default(),
+        outage_bridge: Default::default(),
+        efficiency: Default::default(),
+        score: Default::default(),
+        output: Default::default(),
+    }
+    .resolved();
+    // Serializing plain data to TOML cannot fail; an empty body would be
+    // caught by the round-trip test.
+    let body = toml::to_string(&cfg).unwrap_or_default();
+    let mut out = String::from(
+        "# aidnav process configuration: every key with its default.\n\
+         # `(preset)`: the default comes from `platform`; leave such a key out to\n\
+         # follow the preset. Edit [data], then: aidnav process THIS_FILE\n\n",
+    );
+    let mut table = String::new();
+    for line in body.lines() {
+        if let Some(header) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+            // The optional keys go with their table, before the blank line.
+            let blank = out.ends_with("\n\n");
+            if blank {
+                out.pop();
+            }
+            flush_optional(&mut out, &table);
+            if blank {
+                out.push('\n');
+            }
+            table = header.to_string();
+            out.push_str(line);
+            out.push('\n');
+            continue;
+        }
+        match line.split_once(" = ") {
+            Some((key, _)) => {
+                let path = if table.is_empty() {
+                    key.to_string()
+                } else {
+                    format!("{table}.{key}")
+                };
+                let doc = doc_of(&path).unwrap_or("");
+                out.push_str(&format!("{line:<40} # {doc}\n"));
+            }
+            None => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    flush_optional(&mut out, &table);
+    out
+}
+
+/// The comment of a dotted key.
+pub fn doc_of(path: &str) -> Option<&'static str> {
+    KEY_DOCS.iter().find(|(k, _)| *k == path).map(|(_, d)| *d)
+}
+
+fn flush_optional(out: &mut String, table: &str) {
+    for (t, line) in OPTIONAL_KEYS {
+        if *t == table {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every key of the serialized configuration, dotted.
+    fn keys(value: &toml::Value, prefix: &str, out: &mut Vec<String>) {
+        if let toml::Value::Table(t) = value {
+            for (k, v) in t {
+                let path = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                if v.is_table() {
+                    keys(v, &path, out);
+                } else {
+                    out.push(path);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_template_round_trips_and_documents_every_key() {
+        for platform in [
+            Platform::Car,
+            Platform::Pedestrian,
+            Platform::Aircraft,
+            Platform::Generic,
+        ] {
+            let text = config_template(platform);
+            let cfg: ProcessConfig = toml::from_str(&text).unwrap();
+            assert_eq!(cfg.platform, platform);
+            // Resolving again changes nothing: the preset values are written.
+            assert_eq!(cfg, cfg.resolved());
+            let mut all = Vec::new();
+            keys(&toml::Value::try_from(&cfg).unwrap(), "", &mut all);
+            assert!(all.len() > 60, "{}", all.len());
+            for k in &all {
+                assert!(doc_of(k).is_some(), "no comment for key {k}");
+            }
+            // And no comment for a key that no longer exists.
+            for (k, _) in KEY_DOCS {
+                assert!(all.iter().any(|a| a == k), "{k} documented but absent");
+            }
+        }
+    }
+
+    #[test]
+    fn the_optional_keys_parse_when_uncommented() {
+        let text = config_template(Platform::Generic);
+        let uncommented: String = text
+            .lines()
+            .map(|l| {
+                if OPTIONAL_KEYS.iter().any(|(_, o)| *o == l) {
+                    l.trim_start_matches("# ")
+                } else {
+                    l
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let cfg: ProcessConfig = toml::from_str(&uncommented).unwrap();
+        assert_eq!(cfg.initial.attitude_deg, Some([0.0, 0.0, 90.0]));
+        assert_eq!(cfg.efficiency.sigma_gnss_m, Some(1.5));
+        assert_eq!(cfg.outage_bridge.gmdh.horizon_s, Some(30.0));
+        assert!(cfg.data.imu_tags.is_some());
+    }
+
+    #[test]
+    fn presets_differ_where_the_table_says() {
+        let car = toml::from_str::<ProcessConfig>(&config_template(Platform::Car)).unwrap();
+        let walk =
+            toml::from_str::<ProcessConfig>(&config_template(Platform::Pedestrian)).unwrap();
+        let air = toml::from_str::<ProcessConfig>(&config_template(Platform::Aircraft)).unwrap();
+        assert!(car.non_holonomic() && car.zero_velocity());
+        assert!(!walk.non_holonomic() && walk.zero_velocity());
+        assert!(!air.non_holonomic() && !air.zero_velocity());
+        assert_eq!(walk.heading_speed_mps(), 0.5);
+        assert_eq!(car.heading_speed_mps(), 2.0);
+    }
+}
