@@ -42,6 +42,20 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
         r.tracking_rms_m,
         outcomes.join(", ")
     );
+    println!(
+        "start: {} at {} ({:.1} s after the first GNSS epoch{}); standstill updates: {}",
+        match r.start.kind {
+            aidnav::process::StartKind::Given => "given attitude",
+            aidnav::process::StartKind::Static => "levelled at a standstill",
+            aidnav::process::StartKind::Moving => "aligned in motion",
+        },
+        aidnav::io::text::date_time(r.start.time_s),
+        r.start.after_first_fix_s,
+        r.start
+            .speed_mps
+            .map_or(String::new(), |v| format!(", GNSS speed {v:.2} m/s")),
+        r.standstill_updates
+    );
     let conv: Vec<String> = r
         .instrument_convergence_s
         .iter()

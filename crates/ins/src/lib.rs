@@ -8,8 +8,8 @@
 //! NED mechanization of spec 40 ([`ned`]), frame-typed (`Vec3<Ned>`
 //! velocity, `Rotation<Body, Ned>` attitude, `Vec3<Body>` increments), with
 //! what feeds it: the raw samples ([`samples`]), the IMU mounting
-//! ([`mounting`]), the coarse alignment at rest ([`alignment`]) and the
-//! trapezoid increments ([`increments`]).
+//! ([`mounting`]), the coarse alignment at rest ([`alignment`]), standstill
+//! detection ([`standstill`]) and the trapezoid increments ([`increments`]).
 
 pub mod alignment;
 pub mod increments;
@@ -19,5 +19,6 @@ pub mod local_level;
 pub mod mounting;
 pub mod ned;
 pub mod samples;
+pub mod standstill;
 
 pub use instrument::AxisError;

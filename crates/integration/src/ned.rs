@@ -559,6 +559,50 @@ impl NedFilter {
         self.feedback()
     }
 
+    /// Zero-velocity update at a standstill: the IMU's velocity is zero,
+    /// σ `sigma_mps` per axis.
+    pub fn update_zero_velocity(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
+        self.flush_covariance()?;
+        let z = self.ins.state().velocity.raw();
+        let mut h = SMatrix::<f64, 3, STATES>::zeros();
+        h.fixed_view_mut::<3, 3>(0, VELOCITY)
+            .copy_from(&Matrix3::identity());
+        let r = Matrix3::identity() * (sigma_mps * sigma_mps);
+        self.kf.update(&z, &h, &r)?;
+        self.add_information(&h, &r, Outcome::Accepted)?;
+        self.feedback()
+    }
+
+    /// Zero-angular-rate update at a standstill: the body turns with the
+    /// Earth only, so the corrected mean gyro output of the window
+    /// (`mean_raw_rate`, raw body-frame rates averaged over the standstill)
+    /// less the Earth rate in the body frame is the remaining gyro bias
+    /// error; σ per axis `sigma_rad_s` (the window's noise of the mean).
+    pub fn update_zero_angular_rate(
+        &mut self,
+        mean_raw_rate: &Vector3<f64>,
+        sigma_rad_s: &Vector3<f64>,
+    ) -> Result<(), EstimationError> {
+        self.flush_covariance()?;
+        let s = *self.ins.state();
+        let one = Vector3::repeat(1.0);
+        let corrected = (mean_raw_rate - self.instruments.gyro_bias)
+            .component_div(&(one + self.instruments.gyro_scale));
+        let earth_body = s.attitude.matrix().transpose() * earth_rate_ned(s.position.latitude_rad);
+        let z = corrected - earth_body.raw();
+        // ω = (ω̃ − b)/(1 + s): ∂ω/∂b = −1/(1 + s); the error state is the
+        // excess of the corrected rate, fed back as b += δb.
+        let mut h = SMatrix::<f64, 3, STATES>::zeros();
+        h.fixed_view_mut::<3, 3>(0, GYRO_BIAS)
+            .copy_from(&Matrix3::from_diagonal(
+                &(one + self.instruments.gyro_scale).map(|v| 1.0 / v),
+            ));
+        let r = Matrix3::from_diagonal(&sigma_rad_s.map(|v| v * v));
+        self.kf.update(&z, &h, &r)?;
+        self.add_information(&h, &r, Outcome::Accepted)?;
+        self.feedback()
+    }
+
     /// Move every error estimate into the INS and the instrument corrections.
     fn feedback(&mut self) -> Result<(), EstimationError> {
         if self.open_loop {
@@ -662,6 +706,50 @@ mod tests {
         assert!(
             worst_smoothed < 0.2 * worst_filtered,
             "{worst_smoothed} vs {worst_filtered}"
+        );
+    }
+
+    /// At a standstill without GNSS: zero-velocity updates hold the velocity
+    /// and position, zero-angular-rate updates find a gyro bias that the
+    /// levelled, static INS otherwise only sees through slow tilt drift.
+    #[test]
+    fn standstill_updates_hold_the_ins_and_find_the_gyro_bias() {
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.7,
+                longitude_rad: -1.8,
+                height_m: 1600.0,
+            },
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.01, -0.02, 0.5),
+        };
+        let model = NedErrorModel::default();
+        let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
+        let bias = Vector3::new(2e-4, -3e-4, 1e-4); // ≈ 40, 60, 20 °/h
+        let run = |standstill: bool| {
+            let mut f = NedFilter::new(model, start, &sig, Vec3::zeros()).unwrap();
+            let mut imu = NedMechanization::stationary_increment(&start, 0.01);
+            imu.delta_angle += Vec3::assume_in_frame(bias * 0.01);
+            let raw_rate = imu.delta_angle.raw() / 0.01;
+            for k in 0..6000 {
+                f.propagate(&imu).unwrap();
+                if standstill && k % 10 == 9 {
+                    f.update_zero_velocity(0.02).unwrap();
+                    f.update_zero_angular_rate(&raw_rate, &Vector3::repeat(1e-4))
+                        .unwrap();
+                }
+            }
+            let drift = start.position.ned_to(&f.state().position).norm();
+            (drift, f.instruments().gyro_bias)
+        };
+        let (drift_free, _) = run(false);
+        let (drift, estimated) = run(true);
+        // Measured: 60 s free 127 m; held 6e-7 m; bias error 1.3e-10 rad/s.
+        assert!(drift_free > 10.0, "free drift {drift_free}");
+        assert!(drift < 0.01, "held drift {drift}");
+        assert!(
+            (estimated - bias).norm() < 1e-7,
+            "bias {estimated} against {bias}"
         );
     }
 

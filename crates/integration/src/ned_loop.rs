@@ -16,6 +16,7 @@ use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::increments::{Rates, trapezoid};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::samples::{GnssFix, ImuSample};
+use aidnav_ins::standstill::{StandstillThresholds, WindowStats, window_ending_at};
 use aidnav_models::ned_ins::POSITION;
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
 use nalgebra::Vector3;
@@ -33,6 +34,29 @@ pub struct NonHolonomic {
     pub min_speed_mps: f64,
 }
 
+/// Zero-velocity and zero-angular-rate updates while the vehicle stands
+/// still: the IMU window is still ([`StandstillThresholds`]) and the speed
+/// is low — the last GNSS velocity if a fix (not withheld) gave one within
+/// the last second, else the filter's own speed, which must then be below
+/// `5 × max_speed_mps` (its error grows while coasting; a smooth straight
+/// motion looks like rest to an IMU).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StandstillUpdates {
+    /// Check (and update) rate \[Hz\].
+    pub rate_hz: f64,
+    /// Window of the IMU statistics \[s\].
+    pub window_s: f64,
+    /// Largest speed of a standstill \[m/s\].
+    pub max_speed_mps: f64,
+    /// IMU thresholds.
+    pub thresholds: StandstillThresholds,
+    /// σ of the zero-velocity update per axis \[m/s\].
+    pub velocity_sigma_mps: f64,
+    /// Floor of the σ of the zero-angular-rate update per axis \[rad/s\]
+    /// (the window's own noise of the mean counts too).
+    pub angular_rate_sigma_rad_s: f64,
+}
+
 /// What the loop does besides propagating: the GNSS updates' σ floors,
 /// velocity updates, the constraint, rows between fixes, the monitor.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,6 +69,8 @@ pub struct LoopConfig {
     pub min_velocity_sigma_mps: f64,
     /// The non-holonomic constraint (None: off).
     pub non_holonomic: Option<NonHolonomic>,
+    /// Standstill updates (None: off).
+    pub standstill: Option<StandstillUpdates>,
     /// A row between fixes at the first IMU sample at or after every
     /// multiple of this interval \[s\] (0: none).
     pub row_interval_s: f64,
@@ -133,6 +159,8 @@ pub trait EpochObserver {
     fn row(&mut self, _row: &SolutionRow) {}
     /// A GNSS epoch is about to be processed (before its updates).
     fn before_update(&mut self, _filter: &NedFilter) {}
+    /// Standstill updates were made at `time_s`.
+    fn standstill(&mut self, _time_s: f64) {}
     /// A GNSS epoch, after its updates.
     fn fix(&mut self, filter: &NedFilter, record: &FixRecord);
 }
@@ -177,6 +205,10 @@ pub fn run_loop(
     let mut next_row = t_start + interval_s;
     let nhc_interval = cfg.non_holonomic.map_or(f64::INFINITY, |n| 1.0 / n.rate_hz);
     let mut next_nhc = t_start + nhc_interval;
+    let zupt_interval = cfg.standstill.map_or(f64::INFINITY, |z| 1.0 / z.rate_hz);
+    let mut next_zupt = t_start + zupt_interval;
+    // (time, speed) of the last GNSS velocity that was used.
+    let mut gnss_speed: Option<(f64, f64)> = None;
     for k in start + 1..imu.len() {
         let (a, b) = (&imu[k - 1], &imu[k]);
         let at = |error| LoopError {
@@ -222,6 +254,19 @@ pub fn run_loop(
                     filter.update_non_holonomic(nhc.sigma_mps).map_err(at)?;
                 }
             }
+            if let Some(z) = &cfg.standstill
+                && !split
+                && t >= next_zupt
+            {
+                while next_zupt <= t {
+                    next_zupt += zupt_interval;
+                }
+                if standstill_update(filter, imu, k, t, z, gnss_speed).map_err(at)? {
+                    for o in observers.iter_mut() {
+                        o.standstill(t);
+                    }
+                }
+            }
             if !split {
                 break;
             }
@@ -232,6 +277,9 @@ pub fn run_loop(
                 o.before_update(filter);
             }
             let record = fix_epoch(filter, &fixes[next], next, cfg, policies).map_err(at)?;
+            if let (false, Some(v)) = (fixes[next].withheld, fixes[next].fix.velocity_ned) {
+                gnss_speed = Some((fixes[next].fix.time_s, v.norm()));
+            }
             for o in observers.iter_mut() {
                 o.fix(filter, &record);
             }
@@ -239,6 +287,39 @@ pub fn run_loop(
         }
     }
     Ok(())
+}
+
+/// At a check time `t` (IMU sample `k`): the standstill updates when the
+/// window ending at `k` is still and the speed is low; whether they were made.
+fn standstill_update(
+    filter: &mut NedFilter,
+    imu: &[ImuSample],
+    k: usize,
+    t: f64,
+    z: &StandstillUpdates,
+    gnss_speed: Option<(f64, f64)>,
+) -> Result<bool, EstimationError> {
+    let slow = match gnss_speed {
+        Some((at, speed)) if t - at <= 1.0 => speed <= z.max_speed_mps,
+        _ => filter.state().velocity.norm() <= 5.0 * z.max_speed_mps,
+    };
+    if !slow {
+        return Ok(false);
+    }
+    let Some(stats) = WindowStats::of(window_ending_at(imu, k, z.window_s)) else {
+        return Ok(false);
+    };
+    if !stats.is_still(&z.thresholds) {
+        return Ok(false);
+    }
+    filter.update_zero_velocity(z.velocity_sigma_mps)?;
+    // σ of the window's mean rate: its spread over √n, floored.
+    let n = stats.samples as f64;
+    let sigma = stats
+        .rate_std
+        .map(|s| (s / n.sqrt()).max(z.angular_rate_sigma_rad_s));
+    filter.update_zero_angular_rate(&stats.mean_rate, &sigma)?;
+    Ok(true)
 }
 
 /// One GNSS epoch: the updates (or the missing fix), the record.
@@ -303,11 +384,17 @@ pub struct Collector {
     pub fixes: Vec<FixRecord>,
     /// Between the GNSS epochs.
     pub rows: Vec<SolutionRow>,
+    /// Standstill updates made.
+    pub standstill_updates: usize,
 }
 
 impl EpochObserver for Collector {
     fn row(&mut self, row: &SolutionRow) {
         self.rows.push(*row);
+    }
+
+    fn standstill(&mut self, _time_s: f64) {
+        self.standstill_updates += 1;
     }
 
     fn fix(&mut self, _filter: &NedFilter, record: &FixRecord) {

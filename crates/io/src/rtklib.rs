@@ -689,8 +689,7 @@ mod tests {
     use super::*;
 
     fn data() -> std::path::PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../data/rtklibexplorer-gnss-imu/drive_0708")
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/rtklibexplorer-gnss-imu/drive_0708")
     }
 
     #[test]

@@ -19,6 +19,10 @@ pub struct ProcessReport {
     pub tracking_rms_m: f64,
     /// Updates by outcome in the clean run.
     pub outcomes: Vec<(String, usize)>,
+    /// How and when the filter started.
+    pub start: crate::process::StartSummary,
+    /// Standstill (zero-velocity + zero-angular-rate) updates in the clean run.
+    pub standstill_updates: usize,
     /// RMS 3-D error of the RTS-smoothed antenna positions (with `output.smooth`).
     pub tracking_smoothed_rms_m: Option<f64>,
     /// Time after the first fix at which spec 10's rule (δ non-increasing
@@ -122,6 +126,8 @@ impl ProcessReport {
             policy: result.policy,
             tracking_rms_m: result.tracking_rms_m,
             outcomes: result.outcomes,
+            start: result.start,
+            standstill_updates: result.standstill_updates,
             tracking_smoothed_rms_m: result.tracking_smoothed_rms_m,
             instrument_convergence_s: result.instrument_convergence_s,
             outages: scores.outages,

@@ -10,7 +10,8 @@ use super::config::{PolicyName, ProcessConfig};
 use super::run::{Epoch, RunPlan, SolutionRow, run_filter_rows};
 use super::score::{convergence_times, tracking_rms};
 use super::scoring::{Scores, score_log};
-use super::{Inputs, ProcessError};
+use super::{Inputs, ProcessError, StartKind, initialise};
+use serde::Serialize;
 
 /// A recorded IMU + GNSS log ready to be filtered and scored.
 ///
@@ -93,8 +94,25 @@ pub struct ProcessResult {
     pub instrument_convergence_s: Vec<(f64, Option<f64>)>,
     /// Fraction of the epochs at which K_eff > 1.
     pub k_eff_integrated_fraction: f64,
-    /// Reader warnings.
+    /// How and when the filter started.
+    pub start: StartSummary,
+    /// Standstill (zero-velocity + zero-angular-rate) updates made.
+    pub standstill_updates: usize,
+    /// Reader and start warnings.
     pub warnings: Vec<String>,
+}
+
+/// How and when the filter started (`summary.json`'s `result.start`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StartSummary {
+    /// `given`, `static` or `moving`.
+    pub kind: StartKind,
+    /// GPST of the start (s since 1970).
+    pub time_s: f64,
+    /// Seconds after the first GNSS epoch inside the IMU span.
+    pub after_first_fix_s: f64,
+    /// GNSS speed at the start [m/s] (null without a velocity).
+    pub speed_mps: Option<f64>,
 }
 
 impl Process {
@@ -140,7 +158,17 @@ impl Process {
             monitor: cfg.filter.convergence_monitor,
             ..RunPlan::default()
         };
+        let begin = initialise(cfg, inputs)?;
         let run = run_filter_rows(cfg, inputs, &plan, cfg.gnss.policy, cfg.output.interval_s)?;
+        let start_time_s = inputs.imu[begin.index].time_s;
+        let first_fix_in_imu_span_s = inputs
+            .gnss
+            .iter()
+            .map(|g| g.time_s)
+            .find(|&t| t >= inputs.imu[0].time_s)
+            .unwrap_or(start_time_s);
+        let mut warnings = inputs.warnings.clone();
+        warnings.extend(begin.warnings.iter().cloned());
         let smoothed: Vec<Epoch> = run.epochs.iter().filter_map(|e| e.smoothed()).collect();
         let epochs = run.epochs;
         Ok(ProcessResult {
@@ -162,7 +190,14 @@ impl Process {
                 / epochs.len().max(1) as f64,
             fix_track: inputs.gnss.iter().map(|g| g.position).collect(),
             first_fix_time_s: inputs.gnss[0].time_s,
-            warnings: inputs.warnings.clone(),
+            start: StartSummary {
+                kind: begin.kind,
+                time_s: start_time_s,
+                after_first_fix_s: start_time_s - first_fix_in_imu_span_s,
+                speed_mps: begin.speed_mps.is_finite().then_some(begin.speed_mps),
+            },
+            standstill_updates: run.standstill_updates,
+            warnings,
             between: run.between,
             smoothed,
             epochs,

@@ -28,6 +28,7 @@ pub mod export;
 pub mod run;
 pub mod score;
 pub mod scoring;
+mod start;
 pub mod template;
 mod validate;
 
@@ -36,6 +37,7 @@ pub use config::*;
 pub use run::*;
 pub use score::*;
 pub use scoring::*;
+pub use start::{Start, StartKind, initialise};
 pub use template::{config_template, doc_of};
 
 pub use aidnav_ins::mounting::euler_to_ctm;
@@ -43,12 +45,8 @@ pub use aidnav_ins::mounting::euler_to_ctm;
 use std::path::Path;
 
 use aidnav_estimation::EstimationError;
-use aidnav_frames::{Rotation, Vec3};
-use aidnav_ins::alignment::{course, gyro_bias_at_rest, level, static_window};
-use aidnav_ins::ned::NedState;
 use aidnav_ins::samples::moving_average;
 use aidnav_io::rtklib::{GnssFix, ImuSample, read_pos, read_tagged_imu};
-use nalgebra::{UnitQuaternion, Vector3};
 
 /// Anything processing can fail with.
 #[derive(Debug, thiserror::Error)]
@@ -188,103 +186,11 @@ pub fn check_overlap(
     }))
 }
 
-/// The initial state and the starting gyro bias.
-pub(crate) fn initialise(
-    cfg: &ProcessConfig,
-    inputs: &Inputs,
-) -> Result<(NedState, Vector3<f64>, usize), ProcessError> {
-    let imu = &inputs.imu;
-    let first_fix = &inputs.gnss[0];
-    let start = imu
-        .iter()
-        .position(|s| s.time_s >= first_fix.time_s)
-        .ok_or_else(|| ProcessError::Data("no IMU sample after the first GNSS epoch".into()))?;
-    let t0 = imu[start].time_s;
-    let t_end = imu[imu.len() - 1].time_s;
-    if !inputs
-        .gnss
-        .iter()
-        .any(|g| g.time_s > t0 && g.time_s <= t_end)
-    {
-        return Err(ProcessError::Data(format!(
-            "no GNSS epoch between the filter start {} and the last IMU sample {}: the run would make no update",
-            aidnav_io::text::date_time(t0),
-            aidnav_io::text::date_time(t_end)
-        )));
-    }
-    let (attitude, w) = match cfg.initial.attitude_deg {
-        Some([r, p, y]) => (
-            UnitQuaternion::from_euler_angles(r.to_radians(), p.to_radians(), y.to_radians()),
-            None,
-        ),
-        None => {
-            let (attitude, w) = align(cfg, inputs, start, t0)?;
-            (attitude, Some(w))
-        }
-    };
-    // Antenna fix → IMU position.
-    let fix = inputs
-        .gnss
-        .iter()
-        .rev()
-        .find(|g| g.time_s <= t0)
-        .unwrap_or(first_fix);
-    let arm = attitude * Vector3::from(cfg.gnss.lever_arm_m);
-    let position = fix.position.offset_by(&Vec3::assume_in_frame(-arm));
-    let gyro_bias = w.map_or_else(Vector3::zeros, |w| {
-        gyro_bias_at_rest(&w, &attitude, position.latitude_rad)
-    });
-    Ok((
-        NedState {
-            position,
-            velocity: Vec3::assume_in_frame(
-                cfg.initial
-                    .velocity_ned_mps
-                    .map_or_else(Vector3::zeros, Vector3::from),
-            ),
-            attitude: Rotation::assume_from_quaternion(attitude),
-        },
-        gyro_bias,
-        start,
-    ))
-}
-
-/// Coarse alignment: roll and pitch by levelling over the static window at
-/// the start, heading from the first GNSS course above the speed threshold;
-/// also the mean gyro output at rest (bias + Earth rate).
-fn align(
-    cfg: &ProcessConfig,
-    inputs: &Inputs,
-    start: usize,
-    t0: f64,
-) -> Result<(UnitQuaternion<f64>, Vector3<f64>), ProcessError> {
-    let window = static_window(&inputs.imu, start, t0, cfg.initial.static_s);
-    if window.len() < 10 {
-        return Err(ProcessError::Data(
-            "static window holds fewer than 10 IMU samples".into(),
-        ));
-    }
-    let levelling = level(window);
-    let moving = inputs
-        .gnss
-        .iter()
-        .find(|g| {
-            g.velocity_ned
-                .is_some_and(|v| v.xy().norm() > cfg.heading_speed_mps())
-        })
-        .ok_or_else(|| {
-            ProcessError::Data(
-                "the GNSS speed never exceeds initial.heading_speed_mps: no heading (give initial.attitude_deg)".into(),
-            )
-        })?;
-    let v = moving.velocity_ned.expect("checked");
-    Ok((levelling.attitude(course(&v)), levelling.mean_angular_rate))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use aidnav_frames::earth::Geodetic;
+    use nalgebra::Vector3;
 
     fn imu_at(times: impl Iterator<Item = f64>) -> Vec<ImuSample> {
         times

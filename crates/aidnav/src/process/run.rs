@@ -7,11 +7,12 @@
 use aidnav_estimation::{NoiseRule, Outcome};
 use aidnav_frames::earth::Geodetic;
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
+use aidnav_ins::standstill::StandstillThresholds;
 use aidnav_integration::bridge::BridgeObserver;
 use aidnav_integration::ned::NedFilter;
 use aidnav_integration::ned_loop::{
     AidingFix, Collector, EpochObserver, FixRecord, FreeInsObserver, LoopConfig, LoopPolicies,
-    NonHolonomic, run_loop,
+    NonHolonomic, StandstillUpdates, run_loop,
 };
 use aidnav_io::rtklib::GnssFix;
 use aidnav_models::ned_ins::{
@@ -171,6 +172,8 @@ pub struct Run {
     pub epochs: Vec<Epoch>,
     /// Between GNSS epochs.
     pub between: Vec<SolutionRow>,
+    /// Standstill (zero-velocity + zero-angular-rate) updates made.
+    pub standstill_updates: usize,
 }
 
 /// Run the filter over the whole log under a plan and a policy: one
@@ -191,20 +194,19 @@ fn new_filter(
     plan: &RunPlan,
     policy: PolicyName,
 ) -> Result<(NedFilter, usize), ProcessError> {
-    let (state, gyro_bias, start) = initialise(cfg, inputs)?;
+    let begin = initialise(cfg, inputs)?;
     let model = NedErrorModel {
         noise: cfg.imu.noise,
     };
     let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
     let mut sig = Vector21::zeros();
-    let tilt = cfg.initial.tilt_sigma_deg.to_radians();
     for i in 0..3 {
-        sig[POSITION + i] = 0.1;
-        sig[VELOCITY + i] = 0.05;
+        sig[POSITION + i] = begin.position_sigma_m;
+        sig[VELOCITY + i] = begin.velocity_sigma_mps;
         sig[ATTITUDE + i] = if i == 2 {
-            cfg.initial.heading_sigma_deg.to_radians()
+            begin.heading_sigma_rad
         } else {
-            tilt
+            begin.tilt_sigma_rad
         };
         sig[GYRO_BIAS + i] = sg;
         sig[ACCEL_BIAS + i] = sa;
@@ -212,8 +214,8 @@ fn new_filter(
         sig[ACCEL_SCALE + i] = ka;
     }
     let lever = Vector3::from(cfg.gnss.lever_arm_m);
-    let mut filter = NedFilter::new(model, state, &sig, Vec3::assume_in_frame(lever))?;
-    filter.set_gyro_bias(gyro_bias);
+    let mut filter = NedFilter::new(model, begin.state, &sig, Vec3::assume_in_frame(lever))?;
+    filter.set_gyro_bias(begin.gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
     if smoothing(cfg, plan) {
         filter.start_recording(MAX_RECORDED_EPOCHS);
@@ -235,7 +237,7 @@ fn new_filter(
             average,
         );
     }
-    Ok((filter, start))
+    Ok((filter, begin.index))
 }
 
 /// σ of every non-fixed solution × its quality's factor (position and
@@ -267,6 +269,20 @@ fn loop_config(cfg: &ProcessConfig, plan: &RunPlan, interval_s: f64) -> LoopConf
             sigma_mps: nhc.non_holonomic_sigma_mps,
             min_speed_mps: nhc.min_speed_mps,
         }),
+        standstill: cfg.zero_velocity().then(|| {
+            let (accel, gyro) = cfg.standstill_thresholds();
+            StandstillUpdates {
+                rate_hz: nhc.zero_velocity_rate_hz,
+                window_s: cfg.standstill.window_s,
+                max_speed_mps: cfg.standstill.max_speed_mps,
+                thresholds: StandstillThresholds {
+                    accel_std_mps2: accel,
+                    gyro_std_rad_s: gyro,
+                },
+                velocity_sigma_mps: nhc.zero_velocity_sigma_mps,
+                angular_rate_sigma_rad_s: nhc.zero_angular_rate_sigma_deg_s.to_radians(),
+            }
+        }),
         row_interval_s: interval_s,
         convergence_monitor: plan.monitor,
         sigma_gnss_m: cfg.efficiency.sigma_gnss_m,
@@ -291,6 +307,7 @@ pub fn run_filter_rows(
     let mut collector = Collector {
         fixes: Vec::with_capacity(gnss.len()),
         // Bounded: one row per IMU sample at most.
+        standstill_updates: 0,
         rows: Vec::with_capacity(if interval_s > 0.0 {
             ((span / interval_s) as usize).min(imu.len()) + 1
         } else {
@@ -362,6 +379,7 @@ pub fn run_filter_rows(
     Ok(Run {
         epochs,
         between: collector.rows,
+        standstill_updates: collector.standstill_updates,
     })
 }
 

@@ -124,10 +124,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "constraints.non_holonomic",
         "(preset) no lateral or vertical body velocity (a car)",
     ),
-    (
-        "constraints.non_holonomic_sigma_mps",
-        "its σ [m/s]",
-    ),
+    ("constraints.non_holonomic_sigma_mps", "its σ [m/s]"),
     ("constraints.non_holonomic_rate_hz", "its rate [Hz]"),
     (
         "constraints.min_speed_mps",
@@ -149,10 +146,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "constraints.zero_velocity_rate_hz",
         "rate of the standstill updates [Hz]",
     ),
-    (
-        "standstill.window_s",
-        "window of the IMU statistics [s]",
-    ),
+    ("standstill.window_s", "window of the IMU statistics [s]"),
     (
         "standstill.max_speed_mps",
         "largest speed of a standstill (GNSS within 1 s, else the filter's) [m/s]",
@@ -208,10 +202,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "outage_bridge.gmdh.frequencies",
         "given harmonic frequencies [rad/s]",
     ),
-    (
-        "outage_bridge.gmdh.max_units",
-        "most units in a structure",
-    ),
+    ("outage_bridge.gmdh.max_units", "most units in a structure"),
     (
         "outage_bridge.gmdh.beam",
         "structures of each complexity carried on",
@@ -278,7 +269,15 @@ pub const OPTIONAL_KEYS: &[(&str, &str)] = &[
     ),
     (
         "initial",
-        "# velocity_ned_mps = [0.0, 0.0, 0.0] # a given initial NED velocity [m/s]",
+        "# velocity_ned_mps = [0.0, 0.0, 0.0] # with attitude_deg: the initial NED velocity [m/s]",
+    ),
+    (
+        "initial",
+        "# position_sigma_m = 0.1           # prior σ of position [m] (default: the first fix's σ)",
+    ),
+    (
+        "initial",
+        "# velocity_sigma_mps = 0.1         # prior σ of velocity [m/s] (default: standstill max speed / fix's σ)",
     ),
     (
         "outage_bridge.gmdh",
@@ -457,8 +456,7 @@ mod tests {
     #[test]
     fn presets_differ_where_the_table_says() {
         let car = toml::from_str::<ProcessConfig>(&config_template(Platform::Car)).unwrap();
-        let walk =
-            toml::from_str::<ProcessConfig>(&config_template(Platform::Pedestrian)).unwrap();
+        let walk = toml::from_str::<ProcessConfig>(&config_template(Platform::Pedestrian)).unwrap();
         let air = toml::from_str::<ProcessConfig>(&config_template(Platform::Aircraft)).unwrap();
         assert!(car.non_holonomic() && car.zero_velocity());
         assert!(!walk.non_holonomic() && walk.zero_velocity());

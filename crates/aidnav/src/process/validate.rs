@@ -83,6 +83,12 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
     if let Some(a) = &i.attitude_deg {
         vector_in_range("initial.attitude_deg", a, -360.0, 360.0)?;
     }
+    if let Some(v) = i.position_sigma_m {
+        bounded("initial", "position_sigma_m", v, 1e-4, 1e5)?;
+    }
+    if let Some(v) = i.velocity_sigma_mps {
+        bounded("initial", "velocity_sigma_mps", v, 1e-5, 1e3)?;
+    }
     if let Some(v) = &i.velocity_ned_mps {
         vector_in_range("initial.velocity_ned_mps", v, -1000.0, 1000.0)?;
     }

@@ -1,0 +1,159 @@
+//! Standstill detection from the IMU: a window of samples whose every axis
+//! varies less than a threshold. A vehicle at rest still vibrates (an engine,
+//! a hand), so the thresholds are per platform; speed evidence (GNSS, the
+//! filter) is the caller's to add — a smooth, straight, constant-speed
+//! motion is indistinguishable from rest for an IMU.
+
+use nalgebra::Vector3;
+
+use crate::samples::ImuSample;
+
+/// Largest per-axis standard deviations of a standstill window.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StandstillThresholds {
+    /// Specific force [m/s²].
+    pub accel_std_mps2: f64,
+    /// Angular rate [rad/s].
+    pub gyro_std_rad_s: f64,
+}
+
+/// Mean and per-axis standard deviation of a window of samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowStats {
+    /// Samples in the window.
+    pub samples: usize,
+    /// Mean specific force [m/s²].
+    pub mean_force: Vector3<f64>,
+    /// Mean angular rate [rad/s].
+    pub mean_rate: Vector3<f64>,
+    /// Per-axis standard deviation of the specific force [m/s²].
+    pub force_std: Vector3<f64>,
+    /// Per-axis standard deviation of the angular rate [rad/s].
+    pub rate_std: Vector3<f64>,
+}
+
+impl WindowStats {
+    /// Two-pass mean and standard deviation (no allocation); None for fewer
+    /// than two samples.
+    ///
+    /// ```
+    /// use aidnav_ins::samples::ImuSample;
+    /// use aidnav_ins::standstill::{StandstillThresholds, WindowStats};
+    /// use nalgebra::Vector3;
+    /// let rest: Vec<ImuSample> = (0..50)
+    ///     .map(|k| ImuSample {
+    ///         time_s: k as f64 * 0.01,
+    ///         specific_force: Vector3::new(0.0, 0.0, -9.8 + if k % 2 == 0 { 0.01 } else { -0.01 }),
+    ///         angular_rate: Vector3::zeros(),
+    ///     })
+    ///     .collect();
+    /// let s = WindowStats::of(&rest).unwrap();
+    /// assert!((s.force_std.z - 0.01).abs() < 1e-3);
+    /// let th = StandstillThresholds { accel_std_mps2: 0.1, gyro_std_rad_s: 0.01 };
+    /// assert!(s.is_still(&th));
+    /// ```
+    pub fn of(window: &[ImuSample]) -> Option<Self> {
+        if window.len() < 2 {
+            return None;
+        }
+        let n = window.len() as f64;
+        let mean_force = window
+            .iter()
+            .map(|s| s.specific_force)
+            .sum::<Vector3<f64>>()
+            / n;
+        let mean_rate = window.iter().map(|s| s.angular_rate).sum::<Vector3<f64>>() / n;
+        let (mut vf, mut vw) = (Vector3::zeros(), Vector3::zeros());
+        for s in window {
+            let df = s.specific_force - mean_force;
+            let dw = s.angular_rate - mean_rate;
+            vf += df.component_mul(&df);
+            vw += dw.component_mul(&dw);
+        }
+        Some(Self {
+            samples: window.len(),
+            mean_force,
+            mean_rate,
+            force_std: (vf / (n - 1.0)).map(f64::sqrt),
+            rate_std: (vw / (n - 1.0)).map(f64::sqrt),
+        })
+    }
+
+    /// Every axis below its threshold.
+    pub fn is_still(&self, th: &StandstillThresholds) -> bool {
+        self.force_std.max() <= th.accel_std_mps2 && self.rate_std.max() <= th.gyro_std_rad_s
+    }
+}
+
+/// The samples of `imu` in `(imu[end].time_s − window_s, imu[end].time_s]`,
+/// found by walking back from `end` (cost: the window's length).
+pub fn window_ending_at(imu: &[ImuSample], end: usize, window_s: f64) -> &[ImuSample] {
+    let Some(last) = imu.get(end) else {
+        return &[];
+    };
+    let mut first = end;
+    while first > 0 && imu[first - 1].time_s > last.time_s - window_s {
+        first -= 1;
+    }
+    &imu[first..=end]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn samples(force_noise: f64, rate_noise: f64, rate: f64) -> Vec<ImuSample> {
+        (0..100)
+            .map(|k| {
+                let s = if k % 2 == 0 { 1.0 } else { -1.0 };
+                ImuSample {
+                    time_s: k as f64 * 0.01,
+                    specific_force: Vector3::new(0.0, 0.0, -9.8) + Vector3::repeat(s * force_noise),
+                    angular_rate: Vector3::new(0.0, 0.0, rate) + Vector3::repeat(s * rate_noise),
+                }
+            })
+            .collect()
+    }
+
+    const TH: StandstillThresholds = StandstillThresholds {
+        accel_std_mps2: 0.2,
+        gyro_std_rad_s: 0.02,
+    };
+
+    #[test]
+    fn vibration_below_the_thresholds_is_still_above_is_not() {
+        assert!(
+            WindowStats::of(&samples(0.05, 0.005, 0.0))
+                .unwrap()
+                .is_still(&TH)
+        );
+        assert!(
+            !WindowStats::of(&samples(0.5, 0.005, 0.0))
+                .unwrap()
+                .is_still(&TH)
+        );
+        assert!(
+            !WindowStats::of(&samples(0.05, 0.05, 0.0))
+                .unwrap()
+                .is_still(&TH)
+        );
+        // A steady turn has no variance but a mean rate: the std test alone
+        // cannot see it (the caller adds the speed), the mean says it.
+        let turn = WindowStats::of(&samples(0.05, 0.005, 0.3)).unwrap();
+        assert!((turn.mean_rate.z - 0.3).abs() < 1e-3);
+        // std of ±a alternating over an even count: a √(n/(n−1)).
+        let s = WindowStats::of(&samples(0.05, 0.0, 0.0)).unwrap();
+        assert!((s.force_std.x - 0.05 * (100.0f64 / 99.0).sqrt()).abs() < 1e-12);
+        assert!(WindowStats::of(&samples(0.0, 0.0, 0.0)[..1]).is_none());
+    }
+
+    #[test]
+    fn the_window_ends_at_the_sample_and_spans_the_time() {
+        let imu = samples(0.0, 0.0, 0.0);
+        let w = window_ending_at(&imu, 50, 0.1);
+        assert_eq!(w.len(), 10);
+        assert_eq!(w[9].time_s, imu[50].time_s);
+        assert_eq!(window_ending_at(&imu, 3, 1.0).len(), 4);
+        assert!(window_ending_at(&imu, 500, 1.0).is_empty());
+    }
+}
