@@ -21,10 +21,11 @@ run_one() {
   # -rss_limit_mb: a reader may not need 2 GiB for a few kB of input;
   # -timeout: nor 10 s for one input (a loop).
   cargo +nightly fuzz run -O "$t" -- -max_total_time=$((minutes * 60)) \
-    -rss_limit_mb=2048 -timeout=10 -max_len=65536 >"logs/$t.log" 2>&1 || true
+    -rss_limit_mb=2048 -timeout=10 -max_len=65536 -print_final_stats=1 >"logs/$t.log" 2>&1 || true
   local execs crashes
-  execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "logs/$t.log" | awk '{print $2}' | tail -1)
-  [ -n "$execs" ] || execs=$(grep -Eo '#[0-9]+' "logs/$t.log" | tail -1 | tr -d '#')
+  # (No match must not end the script under `set -e -o pipefail`.)
+  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "logs/$t.log" | awk '{print $2}' | tail -1 || true)
+  [ -n "$execs" ] || execs=$(grep -o 'Done [0-9]* runs' "logs/$t.log" | awk '{print $2}' | tail -1 || true)
   crashes=$(find "artifacts/$t" -type f 2>/dev/null | wc -l)
   printf '%-22s %12s executions  %3s findings  (fuzz/logs/%s.log)\n' "$t" "${execs:-?}" "$crashes" "$t"
 }
