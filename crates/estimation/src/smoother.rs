@@ -61,7 +61,18 @@ where
         let cur = &forward[k];
         let next = &forward[k + 1];
         let later = out.last().expect("pushed before the loop");
-        let chol = Cholesky::new(next.p_predicted.clone()).ok_or(
+        // A frozen state (a switched-off state: variance exactly zero, its
+        // row and column zero, Φ diagonal there) is set aside by a unit
+        // diagonal: P⁻ becomes block diagonal, the solve for the other
+        // states is unchanged and the frozen state's gain is zero (P_k has a
+        // zero row there).
+        let mut p_predicted = next.p_predicted.clone();
+        for i in 0..p_predicted.nrows() {
+            if p_predicted[(i, i)] == 0.0 {
+                p_predicted[(i, i)] = 1.0;
+            }
+        }
+        let chol = Cholesky::new(p_predicted).ok_or(
             EstimationError::NotPositiveDefinite {
                 step: Step::Smooth,
                 matrix: Matrix::PPredicted,

@@ -115,11 +115,11 @@ struct ForwardRecord {
 /// let model = NedErrorModel::default();
 /// let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
 /// let mut sigmas = Vector21::zeros();
-/// for (block, sigma) in [
-///     (POSITION, 1.0), (VELOCITY, 0.1), (ATTITUDE, 0.01),
-///     (GYRO_BIAS, sg), (ACCEL_BIAS, sa), (GYRO_SCALE, kg), (ACCEL_SCALE, ka),
-/// ] {
+/// for (block, sigma) in [(POSITION, 1.0), (VELOCITY, 0.1), (ATTITUDE, 0.01)] {
 ///     sigmas.fixed_rows_mut::<3>(block).fill(sigma);
+/// }
+/// for (block, sigma) in [(GYRO_BIAS, sg), (ACCEL_BIAS, sa), (GYRO_SCALE, kg), (ACCEL_SCALE, ka)] {
+///     sigmas.fixed_rows_mut::<3>(block).copy_from(&sigma);
 /// }
 /// // Antenna 1 m forward of and 0.5 m above the IMU: a body-frame vector.
 /// let lever = Vec3::<Body>::new(1.0, 0.0, -0.5);
@@ -311,7 +311,7 @@ impl NedFilter {
             transport_rate_ned(&s.position, &s.velocity).as_raw(),
             s.position.latitude_rad,
         );
-        let (phi, q) = self.model.discrete(&f, dt);
+        let (phi, q) = self.model.discrete(&f, c.as_raw(), dt);
         self.pending_force = Vec3::zeros();
         self.pending_angle = Vec3::zeros();
         self.pending_dt = 0.0;
@@ -645,10 +645,10 @@ mod tests {
             sig[POSITION + i] = p;
             sig[VELOCITY + i] = v;
             sig[ATTITUDE + i] = if i == 2 { heading } else { tilt };
-            sig[GYRO_BIAS + i] = sg;
-            sig[ACCEL_BIAS + i] = sa;
-            sig[GYRO_SCALE + i] = kg;
-            sig[ACCEL_SCALE + i] = ka;
+            sig[GYRO_BIAS + i] = sg[i];
+            sig[ACCEL_BIAS + i] = sa[i];
+            sig[GYRO_SCALE + i] = kg[i];
+            sig[ACCEL_SCALE + i] = ka[i];
         }
         sig
     }

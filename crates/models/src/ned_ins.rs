@@ -56,56 +56,135 @@ pub type Vector21 = SVector<f64, STATES>;
 /// 3×21 matrix.
 pub type Matrix3x21 = SMatrix<f64, 3, STATES>;
 
-/// Datasheet noise terms of an IMU (defaults: a consumer MEMS unit).
+/// One value per sensor axis (x, y, z), written in a configuration as one
+/// number (every axis) or an array of exactly three.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PerAxis(pub [f64; 3]);
+
+impl PerAxis {
+    /// The same value on every axis.
+    pub const fn all(v: f64) -> Self {
+        Self([v; 3])
+    }
+
+    /// As a vector.
+    pub fn vector(&self) -> Vector3<f64> {
+        Vector3::from(self.0)
+    }
+
+    /// Every axis × `k`.
+    pub fn scaled(&self, k: f64) -> Self {
+        Self(self.0.map(|v| v * k))
+    }
+}
+
+impl Serialize for PerAxis {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let [x, y, z] = self.0;
+        if x == y && y == z {
+            s.serialize_f64(x)
+        } else {
+            self.0.serialize(s)
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for PerAxis {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Written {
+            One(f64),
+            Axes(Vec<f64>),
+        }
+        match Written::deserialize(d).map_err(|_| {
+            serde::de::Error::custom("a number (every axis) or an array of 3 numbers (x, y, z)")
+        })? {
+            Written::One(v) => Ok(Self::all(v)),
+            Written::Axes(v) => {
+                let n = v.len();
+                v.try_into().map(Self).map_err(|_| {
+                    serde::de::Error::invalid_length(n, &"an array of 3 numbers (x, y, z)")
+                })
+            }
+        }
+    }
+}
+
+/// Datasheet noise terms of an IMU, per sensor axis (defaults: a consumer
+/// MEMS unit). The instrument states start at their stationary σ (the bias
+/// instabilities and scale-factor σ below).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ImuNoise {
     /// Angle random walk [deg/√h]. Default 0.6.
-    pub arw_deg_per_sqrt_h: f64,
+    pub arw_deg_per_sqrt_h: PerAxis,
     /// Velocity random walk [m/s/√h]. Default 0.6.
-    pub vrw_mps_per_sqrt_h: f64,
+    pub vrw_mps_per_sqrt_h: PerAxis,
     /// Gyro bias instability σ [deg/h]. Default 50.
-    pub gyro_bias_deg_per_h: f64,
+    pub gyro_bias_deg_per_h: PerAxis,
     /// Accelerometer bias instability σ \[mg\]. Default 2.
-    pub accel_bias_mg: f64,
+    pub accel_bias_mg: PerAxis,
     /// Gyro scale-factor σ \[ppm\]. Default 1000.
-    pub gyro_scale_ppm: f64,
+    pub gyro_scale_ppm: PerAxis,
     /// Accelerometer scale-factor σ \[ppm\]. Default 1000.
-    pub accel_scale_ppm: f64,
-    /// Correlation time of every bias and scale factor \[s\]. Default 3600.
-    pub correlation_s: f64,
+    pub accel_scale_ppm: PerAxis,
+    /// Correlation time of the biases (first-order Gauss–Markov) \[s\].
+    /// Default 3600.
+    pub bias_correlation_s: f64,
+    /// Correlation time of the scale factors \[s\]. Default 3600.
+    pub scale_correlation_s: f64,
+    /// Estimate the six scale-factor states. Off: they are frozen at zero
+    /// (no variance, no process noise) — a sensor whose scale factors are
+    /// calibrated, or a log too short to see them. Default true.
+    pub scale_factors: bool,
 }
 
 impl Default for ImuNoise {
     fn default() -> Self {
         Self {
-            arw_deg_per_sqrt_h: 0.6,
-            vrw_mps_per_sqrt_h: 0.6,
-            gyro_bias_deg_per_h: 50.0,
-            accel_bias_mg: 2.0,
-            gyro_scale_ppm: 1000.0,
-            accel_scale_ppm: 1000.0,
-            correlation_s: 3600.0,
+            arw_deg_per_sqrt_h: PerAxis::all(0.6),
+            vrw_mps_per_sqrt_h: PerAxis::all(0.6),
+            gyro_bias_deg_per_h: PerAxis::all(50.0),
+            accel_bias_mg: PerAxis::all(2.0),
+            gyro_scale_ppm: PerAxis::all(1000.0),
+            accel_scale_ppm: PerAxis::all(1000.0),
+            bias_correlation_s: 3600.0,
+            scale_correlation_s: 3600.0,
+            scale_factors: true,
         }
     }
 }
 
 impl ImuNoise {
-    /// The σ of the six instrument states' stationary distributions, in SI.
-    pub fn instrument_sigmas(&self) -> [f64; 4] {
+    /// The σ of the instrument states' stationary distributions per axis,
+    /// in SI: gyro bias [rad/s], accelerometer bias [m/s²], gyro and
+    /// accelerometer scale factor (zero when `scale_factors` is off).
+    pub fn instrument_sigmas(&self) -> [Vector3<f64>; 4] {
+        let sf = if self.scale_factors { 1e-6 } else { 0.0 };
         [
-            self.gyro_bias_deg_per_h.to_radians() / 3600.0,
-            self.accel_bias_mg * 1e-3 * 9.806_65,
-            self.gyro_scale_ppm * 1e-6,
-            self.accel_scale_ppm * 1e-6,
+            self.gyro_bias_deg_per_h.vector() * (1f64.to_radians() / 3600.0),
+            self.accel_bias_mg.vector() * (1e-3 * 9.806_65),
+            self.gyro_scale_ppm.vector() * sf,
+            self.accel_scale_ppm.vector() * sf,
         ]
     }
 
-    /// White noise densities (ARW², VRW²) in SI: rad²/s, (m/s)²/s.
-    pub fn white_densities(&self) -> (f64, f64) {
-        let arw = self.arw_deg_per_sqrt_h.to_radians() / 60.0;
-        let vrw = self.vrw_mps_per_sqrt_h / 60.0;
-        (arw * arw, vrw * vrw)
+    /// White noise densities (ARW², VRW²) per axis in SI: rad²/s, (m/s)²/s.
+    pub fn white_densities(&self) -> (Vector3<f64>, Vector3<f64>) {
+        let arw = self.arw_deg_per_sqrt_h.vector() * (1f64.to_radians() / 60.0);
+        let vrw = self.vrw_mps_per_sqrt_h.vector() / 60.0;
+        (arw.component_mul(&arw), vrw.component_mul(&vrw))
+    }
+}
+
+/// The columns of Q_c's block that holds state `k`.
+fn block_of(k: usize) -> std::ops::Range<usize> {
+    match k {
+        VELOCITY..ATTITUDE => VELOCITY..ATTITUDE,
+        ATTITUDE..GYRO_BIAS => ATTITUDE..GYRO_BIAS,
+        POSITION..VELOCITY => 0..0,
+        _ => k..k + 1,
     }
 }
 
@@ -153,18 +232,23 @@ impl NedErrorModel {
             .copy_from(&-c_bn);
         f.fixed_view_mut::<3, 3>(ATTITUDE, GYRO_SCALE)
             .copy_from(&-(c_bn * Matrix3::from_diagonal(w_body)));
-        let tau = self.noise.correlation_s;
-        for i in GYRO_BIAS..STATES {
-            f[(i, i)] = -1.0 / tau;
+        for i in GYRO_BIAS..GYRO_SCALE {
+            f[(i, i)] = -1.0 / self.noise.bias_correlation_s;
+        }
+        for i in GYRO_SCALE..STATES {
+            f[(i, i)] = -1.0 / self.noise.scale_correlation_s;
         }
         f
     }
 
     /// Φ = I + FΔt + (FΔt)²/2 and Q = Q_c Δt + (F Q_c + Q_c Fᵀ) Δt²/2 (both
-    /// to second order; F is sparse — about 60 of 441 entries — and Q_c
-    /// diagonal, so neither needs a dense product: this runs at the filter's
-    /// covariance rate, 20 Hz, and dense 21³ products were 40 % of a pass).
-    pub fn discrete(&self, f: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
+    /// to second order) at attitude C_b^n (the sensors' per-axis white noise
+    /// seen in NED). F is sparse — about 60 of 441 entries — and Q_c block
+    /// diagonal (3×3 blocks for velocity and attitude, diagonal for the
+    /// instruments), so neither needs a dense product: this runs at the
+    /// filter's covariance rate, 20 Hz, and dense 21³ products were 40 % of
+    /// a pass.
+    pub fn discrete(&self, f: &Matrix21, c_bn: &Matrix3<f64>, dt: f64) -> (Matrix21, Matrix21) {
         let fdt = f * dt;
         let mut phi = Matrix21::identity() + fdt;
         for k in 0..STATES {
@@ -181,31 +265,55 @@ impl NedErrorModel {
                 }
             }
         }
-        let qc = self.spectral_densities();
-        let mut q = Matrix21::zeros();
+        let qc = self.spectral_density(c_bn);
+        // (FΔt Q_c)[i, j] = Σ_k FΔt[i, k] Q_c[k, j], Q_c[k, ·] nonzero only
+        // within k's block.
+        let mut fq = Matrix21::zeros();
+        for k in 0..STATES {
+            let block = block_of(k);
+            for i in 0..STATES {
+                let a = fdt[(i, k)];
+                if a != 0.0 {
+                    for j in block.clone() {
+                        fq[(i, j)] += a * qc[(k, j)];
+                    }
+                }
+            }
+        }
+        let mut q = qc * dt;
         for j in 0..STATES {
             for i in 0..STATES {
-                // (F Q_c)_{ij} = F_ij q_j; (Q_c Fᵀ)_{ij} = q_i F_ji.
-                q[(i, j)] = 0.5 * dt * (fdt[(i, j)] * qc[j] + qc[i] * fdt[(j, i)]);
+                q[(i, j)] += 0.5 * dt * (fq[(i, j)] + fq[(j, i)]);
             }
-            q[(j, j)] += qc[j] * dt;
         }
         (phi, q)
     }
 
-    /// Diagonal of the continuous white-noise densities, per state.
-    fn spectral_densities(&self) -> Vector21 {
+    /// The continuous white-noise density Q_c at attitude C_b^n: velocity
+    /// and attitude blocks `C diag(VRW², ARW² per sensor axis) Cᵀ` (NED),
+    /// the instruments' Gauss–Markov densities `2σ²/τ` on the diagonal.
+    pub fn spectral_density(&self, c_bn: &Matrix3<f64>) -> Matrix21 {
         let (arw2, vrw2) = self.noise.white_densities();
         let [sg, sa, kg, ka] = self.noise.instrument_sigmas();
-        let tau = self.noise.correlation_s;
-        let mut qc = Vector21::zeros();
+        let (tb, ts) = (
+            self.noise.bias_correlation_s,
+            self.noise.scale_correlation_s,
+        );
+        // Exactly symmetric blocks (rounding of C D Cᵀ is not).
+        let ned = |d: &Vector3<f64>| {
+            let b = c_bn * Matrix3::from_diagonal(d) * c_bn.transpose();
+            (b + b.transpose()) * 0.5
+        };
+        let mut qc = Matrix21::zeros();
+        qc.fixed_view_mut::<3, 3>(VELOCITY, VELOCITY)
+            .copy_from(&ned(&vrw2));
+        qc.fixed_view_mut::<3, 3>(ATTITUDE, ATTITUDE)
+            .copy_from(&ned(&arw2));
         for i in 0..3 {
-            qc[VELOCITY + i] = vrw2;
-            qc[ATTITUDE + i] = arw2;
-            qc[GYRO_BIAS + i] = 2.0 * sg * sg / tau;
-            qc[ACCEL_BIAS + i] = 2.0 * sa * sa / tau;
-            qc[GYRO_SCALE + i] = 2.0 * kg * kg / tau;
-            qc[ACCEL_SCALE + i] = 2.0 * ka * ka / tau;
+            qc[(GYRO_BIAS + i, GYRO_BIAS + i)] = 2.0 * sg[i] * sg[i] / tb;
+            qc[(ACCEL_BIAS + i, ACCEL_BIAS + i)] = 2.0 * sa[i] * sa[i] / tb;
+            qc[(GYRO_SCALE + i, GYRO_SCALE + i)] = 2.0 * kg[i] * kg[i] / ts;
+            qc[(ACCEL_SCALE + i, ACCEL_SCALE + i)] = 2.0 * ka[i] * ka[i] / ts;
         }
         qc
     }
@@ -258,7 +366,16 @@ mod tests {
     /// The sparse Φ and Q against the dense formulas.
     #[test]
     fn sparse_discretisation_matches_the_dense_one() {
-        let m = NedErrorModel::default();
+        // Different noise per axis, so the NED blocks are full.
+        let m = NedErrorModel {
+            noise: ImuNoise {
+                arw_deg_per_sqrt_h: PerAxis([0.3, 0.6, 1.2]),
+                vrw_mps_per_sqrt_h: PerAxis([0.1, 0.2, 0.5]),
+                gyro_bias_deg_per_h: PerAxis([10.0, 20.0, 30.0]),
+                bias_correlation_s: 1000.0,
+                ..ImuNoise::default()
+            },
+        };
         let c = nalgebra::Rotation3::from_euler_angles(0.1, -0.05, 2.0).into_inner();
         let f = m.continuous(
             &c,
@@ -269,10 +386,10 @@ mod tests {
             0.7,
         );
         let dt = 0.05;
-        let (phi, q) = m.discrete(&f, dt);
+        let (phi, q) = m.discrete(&f, &c, dt);
         let fdt = f * dt;
         let dense_phi = Matrix21::identity() + fdt + fdt * fdt * 0.5;
-        let qc = Matrix21::from_diagonal(&m.spectral_densities());
+        let qc = m.spectral_density(&c);
         let dense_q = qc * dt + (f * qc + qc * f.transpose()) * (0.5 * dt * dt);
         assert!((phi - dense_phi).abs().max() < 1e-15);
         assert!((q - dense_q).abs().max() < 1e-18);
@@ -290,13 +407,13 @@ mod tests {
             &Vector3::zeros(),
             0.0,
         );
-        let (phi, q) = m.discrete(&f, 1.0);
+        let (phi, q) = m.discrete(&f, &Matrix3::identity(), 1.0);
         let i = ACCEL_BIAS;
         let mut p = 0.0;
         for _ in 0..50_000 {
             p = phi[(i, i)] * p * phi[(i, i)] + q[(i, i)];
         }
-        let sigma = m.noise.instrument_sigmas()[1];
+        let sigma = m.noise.instrument_sigmas()[1].x;
         assert!((p.sqrt() / sigma - 1.0).abs() < 1e-3);
     }
 

@@ -208,10 +208,10 @@ fn new_filter(
         } else {
             begin.tilt_sigma_rad
         };
-        sig[GYRO_BIAS + i] = sg;
-        sig[ACCEL_BIAS + i] = sa;
-        sig[GYRO_SCALE + i] = kg;
-        sig[ACCEL_SCALE + i] = ka;
+        sig[GYRO_BIAS + i] = sg[i];
+        sig[ACCEL_BIAS + i] = sa[i];
+        sig[GYRO_SCALE + i] = kg[i];
+        sig[ACCEL_SCALE + i] = ka[i];
     }
     let lever = Vector3::from(cfg.gnss.lever_arm_m);
     let mut filter = NedFilter::new(model, begin.state, &sig, Vec3::assume_in_frame(lever))?;

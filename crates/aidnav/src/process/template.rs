@@ -37,7 +37,10 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "imu.smoothing_s",
         "zero-phase moving average [s] against a gyro vibration line (0: none)",
     ),
-    ("imu.noise.arw_deg_per_sqrt_h", "angle random walk [deg/√h]"),
+    (
+        "imu.noise.arw_deg_per_sqrt_h",
+        "angle random walk [deg/√h]; this and the next five: one number or [x, y, z] per sensor axis",
+    ),
     (
         "imu.noise.vrw_mps_per_sqrt_h",
         "velocity random walk [m/s/√h]",
@@ -56,8 +59,16 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "accelerometer scale-factor σ [ppm]",
     ),
     (
-        "imu.noise.correlation_s",
-        "correlation time of the biases and scale factors [s]",
+        "imu.noise.bias_correlation_s",
+        "correlation time of the biases [s]",
+    ),
+    (
+        "imu.noise.scale_correlation_s",
+        "correlation time of the scale factors [s]",
+    ),
+    (
+        "imu.noise.scale_factors",
+        "estimate the scale-factor states (false: frozen at zero)",
     ),
     (
         "initial.static_s",

@@ -49,10 +49,28 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
         ("accel_bias_mg", n.accel_bias_mg, 1e4),
         ("gyro_scale_ppm", n.gyro_scale_ppm, 1e6),
         ("accel_scale_ppm", n.accel_scale_ppm, 1e6),
-        ("correlation_s", n.correlation_s, 1e7),
     ] {
-        bounded("imu.noise", key, value, 1e-9, hi)?;
+        let [x, y, z] = value.0;
+        if x == y && y == z {
+            bounded("imu.noise", key, x, 1e-9, hi)?;
+        } else {
+            vector_in_range(&format!("imu.noise.{key}"), &value.0, 1e-9, hi)?;
+        }
     }
+    bounded(
+        "imu.noise",
+        "bias_correlation_s",
+        n.bias_correlation_s,
+        1e-3,
+        1e9,
+    )?;
+    bounded(
+        "imu.noise",
+        "scale_correlation_s",
+        n.scale_correlation_s,
+        1e-3,
+        1e9,
+    )?;
     let i = &cfg.initial;
     bounded("initial", "static_s", i.static_s, 1e-3, 3600.0)?;
     if let Some(v) = i.heading_speed_mps {
@@ -192,19 +210,6 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
     }
     in_range("time_offset_s", cfg.imu.time_offset_s, -10.0, 10.0).map_err(|e| e.within("imu"))?;
     in_range("smoothing_s", cfg.imu.smoothing_s, 0.0, 5.0).map_err(|e| e.within("imu"))?;
-    let n = &cfg.imu.noise;
-    all_positive(
-        "imu.noise",
-        &[
-            ("arw_deg_per_sqrt_h", n.arw_deg_per_sqrt_h),
-            ("vrw_mps_per_sqrt_h", n.vrw_mps_per_sqrt_h),
-            ("gyro_bias_deg_per_h", n.gyro_bias_deg_per_h),
-            ("accel_bias_mg", n.accel_bias_mg),
-            ("gyro_scale_ppm", n.gyro_scale_ppm),
-            ("accel_scale_ppm", n.accel_scale_ppm),
-            ("correlation_s", n.correlation_s),
-        ],
-    )?;
     all_positive(
         "initial",
         &[

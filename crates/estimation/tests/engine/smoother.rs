@@ -118,3 +118,59 @@ fn random_walk_smoother_equals_batch_least_squares() {
         );
     }
 }
+
+/// A frozen state (variance exactly zero, a switched-off state) beside a
+/// live one: the smoother sets it aside and the live state smooths exactly
+/// as it does alone.
+#[test]
+fn a_frozen_state_is_set_aside() {
+    use aidnav_estimation::ForwardEpoch;
+    let model = LinearGaussianModel::new(
+        DMatrix::identity(1, 1),
+        DMatrix::identity(1, 1) * 0.4,
+        DMatrix::identity(1, 1),
+        DMatrix::identity(1, 1) * 1.5,
+        DVector::zeros(1),
+        DMatrix::identity(1, 1) * 5.0,
+    )
+    .unwrap();
+    let data: Vec<Vec<Option<f64>>> = [0.3, 1.1, 0.7, 2.0, 1.4]
+        .iter()
+        .map(|&v| vec![Some(v)])
+        .collect();
+    let opts = RunOptions {
+        keep_forward_pass: true,
+        ..Default::default()
+    };
+    let out = model
+        .run(
+            data.iter()
+                .enumerate()
+                .map(|(k, z)| (k as f64, z.as_slice())),
+            &opts,
+            &mut Collect::default(),
+        )
+        .unwrap();
+    let alone = rts_smooth(&out.forward).unwrap();
+    let grow_v = |v: &DVector<f64>| DVector::from_vec(vec![v[0], 0.0]);
+    let grow_m = |m: &DMatrix<f64>, frozen: f64| {
+        DMatrix::from_row_slice(2, 2, &[m[(0, 0)], 0.0, 0.0, frozen])
+    };
+    let pair: Vec<ForwardEpoch<_>> = out
+        .forward
+        .iter()
+        .map(|e| ForwardEpoch {
+            phi: grow_m(&e.phi, 0.9),
+            x_predicted: grow_v(&e.x_predicted),
+            p_predicted: grow_m(&e.p_predicted, 0.0),
+            x_filtered: grow_v(&e.x_filtered),
+            p_filtered: grow_m(&e.p_filtered, 0.0),
+        })
+        .collect();
+    let together = rts_smooth(&pair).unwrap();
+    for (a, b) in alone.iter().zip(&together) {
+        assert!((a.x[0] - b.x[0]).abs() < 1e-12);
+        assert!((a.p[(0, 0)] - b.p[(0, 0)]).abs() < 1e-12);
+        assert_eq!((b.x[1], b.p[(1, 1)], b.p[(0, 1)]), (0.0, 0.0, 0.0));
+    }
+}
