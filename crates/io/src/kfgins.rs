@@ -154,7 +154,11 @@ const KF_GNSS: [&str; 13] = [
 ];
 
 /// Read a KF-GINS IMU file; increments become mean rates over each row's
-/// interval (the first row, with no interval, is dropped).
+/// interval, time-tagged at the interval's middle (the first row, with no
+/// interval, is dropped). The middle matters: the filter integrates rates
+/// by the trapezoid rule between samples, and a mean rate tagged at the
+/// interval's end would lag by half a sample (5 ms at 100 Hz); between
+/// mid-interval samples the trapezoids sum back to the increments.
 ///
 /// ```
 /// let path = std::env::temp_dir().join(format!("aidnav-doc-kfimu-{}.txt", std::process::id()));
@@ -192,7 +196,7 @@ pub fn read_kfgins_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample>
         let force = Vector3::new(v[4], v[5], v[6]) / dt;
         check_force(path, line, "dvx", &force)?;
         out.push(ImuSample {
-            time_s: v[0],
+            time_s: v[0] - 0.5 * dt,
             angular_rate: rate,
             specific_force: force,
         });
@@ -360,6 +364,27 @@ pub fn read_generic_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Increments of a rate that grows linearly (ω = a t): each row's mean
+    /// rate is the rate at the interval's middle, where the sample is now
+    /// tagged — no half-sample lag.
+    #[test]
+    fn increments_become_rates_at_the_middle_of_their_interval() {
+        let a = 0.01;
+        let mut text = String::from("100.00 0 0 0 0 0 -0.098\n");
+        for k in 1..=5 {
+            let (t0, t1) = (100.0 + (k - 1) as f64 * 0.01, 100.0 + k as f64 * 0.01);
+            let dz = a * (t1 * t1 - t0 * t0) / 2.0;
+            text.push_str(&format!("{t1:.2} 0 0 {dz:e} 0 0 -0.098\n"));
+        }
+        let (imu, _) = read_kfgins_imu_from(text.as_bytes(), Path::new("ramp.txt")).unwrap();
+        assert_eq!(imu.len(), 5);
+        for (k, s) in imu.iter().enumerate() {
+            let mid = 100.0 + (k as f64 + 0.5) * 0.01;
+            assert!((s.time_s - mid).abs() < 1e-9, "{}", s.time_s);
+            assert!((s.angular_rate.z - a * mid).abs() < 1e-9, "{}", s.angular_rate.z);
+        }
+    }
 
     #[test]
     fn kfgins_files_round_trip_and_fail_clearly() {
