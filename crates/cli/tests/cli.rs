@@ -517,6 +517,30 @@ fn process_runs_the_recorded_drive_and_scores_it() {
     assert!(policies.contains(&"developed") && policies.contains(&"adaptive_gain"));
     let solution = std::fs::read_to_string(dir.path().join("solution.csv")).unwrap();
     assert!(solution.lines().next().unwrap().contains("k_eff"));
+    // Antenna and IMU positions both, named: the drive's lever arm is 5 cm
+    // (to the left of the IMU), so they differ by 5 cm at every row.
+    let deg = std::f64::consts::PI / 180.0;
+    let (alat, alon, ah) = (
+        column(&solution, "antenna latitude [deg]"),
+        column(&solution, "antenna longitude [deg]"),
+        column(&solution, "antenna height [m]"),
+    );
+    let (ilat, ilon, ih) = (
+        column(&solution, "imu latitude [deg]"),
+        column(&solution, "imu longitude [deg]"),
+        column(&solution, "imu height [m]"),
+    );
+    for k in (0..alat.len()).step_by(97) {
+        let north = (alat[k] - ilat[k]) * deg * 6.37e6;
+        let east = (alon[k] - ilon[k]) * deg * 6.37e6 * (ilat[k] * deg).cos();
+        let d = (north * north + east * east + (ah[k] - ih[k]).powi(2)).sqrt();
+        assert!((d - 0.05).abs() < 0.002, "row {k}: {d} m");
+    }
+    // σ of velocity and attitude beside the position's.
+    let sv = column(&solution, "sigma_vn [m/s]");
+    let sh = column(&solution, "sigma_heading [deg]");
+    assert!(sv.iter().all(|v| *v > 0.0 && *v < 1.0));
+    assert!(sh.iter().all(|v| *v > 0.0 && *v < 10.0));
     for f in ["solution.csv", "trajectory.svg", "outage_drift.svg"] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }

@@ -17,7 +17,7 @@ use aidnav_ins::increments::{Rates, trapezoid};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::samples::{GnssFix, ImuSample};
 use aidnav_ins::standstill::{StandstillThresholds, WindowStats, window_ending_at};
-use aidnav_models::ned_ins::POSITION;
+use aidnav_models::ned_ins::{ATTITUDE, POSITION, VELOCITY};
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
 use nalgebra::Vector3;
 
@@ -98,27 +98,37 @@ pub struct SolutionRow {
     pub time_s: f64,
     /// Antenna position.
     pub antenna: Geodetic,
-    /// NED velocity.
+    /// The IMU's position.
+    pub imu: Geodetic,
+    /// The IMU's NED velocity.
     pub velocity: Vec3<Ned>,
     /// Attitude, body to NED.
     pub attitude: Rotation<Body, Ned>,
-    /// σ of the position error (N, E, D).
+    /// σ of the position error (N, E, D) \[m\].
     pub sigma: Vector3<f64>,
+    /// σ of the velocity error (N, E, D) \[m/s\].
+    pub sigma_velocity: Vector3<f64>,
+    /// σ of the attitude error φ (tilt about N, E; heading about D) \[rad\].
+    pub sigma_attitude: Vector3<f64>,
 }
 
 impl SolutionRow {
-    /// The filter's navigation solution at `time_s`: antenna position, the
-    /// solution's velocity and attitude, position σ.
+    /// The filter's navigation solution at `time_s`: antenna and IMU
+    /// position, the IMU's velocity and attitude, their σ.
     pub fn of(filter: &NedFilter, time_s: f64) -> Self {
         let (antenna, _) = filter.antenna();
         let solution = filter.solution();
         let s = filter.sigmas();
+        let block = |o: usize| Vector3::new(s[o], s[o + 1], s[o + 2]);
         Self {
             time_s,
             antenna,
+            imu: solution.position,
             velocity: solution.velocity,
             attitude: solution.attitude,
-            sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
+            sigma: block(POSITION),
+            sigma_velocity: block(VELOCITY),
+            sigma_attitude: block(ATTITUDE),
         }
     }
 }

@@ -382,7 +382,11 @@ mod tests {
         for (k, s) in imu.iter().enumerate() {
             let mid = 100.0 + (k as f64 + 0.5) * 0.01;
             assert!((s.time_s - mid).abs() < 1e-9, "{}", s.time_s);
-            assert!((s.angular_rate.z - a * mid).abs() < 1e-9, "{}", s.angular_rate.z);
+            assert!(
+                (s.angular_rate.z - a * mid).abs() < 1e-9,
+                "{}",
+                s.angular_rate.z
+            );
         }
     }
 

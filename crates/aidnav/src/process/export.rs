@@ -83,21 +83,25 @@ pub fn write_solution(
 ) -> Result<Vec<String>, IoError> {
     let navigation = |row: &SolutionRow| {
         let (r, p, y) = row.attitude.euler_angles();
-        vec![
+        let mut v = vec![
             row.time_s,
             row.antenna.latitude_rad.to_degrees(),
             row.antenna.longitude_rad.to_degrees(),
             row.antenna.height_m,
+            row.imu.latitude_rad.to_degrees(),
+            row.imu.longitude_rad.to_degrees(),
+            row.imu.height_m,
             row.velocity.x(),
             row.velocity.y(),
             row.velocity.z(),
             r.to_degrees(),
             p.to_degrees(),
             y.to_degrees(),
-            row.sigma.x,
-            row.sigma.y,
-            row.sigma.z,
-        ]
+        ];
+        v.extend(row.sigma.iter());
+        v.extend(row.sigma_velocity.iter());
+        v.extend(row.sigma_attitude.iter().map(|a| a.to_degrees()));
+        v
     };
     let epoch_rows = epochs.iter().map(|e| {
         let mut row = navigation(&e.row());
@@ -123,9 +127,12 @@ pub fn write_solution(
         path,
         &[
             "time [s GPST since 1970]",
-            "latitude [deg]",
-            "longitude [deg]",
-            "height [m]",
+            "antenna latitude [deg]",
+            "antenna longitude [deg]",
+            "antenna height [m]",
+            "imu latitude [deg]",
+            "imu longitude [deg]",
+            "imu height [m]",
             "vn [m/s]",
             "ve [m/s]",
             "vd [m/s]",
@@ -135,6 +142,12 @@ pub fn write_solution(
             "sigma_n [m]",
             "sigma_e [m]",
             "sigma_d [m]",
+            "sigma_vn [m/s]",
+            "sigma_ve [m/s]",
+            "sigma_vd [m/s]",
+            "sigma_tilt_n [deg]",
+            "sigma_tilt_e [deg]",
+            "sigma_heading [deg]",
             "nis",
             "delta (Cramér–Rao convergence of the instruments)",
             "k_eff (sigma_gnss / sigma_filter, 3-D)",
@@ -183,15 +196,18 @@ pub fn write_navresult(
     aidnav_io::writers::write_atomic(path, text.as_bytes())
 }
 
-/// Write `smoothed.csv`: time and the smoothed antenna position.
+/// Write `smoothed.csv`: time and the smoothed antenna and IMU positions.
 pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<Vec<String>, IoError> {
     write_table_noting_infinities(
         path,
         &[
             "time [s GPST since 1970]",
-            "latitude [deg]",
-            "longitude [deg]",
-            "height [m]",
+            "antenna latitude [deg]",
+            "antenna longitude [deg]",
+            "antenna height [m]",
+            "imu latitude [deg]",
+            "imu longitude [deg]",
+            "imu height [m]",
         ],
         smoothed.iter().map(|e| {
             vec![
@@ -199,6 +215,9 @@ pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<Vec<String>, Io
                 e.antenna.latitude_rad.to_degrees(),
                 e.antenna.longitude_rad.to_degrees(),
                 e.antenna.height_m,
+                e.imu_position.latitude_rad.to_degrees(),
+                e.imu_position.longitude_rad.to_degrees(),
+                e.imu_position.height_m,
             ]
         }),
     )

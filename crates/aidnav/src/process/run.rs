@@ -83,6 +83,12 @@ pub struct Epoch {
     pub fix: GnssFix,
     /// Antenna position after the epoch (updated or not).
     pub antenna: Geodetic,
+    /// The IMU's position after the epoch.
+    pub imu_position: Geodetic,
+    /// σ of the velocity error (N, E, D) \[m/s\].
+    pub sigma_velocity: Vector3<f64>,
+    /// σ of the attitude error φ (N, E, D) \[rad\].
+    pub sigma_attitude: Vector3<f64>,
     /// NED velocity.
     pub velocity: Vec3<Ned>,
     /// Attitude.
@@ -99,6 +105,8 @@ pub struct Epoch {
     pub instruments: aidnav_integration::ned::InstrumentEstimate,
     /// RTS-smoothed antenna position (runs with `RunPlan::smooth`).
     pub smoothed_antenna: Option<Geodetic>,
+    /// RTS-smoothed IMU position (runs with `RunPlan::smooth`).
+    pub smoothed_imu: Option<Geodetic>,
     /// Spec 10's δ(n) on the instrument states (runs with
     /// `RunPlan::monitor`; NaN otherwise or while the Fisher information is
     /// singular).
@@ -123,16 +131,26 @@ impl Epoch {
         SolutionRow {
             time_s: self.fix.time_s,
             antenna: self.antenna,
+            imu: self.imu_position,
             velocity: self.velocity,
             attitude: self.attitude,
             sigma: self.sigma,
+            sigma_velocity: self.sigma_velocity,
+            sigma_attitude: self.sigma_attitude,
         }
     }
 
-    /// This epoch with the smoothed antenna position in place of the filtered one.
+    /// This epoch with the smoothed antenna and IMU positions in place of
+    /// the filtered ones.
     pub fn smoothed(&self) -> Option<Epoch> {
-        self.smoothed_antenna
-            .map(|antenna| Epoch { antenna, ..*self })
+        match (self.smoothed_antenna, self.smoothed_imu) {
+            (Some(antenna), Some(imu_position)) => Some(Epoch {
+                antenna,
+                imu_position,
+                ..*self
+            }),
+            _ => None,
+        }
     }
 
     /// The epoch of a loop record, reporting `row` and `instruments` (the
@@ -148,14 +166,18 @@ impl Epoch {
             index: rec.index,
             fix,
             antenna: row.antenna,
+            imu_position: row.imu,
             velocity: row.velocity,
             attitude: row.attitude,
             sigma: row.sigma,
+            sigma_velocity: row.sigma_velocity,
+            sigma_attitude: row.sigma_attitude,
             nis: rec.nis,
             innovation: rec.innovation,
             outcome: rec.outcome,
             instruments,
             smoothed_antenna: None,
+            smoothed_imu: None,
             convergence: rec.convergence,
             k_eff,
             bridged: None,
@@ -393,6 +415,7 @@ fn smooth(filter: &NedFilter, epochs: &mut [Epoch]) -> Result<(), ProcessError> 
     })?;
     for e in epochs {
         e.smoothed_antenna = e.record_index.map(|i| filter.antenna_of(&states[i]));
+        e.smoothed_imu = e.record_index.map(|i| states[i].position);
     }
     Ok(())
 }
