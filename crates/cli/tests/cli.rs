@@ -546,6 +546,36 @@ fn process_runs_the_recorded_drive_and_scores_it() {
     }
 }
 
+/// The README's main job: the handheld walk from the repository's data, with
+/// the pedestrian preset (levelled at its first standstill, standstill
+/// updates while the walker stands).
+#[test]
+fn process_runs_the_walk_example_from_the_repository() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = repo().join("examples/walk_0827.toml");
+    let stdout = success(&[
+        "process",
+        config.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(stdout.contains("levelled at a standstill"), "{stdout}");
+    assert!(stdout.contains("simulated outages"), "{stdout}");
+    let summary = read_summary(dir.path());
+    let result = &summary["result"];
+    assert_eq!(result["start"]["kind"], "static");
+    assert!(
+        result["standstill_updates"].as_u64().unwrap() > 10,
+        "{result}"
+    );
+    let tracking = result["tracking_rms_m"].as_f64().unwrap();
+    assert!(tracking < 0.1, "{tracking}");
+    // The configuration as used, the preset's values written out.
+    assert_eq!(summary["scenario"]["platform"], "pedestrian");
+    assert_eq!(summary["scenario"]["constraints"]["zero_velocity"], true);
+    assert_eq!(summary["scenario"]["constraints"]["non_holonomic"], false);
+}
+
 #[test]
 fn process_names_file_line_and_key_of_a_bad_config() {
     let dir = tempfile::tempdir().unwrap();

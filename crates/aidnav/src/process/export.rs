@@ -67,7 +67,13 @@ pub fn write_summary(
     cfg: &ProcessConfig,
     report: &impl Serialize,
 ) -> Result<PathBuf, IoError> {
-    let mut summary = Summary::new("process", crate::VERSION, Some(cfg.score.seed), cfg);
+    // The configuration as used: the platform's values filled in.
+    let mut summary = Summary::new(
+        "process",
+        crate::VERSION,
+        Some(cfg.score.seed),
+        &cfg.resolved(),
+    );
     summary.insert("result", report);
     summary.write(out)
 }
