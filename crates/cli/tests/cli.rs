@@ -204,6 +204,38 @@ fn a_failed_reproduction_leaves_no_stale_summary() {
     assert!(!dir.path().join("summary.json").exists(), "{err}");
 }
 
+/// `aidnav … | head` closing the pipe early: the program stops the way Unix
+/// tools do (SIGPIPE), without "Broken pipe" or a panic on stderr.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_stops_the_program_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let out = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_aidnav"))
+        .args(["reproduce", "consistency", "--runs", "50", "--out"])
+        .arg(out.path())
+        .env("CI", "true")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the reading end before the table is printed.
+    drop(child.stdout.take());
+    let result = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&result.stderr);
+    assert!(
+        !err.contains("Broken pipe") && !err.contains("panicked"),
+        "{err}"
+    );
+    assert_eq!(
+        result.status.signal(),
+        Some(13),
+        "{:?}: {err}",
+        result.status
+    );
+}
+
 #[test]
 fn help_explains_every_subcommand() {
     let out = aidnav(&["--help"]);
