@@ -264,6 +264,18 @@ impl NedFilter {
         self.kf.covariance().diagonal().map(f64::sqrt)
     }
 
+    /// Covariance of the antenna position error (NED, m²) as of the last
+    /// covariance propagation: `H P Hᵀ` with the position measurement's
+    /// `H = [I, 0, [(C l)×], 0 …]` — the IMU position block plus the
+    /// attitude error seen through the lever arm `C l`, and their
+    /// cross-covariance (symmetrised).
+    pub fn antenna_position_covariance(&self) -> Matrix3<f64> {
+        let c = self.solution().attitude.matrix();
+        let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
+        let p = h * self.kf.covariance() * h.transpose();
+        (p + p.transpose()) * 0.5
+    }
+
     /// The antenna position and NED velocity implied by the INS.
     pub fn antenna(&self) -> (Geodetic, Vec3<Ned>) {
         let s = &self.solution();

@@ -16,9 +16,8 @@ use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::increments::{Rates, trapezoid};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::samples::{GnssFix, ImuSample};
-use aidnav_models::ned_ins::POSITION;
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 use crate::ned::{InstrumentEstimate, NedFilter};
 
@@ -76,23 +75,30 @@ pub struct SolutionRow {
     pub velocity: Vec3<Ned>,
     /// Attitude, body to NED.
     pub attitude: Rotation<Body, Ned>,
-    /// σ of the position error (N, E, D).
+    /// σ of the antenna position error (N, E, D) \[m\]: the square roots of
+    /// the diagonal of `position_covariance`.
     pub sigma: Vector3<f64>,
+    /// Covariance of the antenna position error (NED) \[m²\]
+    /// ([`NedFilter::antenna_position_covariance`]: IMU position and the
+    /// attitude error through the lever arm).
+    pub position_covariance: Matrix3<f64>,
 }
 
 impl SolutionRow {
     /// The filter's navigation solution at `time_s`: antenna position, the
-    /// solution's velocity and attitude, position σ.
+    /// solution's velocity and attitude, the antenna position's covariance
+    /// and σ.
     pub fn of(filter: &NedFilter, time_s: f64) -> Self {
         let (antenna, _) = filter.antenna();
         let solution = filter.solution();
-        let s = filter.sigmas();
+        let position_covariance = filter.antenna_position_covariance();
         Self {
             time_s,
             antenna,
             velocity: solution.velocity,
             attitude: solution.attitude,
-            sigma: Vector3::new(s[POSITION], s[POSITION + 1], s[POSITION + 2]),
+            sigma: position_covariance.diagonal().map(|v| v.max(0.0).sqrt()),
+            position_covariance,
         }
     }
 }

@@ -19,7 +19,7 @@ use aidnav_models::ned_ins::{
     Vector21,
 };
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 use super::config::{AdaptiveNoise, Feedback, PolicyName};
 use super::{Inputs, ProcessConfig, ProcessError, initialise};
@@ -86,8 +86,15 @@ pub struct Epoch {
     pub velocity: Vec3<Ned>,
     /// Attitude.
     pub attitude: Rotation<Body, Ned>,
-    /// σ of the position error (N, E, D).
+    /// σ of the antenna position error (N, E, D) \[m\]: the square roots of
+    /// the diagonal of `position_covariance`.
     pub sigma: Vector3<f64>,
+    /// The filter's covariance of the antenna position error (NED) \[m²\]:
+    /// the IMU position block and the attitude error seen through the lever
+    /// arm (`H P Hᵀ` of the position update). In a free-INS window
+    /// (`RunPlan::free_ins_in_windows`) it is the filter's at the window's
+    /// start, not propagated.
+    pub position_covariance: Matrix3<f64>,
     /// Position NIS of the update (NaN when withheld).
     pub nis: f64,
     /// Position innovation, antenna estimate minus fix (NED) \[m\] (NaN when withheld).
@@ -125,6 +132,7 @@ impl Epoch {
             velocity: self.velocity,
             attitude: self.attitude,
             sigma: self.sigma,
+            position_covariance: self.position_covariance,
         }
     }
 
@@ -150,6 +158,7 @@ impl Epoch {
             velocity: row.velocity,
             attitude: row.attitude,
             sigma: row.sigma,
+            position_covariance: row.position_covariance,
             nis: rec.nis,
             innovation: rec.innovation,
             outcome: rec.outcome,

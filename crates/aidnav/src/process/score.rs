@@ -4,7 +4,7 @@ use aidnav_io::rtklib::GnssFix;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::config::ScoreConfig;
+use super::config::{FixQuality, ScoreConfig};
 use super::run::Epoch;
 
 /// The default outage schedule for length L.
@@ -27,47 +27,99 @@ pub fn outage_windows(
 }
 
 /// Per outage length: RMS over windows of the maximum drift.
+///
+/// Only reference fixes (`score.reference_quality`) are scored against; a
+/// window without one is not scored, and a length without any scored
+/// window has no score (None; `null` in `summary.json`, "no reference" in
+/// the printout).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OutageScore {
     /// L \[s\].
     pub outage_s: f64,
-    /// Windows scored.
+    /// Windows scheduled ([`outage_windows`]).
+    pub windows_scheduled: usize,
+    /// Windows scored: those with at least one reference epoch.
     pub windows: usize,
-    /// RMS over windows of the max horizontal drift \[m\].
-    pub horizontal_m: f64,
-    /// … vertical \[m\].
-    pub vertical_m: f64,
-    /// … 3-D \[m\].
-    pub three_d_m: f64,
+    /// Scored windows cut short by the end of the reference: their last
+    /// reference epoch lies more than [`cut_short_tolerance_s`] before the
+    /// window's end, so the drift at the end of the window (usually the
+    /// largest) is not measured.
+    pub windows_cut_short: usize,
+    /// Per cut-short window, the time from its start to its last reference
+    /// epoch \[s\].
+    pub cut_short_scored_s: Vec<f64>,
+    /// Reference epochs inside the scored windows.
+    pub reference_epochs: usize,
+    /// RMS over windows of the max horizontal drift \[m\] (None: no reference).
+    pub horizontal_m: Option<f64>,
+    /// … vertical \[m\] (None: no reference).
+    pub vertical_m: Option<f64>,
+    /// … 3-D \[m\] (None: no reference).
+    pub three_d_m: Option<f64>,
 }
 
-/// Score a run's epochs inside windows against the withheld RTK-fixed fixes.
-pub fn score_windows(epochs: &[Epoch], windows: &[(f64, f64)], length_s: f64) -> OutageScore {
+/// A scored window's reference may end this long before the window without
+/// the window counting as cut short \[s\]: 1 s, or 1.5 GNSS intervals
+/// (the median spacing of `epochs`) for receivers slower than 1.5 Hz — the
+/// last epoch of a window [a, b) lies up to one interval before b.
+pub fn cut_short_tolerance_s(epochs: &[Epoch]) -> f64 {
+    let mut dt: Vec<f64> = epochs
+        .windows(2)
+        .map(|w| w[1].fix.time_s - w[0].fix.time_s)
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    if dt.is_empty() {
+        return 1.0;
+    }
+    let mid = dt.len() / 2;
+    let (_, median, _) = dt.select_nth_unstable_by(mid, f64::total_cmp);
+    (1.5 * *median).max(1.0)
+}
+
+/// Score a run's epochs inside windows against the withheld reference fixes
+/// (those whose quality is in `reference`).
+pub fn score_windows(
+    epochs: &[Epoch],
+    windows: &[(f64, f64)],
+    length_s: f64,
+    reference: &[FixQuality],
+) -> OutageScore {
+    let tolerance = cut_short_tolerance_s(epochs);
     let mut maxima: Vec<[f64; 3]> = Vec::new();
+    let (mut cut_short_scored_s, mut reference_epochs) = (Vec::new(), 0usize);
     for &(a, b) in windows {
         let mut m = [0.0f64; 3];
-        let mut any = false;
+        let mut last: Option<f64> = None;
         for e in epochs {
             let g = &e.fix;
-            if g.time_s < a || g.time_s >= b || !is_reference(g) {
+            if g.time_s < a || g.time_s >= b || !is_reference(g, reference) {
                 continue;
             }
             let d = g.position.ned_to(&e.antenna).raw();
             m[0] = m[0].max(d.xy().norm());
             m[1] = m[1].max(d.z.abs());
             m[2] = m[2].max(d.norm());
-            any = true;
+            last = Some(g.time_s);
+            reference_epochs += 1;
         }
-        if any {
+        if let Some(t) = last {
             maxima.push(m);
+            if b - t > tolerance {
+                cut_short_scored_s.push(t - a);
+            }
         }
     }
     let rms = |i: usize| {
-        (maxima.iter().map(|m| m[i] * m[i]).sum::<f64>() / maxima.len().max(1) as f64).sqrt()
+        (!maxima.is_empty())
+            .then(|| (maxima.iter().map(|m| m[i] * m[i]).sum::<f64>() / maxima.len() as f64).sqrt())
     };
     OutageScore {
         outage_s: length_s,
+        windows_scheduled: windows.len(),
         windows: maxima.len(),
+        windows_cut_short: cut_short_scored_s.len(),
+        cut_short_scored_s,
+        reference_epochs,
         horizontal_m: rms(0),
         vertical_m: rms(1),
         three_d_m: rms(2),
@@ -94,7 +146,7 @@ pub fn bridged_epochs(epochs: &[Epoch], k: usize) -> Vec<Epoch> {
 pub struct EfficiencyScore {
     /// L \[s\].
     pub outage_s: f64,
-    /// Windows scored.
+    /// Windows scored (with at least one epoch).
     pub windows: usize,
     /// Mean σ_GNSS over the windows' epochs \[m\].
     pub sigma_gnss_m: f64,
@@ -103,21 +155,29 @@ pub struct EfficiencyScore {
     pub predicted_crossing_s: f64,
     /// Windows where it fell below 1.
     pub predicted_crossed: usize,
-    /// Mean over windows of the age at which the actual 3-D error against
-    /// the RTK-fixed reference first exceeds σ_GNSS (censored at L) \[s\].
-    pub actual_crossing_s: f64,
+    /// Windows with at least one reference epoch (the actual crossing is
+    /// measured in these only).
+    pub reference_windows: usize,
+    /// Mean over the windows with a reference of the age at which the
+    /// actual 3-D error against the reference first exceeds σ_GNSS
+    /// (censored at L) \[s\] (None: no reference).
+    pub actual_crossing_s: Option<f64>,
     /// Windows where it did.
     pub actual_crossed: usize,
 }
 
-/// The efficiency criterion of a run with outage windows (see [`EfficiencyScore`]).
+/// The efficiency criterion of a run with outage windows (see
+/// [`EfficiencyScore`]); the actual error against the fixes whose quality
+/// is in `reference`.
 pub fn efficiency_in_windows(
     epochs: &[Epoch],
     windows: &[(f64, f64)],
     length_s: f64,
+    reference: &[FixQuality],
 ) -> EfficiencyScore {
     let (mut n, mut sigma_sum, mut sigma_n) = (0usize, 0.0, 0usize);
     let (mut predicted, mut actual) = ((0.0, 0usize), (0.0, 0usize));
+    let mut reference_windows = 0usize;
     for &(a, b) in windows {
         let inside: Vec<&Epoch> = epochs
             .iter()
@@ -134,46 +194,55 @@ pub fn efficiency_in_windows(
             sigma_n += 1;
         }
         let first = |hit: &dyn Fn(&Epoch) -> bool| inside.iter().find(|e| hit(e)).map(|e| age(e));
-        for (acc, crossing) in [
-            (&mut predicted, first(&|e| e.k_eff < 1.0)),
-            (
-                &mut actual,
-                first(&|e| {
-                    is_reference(&e.fix) && e.fix.position.ned_to(&e.antenna).norm() > sigma_gnss(e)
-                }),
-            ),
-        ] {
-            acc.0 += crossing.unwrap_or(length_s);
-            acc.1 += usize::from(crossing.is_some());
+        let crossing = first(&|e| e.k_eff < 1.0);
+        predicted.0 += crossing.unwrap_or(length_s);
+        predicted.1 += usize::from(crossing.is_some());
+        if inside.iter().any(|e| is_reference(&e.fix, reference)) {
+            reference_windows += 1;
+            let crossing = first(&|e| {
+                is_reference(&e.fix, reference)
+                    && e.fix.position.ned_to(&e.antenna).norm() > sigma_gnss(e)
+            });
+            actual.0 += crossing.unwrap_or(length_s);
+            actual.1 += usize::from(crossing.is_some());
         }
     }
-    let mean = |x: f64| x / n.max(1) as f64;
     EfficiencyScore {
         outage_s: length_s,
         windows: n,
         sigma_gnss_m: sigma_sum / sigma_n.max(1) as f64,
-        predicted_crossing_s: mean(predicted.0),
+        predicted_crossing_s: predicted.0 / n.max(1) as f64,
         predicted_crossed: predicted.1,
-        actual_crossing_s: mean(actual.0),
+        reference_windows,
+        actual_crossing_s: (reference_windows > 0).then(|| actual.0 / reference_windows as f64),
         actual_crossed: actual.1,
     }
 }
 
-/// Whether a fix serves as the reference of the scores: RTK fixed (Q = 1),
-/// or of unknown quality (Q = 0, formats without a quality column).
-fn is_reference(g: &GnssFix) -> bool {
-    g.quality == 1 || g.quality == 0
+/// Whether a fix serves as the reference of the scores: its quality
+/// (RTKLIB's Q) is one of `reference` (`score.reference_quality`).
+pub fn is_reference(g: &GnssFix, reference: &[FixQuality]) -> bool {
+    reference.iter().any(|q| q.rtklib_q() == g.quality)
 }
 
-/// RMS 3-D error over all RTK-fixed epochs against the clean fixes.
-pub fn tracking_rms(epochs: &[Epoch]) -> f64 {
+/// Epochs whose fix is a reference.
+pub fn reference_epochs(epochs: &[Epoch], reference: &[FixQuality]) -> usize {
+    epochs
+        .iter()
+        .filter(|e| is_reference(&e.fix, reference))
+        .count()
+}
+
+/// RMS 3-D error over the reference epochs against their (clean) fixes;
+/// None when there is no reference epoch.
+pub fn tracking_rms(epochs: &[Epoch], reference: &[FixQuality]) -> Option<f64> {
     let (sum, n) = epochs
         .iter()
-        .filter(|e| is_reference(&e.fix))
+        .filter(|e| is_reference(&e.fix, reference))
         .fold((0.0, 0usize), |(s, n), e| {
             (s + e.fix.position.ned_to(&e.antenna).norm_squared(), n + 1)
         });
-    (sum / n.max(1) as f64).sqrt()
+    (n > 0).then(|| (sum / n as f64).sqrt())
 }
 
 /// Flight times (since the first epoch) at which spec 10's switch rule —
@@ -203,15 +272,15 @@ pub fn convergence_times(epochs: &[Epoch], thresholds: &[f64], falling_s: f64) -
         .collect()
 }
 
-/// RMS 3-D error over the RTK-fixed epochs where GNSS was used (not
-/// withheld), against the clean fixes.
-pub fn tracking_rms_with_gnss(epochs: &[Epoch]) -> f64 {
+/// RMS 3-D error over the reference epochs where GNSS was used (not
+/// withheld), against the clean fixes; None when there is none.
+pub fn tracking_rms_with_gnss(epochs: &[Epoch], reference: &[FixQuality]) -> Option<f64> {
     let used: Vec<Epoch> = epochs
         .iter()
         .filter(|e| e.outcome.is_some())
         .copied()
         .collect();
-    tracking_rms(&used)
+    tracking_rms(&used, reference)
 }
 
 /// One common jump per window for the fixes in [end, end + burst_s) after
