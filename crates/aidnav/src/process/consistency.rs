@@ -160,3 +160,96 @@ pub fn nis_consistency(epochs: &[Epoch]) -> NisConsistency {
         nis_dof: POSITION_DOF,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::process::run::synthetic::epoch;
+    use nalgebra::{Matrix3, Vector3};
+
+    const FIXED: [FixQuality; 1] = [FixQuality::Fixed];
+
+    #[test]
+    fn the_99_percent_bound_of_three_dof_is_the_tabulated_quantile() {
+        // χ²₃(0.99) = 11.3449 (Abramowitz & Stegun, table 26.8).
+        assert!((chi2_3_99() - 11.344_866_730_144_373).abs() < 1e-9);
+    }
+
+    #[test]
+    fn nees_is_computed_with_the_full_covariance_and_the_reference_sigma() {
+        // e = (1, 1, 1) m, P = [[2, 1, 0], [1, 2, 0], [0, 0, 1]] m²: the
+        // horizontal block's inverse is [[2, −1], [−1, 2]] / 3, so
+        // NEES = (2 − 1 − 1 + 2) / 3 + 1 = 5/3.
+        let p = Matrix3::new(2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 1.0);
+        let e = epoch(0.0, 1, 0.0, Vector3::repeat(1.0), p, 3.0);
+        assert!((position_nees(&e).unwrap() - 5.0 / 3.0).abs() < 1e-6);
+        // With a reference σ of 1 m on each axis: P + R = [[3, 1, 0], [1,
+        // 3, 0], [0, 0, 2]], inverse block [[3, −1], [−1, 3]] / 8, so
+        // NEES = (3 − 1 − 1 + 3) / 8 + 1/2 = 1.
+        let e = epoch(0.0, 1, 1.0, Vector3::repeat(1.0), p, 3.0);
+        assert!((position_nees(&e).unwrap() - 1.0).abs() < 1e-6);
+        // A covariance that is not positive definite gives none.
+        let e = epoch(0.0, 1, 0.0, Vector3::repeat(1.0), Matrix3::zeros(), 3.0);
+        assert_eq!(position_nees(&e), None);
+    }
+
+    #[test]
+    fn outage_consistency_counts_reference_epochs_inside_the_windows() {
+        let p = Matrix3::from_diagonal(&Vector3::new(1.0, 4.0, 1.0));
+        let epochs = vec![
+            // Window 1: NEES 1 + 4/4 = 2 (inside), then 16 + 1 = 17 (outside).
+            epoch(1.0, 1, 0.0, Vector3::new(1.0, 2.0, 0.0), p, f64::NAN),
+            epoch(2.0, 1, 0.0, Vector3::new(4.0, 2.0, 0.0), p, f64::NAN),
+            // Float (not a reference) and outside every window: ignored.
+            epoch(3.0, 2, 0.0, Vector3::new(40.0, 0.0, 0.0), p, f64::NAN),
+            epoch(7.0, 1, 0.0, Vector3::new(40.0, 0.0, 0.0), p, 3.0),
+            // Window 2: e = (0, 1, 0), NEES 1/4 …
+            epoch(11.0, 1, 0.0, Vector3::new(0.0, 1.0, 0.0), p, f64::NAN),
+            // … and a singular covariance, left out and counted.
+            epoch(
+                12.0,
+                1,
+                0.0,
+                Vector3::new(0.0, 1.0, 0.0),
+                Matrix3::zeros(),
+                f64::NAN,
+            ),
+        ];
+        let c = outage_consistency(
+            &epochs,
+            &[(0.0, 5.0), (10.0, 15.0), (20.0, 25.0)],
+            5.0,
+            &FIXED,
+        );
+        assert_eq!(
+            (c.windows, c.epochs, c.singular_epochs, c.nees_dof),
+            (2, 3, 1, 3)
+        );
+        assert!((c.inside_99_fraction.unwrap() - 2.0 / 3.0).abs() < 1e-12);
+        assert!((c.mean_nees.unwrap() - (2.0 + 17.0 + 0.25) / 3.0).abs() < 1e-6);
+        // Without a reference-quality fix: no score.
+        let none = outage_consistency(&epochs, &[(0.0, 5.0)], 5.0, &[FixQuality::Ppp]);
+        assert_eq!(
+            (none.epochs, none.inside_99_fraction, none.mean_nees),
+            (0, None, None)
+        );
+    }
+
+    #[test]
+    fn nis_per_dof_averages_the_updates_only() {
+        let p = Matrix3::identity();
+        let epochs = [
+            epoch(0.0, 1, 0.0, Vector3::zeros(), p, 3.0),
+            epoch(1.0, 1, 0.0, Vector3::zeros(), p, 6.0),
+            epoch(2.0, 1, 0.0, Vector3::zeros(), p, 30.0),
+            // Withheld: no update.
+            epoch(3.0, 1, 0.0, Vector3::zeros(), p, f64::NAN),
+        ];
+        let n = nis_consistency(&epochs);
+        assert_eq!((n.epochs, n.nis_dof), (3, 3));
+        // (3 + 6 + 30) / 3 updates / 3 dof = 39 / 9.
+        assert!((n.mean_nis_per_dof.unwrap() - 39.0 / 9.0).abs() < 1e-12);
+        assert!((n.inside_99_fraction.unwrap() - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(nis_consistency(&epochs[3..]).mean_nis_per_dof, None);
+    }
+}

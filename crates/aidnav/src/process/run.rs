@@ -399,3 +399,59 @@ mod tests {
         }
     }
 }
+
+/// Synthetic epochs for the scores' unit tests.
+#[cfg(test)]
+pub(crate) mod synthetic {
+    use super::*;
+    use aidnav_estimation::Outcome;
+    use nalgebra::Matrix3;
+
+    /// Where the synthetic fixes are.
+    pub(crate) const PLACE: Geodetic = Geodetic {
+        latitude_rad: 0.7,
+        longitude_rad: 0.3,
+        height_m: 100.0,
+    };
+
+    /// An epoch at `time_s` whose fix (quality `quality`, σ `fix_sigma_m`
+    /// on each axis) is at [`PLACE`] and whose antenna lies `error_ned`
+    /// from it, with the filter's antenna covariance `covariance`; updated
+    /// (accepted, NIS `nis`) unless `nis` is NaN (withheld).
+    pub(crate) fn epoch(
+        time_s: f64,
+        quality: u8,
+        fix_sigma_m: f64,
+        error_ned: Vector3<f64>,
+        covariance: Matrix3<f64>,
+        nis: f64,
+    ) -> Epoch {
+        let fix = GnssFix {
+            time_s,
+            position: PLACE,
+            quality,
+            satellites: 20,
+            position_sigma_neu: Vector3::repeat(fix_sigma_m),
+            velocity_ned: None,
+            velocity_sigma_neu: None,
+        };
+        Epoch {
+            index: 0,
+            fix,
+            antenna: PLACE.offset_by(&Vec3::assume_in_frame(error_ned)),
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, 0.0),
+            sigma: covariance.diagonal().map(f64::sqrt),
+            position_covariance: covariance,
+            nis,
+            innovation: Vector3::repeat(f64::NAN),
+            outcome: nis.is_finite().then_some(Outcome::Accepted),
+            instruments: Default::default(),
+            smoothed_antenna: None,
+            convergence: f64::NAN,
+            k_eff: f64::NAN,
+            bridged: None,
+            record_index: None,
+        }
+    }
+}

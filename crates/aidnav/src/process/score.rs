@@ -329,3 +329,118 @@ pub fn inject_outliers(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::process::run::synthetic::epoch;
+    use nalgebra::Matrix3;
+
+    const FIXED: [FixQuality; 1] = [FixQuality::Fixed];
+
+    /// 4 Hz epochs from `a` to `b` (exclusive), quality `quality`, the
+    /// antenna `error(t)` from the fix.
+    fn epochs(a: f64, b: f64, quality: u8, error: impl Fn(f64) -> Vector3<f64>) -> Vec<Epoch> {
+        let n = ((b - a) * 4.0).round() as usize;
+        (0..n)
+            .map(|k| {
+                let t = a + k as f64 * 0.25;
+                epoch(t, quality, 0.01, error(t), Matrix3::identity(), 3.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn drift_is_the_rms_over_windows_of_the_maximum_against_the_reference() {
+        // Window [0, 10): the error grows 0.1 m/s north; window [20, 30):
+        // 0.3 m/s down. Maxima at 9.75 s: 0.975 m horizontal; 2.925 m vertical.
+        let mut all = epochs(0.0, 10.0, 1, |t| Vector3::new(0.1 * t, 0.0, 0.0));
+        all.extend(epochs(10.0, 20.0, 1, |_| Vector3::zeros()));
+        all.extend(epochs(20.0, 30.0, 1, |t| {
+            Vector3::new(0.0, 0.0, 0.3 * (t - 20.0))
+        }));
+        let s = score_windows(&all, &[(0.0, 10.0), (20.0, 30.0)], 10.0, &FIXED);
+        assert_eq!(
+            (s.windows_scheduled, s.windows, s.windows_cut_short),
+            (2, 2, 0)
+        );
+        assert_eq!(s.reference_epochs, 80);
+        let rms = |a: f64, b: f64| ((a * a + b * b) / 2.0).sqrt();
+        assert!((s.horizontal_m.unwrap() - rms(0.975, 0.0)).abs() < 1e-6);
+        assert!((s.vertical_m.unwrap() - rms(0.0, 2.925)).abs() < 1e-6);
+        assert!((s.three_d_m.unwrap() - rms(0.975, 2.925)).abs() < 1e-6);
+        assert!((tracking_rms(&all[40..80], &FIXED).unwrap()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn without_a_reference_quality_fix_nothing_is_scored() {
+        // Float fixes only (and the default reference: RTK fixed): the
+        // filter's solution is not scored against itself or its stream.
+        let float = epochs(0.0, 30.0, 2, |t| Vector3::new(0.1 * t, 0.0, 0.0));
+        let s = score_windows(&float, &[(0.0, 10.0), (15.0, 25.0)], 10.0, &FIXED);
+        assert_eq!(
+            (s.windows_scheduled, s.windows, s.reference_epochs),
+            (2, 0, 0)
+        );
+        assert_eq!(
+            (s.horizontal_m, s.vertical_m, s.three_d_m),
+            (None, None, None)
+        );
+        assert_eq!(tracking_rms(&float, &FIXED), None);
+        assert_eq!(tracking_rms_with_gnss(&float, &FIXED), None);
+        assert_eq!(reference_epochs(&float, &FIXED), 0);
+        let e = efficiency_in_windows(&float, &[(0.0, 10.0)], 10.0, &FIXED);
+        assert_eq!(
+            (e.windows, e.reference_windows, e.actual_crossing_s),
+            (1, 0, None)
+        );
+        // Named as a reference, the same fixes are scored.
+        let s = score_windows(&float, &[(0.0, 10.0)], 10.0, &[FixQuality::Float]);
+        assert!((s.three_d_m.unwrap() - 0.975).abs() < 1e-6);
+        // A quality 0 file (no quality column) only when `unknown` is named.
+        let unknown = epochs(0.0, 10.0, 0, |_| Vector3::zeros());
+        assert_eq!(tracking_rms(&unknown, &FIXED), None);
+        assert!(tracking_rms(&unknown, &[FixQuality::Unknown]).unwrap() < 1e-9);
+    }
+
+    #[test]
+    fn windows_cut_short_by_the_end_of_the_reference_are_counted() {
+        // RTK fixed until 25 s, float after: the window [20, 30) is scored
+        // over its first 4.75 s only; [0, 10) is whole; [40, 50) has no
+        // reference at all.
+        let mut all = epochs(0.0, 25.0, 1, |t| Vector3::new(0.01 * t, 0.0, 0.0));
+        all.extend(epochs(25.0, 60.0, 2, |t| Vector3::new(0.01 * t, 0.0, 0.0)));
+        let s = score_windows(
+            &all,
+            &[(0.0, 10.0), (20.0, 30.0), (40.0, 50.0)],
+            10.0,
+            &FIXED,
+        );
+        assert_eq!(
+            (s.windows_scheduled, s.windows, s.windows_cut_short),
+            (3, 2, 1)
+        );
+        assert_eq!(s.cut_short_scored_s, vec![4.75]);
+        // A window whose last reference epoch is the last epoch before its
+        // end (0.25 s at 4 Hz) is whole.
+        assert!((cut_short_tolerance_s(&all) - 1.0).abs() < 1e-12);
+        // At 0.5 Hz a whole window ends up to 2 s after its last epoch.
+        let slow: Vec<Epoch> = (0..10)
+            .map(|k| {
+                epoch(
+                    2.0 * k as f64,
+                    1,
+                    0.01,
+                    Vector3::zeros(),
+                    Matrix3::identity(),
+                    3.0,
+                )
+            })
+            .collect();
+        assert!((cut_short_tolerance_s(&slow) - 3.0).abs() < 1e-12);
+        assert_eq!(
+            score_windows(&slow, &[(0.0, 10.0)], 10.0, &FIXED).windows_cut_short,
+            0
+        );
+    }
+}

@@ -200,3 +200,121 @@ pub fn rejection_run_warnings(epochs: &[Epoch], t0_s: f64) -> Vec<Warning> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::process::run::synthetic::epoch;
+    use nalgebra::{Matrix3, Vector3};
+
+    /// 4 Hz updates from `a` to `b` with position NIS `nis(t)`.
+    fn updates(a: f64, b: f64, nis: impl Fn(f64) -> f64) -> Vec<Epoch> {
+        let n = ((b - a) * 4.0).round() as usize;
+        (0..n)
+            .map(|k| {
+                let t = a + k as f64 * 0.25;
+                epoch(t, 1, 0.01, Vector3::zeros(), Matrix3::identity(), nis(t))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_sustained_nis_far_above_its_dof_is_a_divergence_with_its_times() {
+        // NIS per dof 1 until 100 s, 20 from 100 to 160 s, 1 after.
+        let epochs = updates(0.0, 300.0, |t| {
+            if (100.0..160.0).contains(&t) {
+                60.0
+            } else {
+                3.0
+            }
+        });
+        let w = divergence_warnings(&epochs, 0.0);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert_eq!(w[0].kind, WarningKind::Divergence);
+        let (a, b) = (w[0].start_s.unwrap(), w[0].end_s.unwrap());
+        // The window (t − 30, t] holds 120 updates; its mean per dof is
+        // (19 n + 120) / 120 with n of them at 20: above 10 for n ≥ 57,
+        // first at 100 + 56 · 0.25 = 114 s, last at 175.5 s (the window
+        // (145.5, 175.5] holds 57 of them).
+        assert!((a - 114.0).abs() < 1e-9, "{a}");
+        assert!((b - 175.5).abs() < 1e-9, "{b}");
+        assert!(
+            w[0].message.contains("from 114.0 s") && w[0].message.contains("to 175.5 s"),
+            "{}",
+            w[0].message
+        );
+        assert!(w[0].kind.fails_strict());
+    }
+
+    #[test]
+    fn a_single_outlier_is_no_divergence() {
+        // However large, one NIS lifts the 30 s mean for less than 30 s.
+        let epochs = updates(0.0, 200.0, |t| if t == 50.0 { 1e9 } else { 3.0 });
+        assert!(divergence_warnings(&epochs, 0.0).is_empty());
+        // Nor is a stretch of 20 s (mean above 10 for less than a window).
+        let short = updates(0.0, 200.0, |t| {
+            if (50.0..70.0).contains(&t) { 60.0 } else { 3.0 }
+        });
+        assert!(divergence_warnings(&short, 0.0).is_empty());
+    }
+
+    #[test]
+    fn a_long_run_of_rejected_updates_is_a_warning_with_its_times() {
+        let mut epochs = updates(0.0, 60.0, |_| 3.0);
+        // 12.5 s rejected from 10 s (until the accepted update at 22.5 s),
+        // 5 s limited from 40 s: only the first is a warning.
+        for e in &mut epochs {
+            let t = e.fix.time_s;
+            if (10.0..22.5).contains(&t) {
+                e.outcome = Some(Outcome::Rejected);
+            } else if (40.0..45.0).contains(&t) {
+                e.outcome = Some(Outcome::Limited);
+            }
+        }
+        let w = rejection_run_warnings(&epochs, 0.0);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert_eq!((w[0].start_s, w[0].end_s), (Some(10.0), Some(22.5)));
+        assert!(
+            w[0].message
+                .starts_with("50 position updates in a row rejected or limited"),
+            "{}",
+            w[0].message
+        );
+        // A run lasting to the last epoch ends there.
+        for e in &mut epochs[160..] {
+            e.outcome = Some(Outcome::Limited);
+        }
+        let w = rejection_run_warnings(&epochs, 0.0);
+        assert_eq!(w.len(), 2);
+        assert_eq!((w[1].start_s, w[1].end_s), (Some(40.0), Some(59.75)));
+        // Withheld epochs (an outage) neither start nor break a run.
+        for k in (160..164).chain(180..190) {
+            epochs[k].outcome = None;
+        }
+        let w = rejection_run_warnings(&epochs, 0.0);
+        assert_eq!((w[1].start_s, w[1].end_s), (Some(41.0), Some(59.75)));
+        assert!(
+            w[1].message.starts_with("66 position updates"),
+            "{}",
+            w[1].message
+        );
+    }
+
+    #[test]
+    fn input_notes_do_not_fail_strict() {
+        assert!(!WarningKind::Input.fails_strict());
+        for k in [
+            WarningKind::Divergence,
+            WarningKind::RejectionRun,
+            WarningKind::LevellingWhileMoving,
+            WarningKind::ImplausibleUnits,
+            WarningKind::ScoringRun,
+            WarningKind::Output,
+        ] {
+            assert!(k.fails_strict(), "{k:?}");
+        }
+        let w = serde_json::to_value(Warning::new(WarningKind::RejectionRun, "x")).unwrap();
+        assert_eq!(w["kind"], "rejection_run");
+        assert!(w["start_s"].is_null());
+    }
+}
