@@ -172,19 +172,34 @@ fn print_consistency(r: &ProcessReport) {
             "covariance consistency in the outages — 3-D antenna error against the filter's covariance (+ the reference's σ); honest: 99 % inside, mean NEES 3:"
         );
         println!(
-            "{:>6} {:>8} {:>22} {:>10}",
-            "L [s]", "epochs", "inside 99 % ellipsoid", "mean NEES"
+            "{:>6} {:>8} {:>22} {:>10} {:>24}",
+            "L [s]", "epochs", "inside 99 % ellipsoid", "mean NEES", "smoothed: inside, NEES"
         );
-        for o in &c.outages {
+        let inside = |f: Option<f64>| {
+            f.map_or_else(
+                || NO_REFERENCE.to_string(),
+                |f| format!("{:.1} %", 100.0 * f),
+            )
+        };
+        for (k, o) in c.outages.iter().enumerate() {
+            let smoothed = c.outages_smoothed.get(k).map_or_else(
+                || "—".to_string(),
+                |s| match s.mean_nees {
+                    Some(_) => format!(
+                        "{}, {}",
+                        inside(s.inside_99_fraction),
+                        score(s.mean_nees, 2)
+                    ),
+                    None => NO_REFERENCE.to_string(),
+                },
+            );
             println!(
-                "{:>6.0} {:>8} {:>22} {:>10}",
+                "{:>6.0} {:>8} {:>22} {:>10} {:>24}",
                 o.outage_s,
                 o.epochs,
-                o.inside_99_fraction.map_or_else(
-                    || NO_REFERENCE.to_string(),
-                    |f| format!("{:.1} %", 100.0 * f)
-                ),
-                score(o.mean_nees, 2)
+                inside(o.inside_99_fraction),
+                score(o.mean_nees, 2),
+                smoothed
             );
         }
     }

@@ -376,6 +376,18 @@ impl NedFilter {
     /// epoch (IMU position, velocity, attitude), or None when not
     /// recording or when the record overflowed its epoch limit.
     pub fn smoothed_states(&self) -> Result<Option<Vec<NedState>>, EstimationError> {
+        Ok(self
+            .smoothed_states_with_covariance()?
+            .map(|v| v.into_iter().map(|(s, _)| s).collect()))
+    }
+
+    /// [`smoothed_states`](Self::smoothed_states), each with the smoothed
+    /// covariance of its antenna position error (NED, m²; `H P Hᵀ` as in
+    /// [`antenna_position_covariance`](Self::antenna_position_covariance),
+    /// at the smoothed attitude).
+    pub fn smoothed_states_with_covariance(
+        &self,
+    ) -> Result<Option<Vec<(NedState, Matrix3<f64>)>>, EstimationError> {
         let Some(r) = self.record.as_ref().filter(|r| !r.overflow) else {
             return Ok(None);
         };
@@ -384,7 +396,13 @@ impl NedFilter {
             smoothed
                 .iter()
                 .zip(&r.states)
-                .map(|(e, s)| corrected(s, &e.x))
+                .map(|(e, s)| {
+                    let state = corrected(s, &e.x);
+                    let c = state.attitude.matrix();
+                    let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
+                    let p = h * e.p * h.transpose();
+                    (state, (p + p.transpose()) * 0.5)
+                })
                 .collect(),
         ))
     }

@@ -48,7 +48,9 @@ pub struct ProcessReport {
     /// the mean position NEES (`mean_nees`, `nees_dof` = 3 for an honest
     /// covariance); `consistency.all_gnss`: the mean position NIS per degree
     /// of freedom of the main run (`mean_nis_per_dof`, 1 when honest) over
-    /// its `epochs` updates. See [`crate::process::consistency`].
+    /// its `epochs` updates; `consistency.outages_smoothed[]`: the outages'
+    /// figures for the RTS-smoothed solution against the smoother's
+    /// covariance (with `output.smooth`). See [`crate::process::consistency`].
     pub consistency: crate::process::Consistency,
     /// Fraction of the clean run's epochs at which K_eff > 1 (the
     /// integrated solution is predicted better than GNSS).
@@ -167,6 +169,7 @@ impl ProcessReport {
             efficiency: scores.efficiency,
             consistency: crate::process::Consistency {
                 outages: scores.consistency,
+                outages_smoothed: scores.consistency_smoothed,
                 all_gnss: result.nis,
                 ..crate::process::Consistency::default()
             },

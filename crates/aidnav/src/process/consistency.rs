@@ -74,6 +74,9 @@ pub struct Consistency {
     pub chi2_99: f64,
     /// Per outage length, the coasting filter.
     pub outages: Vec<OutageConsistency>,
+    /// Per outage length, the RTS-smoothed solution against the smoother's
+    /// covariance (with `output.smooth`; empty otherwise).
+    pub outages_smoothed: Vec<OutageConsistency>,
     /// All GNSS: the position NIS.
     pub all_gnss: NisConsistency,
 }
@@ -83,6 +86,7 @@ impl Default for Consistency {
         Self {
             chi2_99: chi2_3_99(),
             outages: Vec::new(),
+            outages_smoothed: Vec::new(),
             all_gnss: nis_consistency(&[]),
         }
     }

@@ -105,6 +105,9 @@ pub struct Epoch {
     pub instruments: aidnav_integration::ned::InstrumentEstimate,
     /// RTS-smoothed antenna position (runs with `RunPlan::smooth`).
     pub smoothed_antenna: Option<Geodetic>,
+    /// The smoother's covariance of the antenna position error (NED)
+    /// \[m²\] (runs with `RunPlan::smooth`).
+    pub smoothed_position_covariance: Option<Matrix3<f64>>,
     /// Spec 10's δ(n) on the instrument states (runs with
     /// `RunPlan::monitor`; NaN otherwise or while the Fisher information is
     /// singular).
@@ -136,10 +139,20 @@ impl Epoch {
         }
     }
 
-    /// This epoch with the smoothed antenna position in place of the filtered one.
+    /// This epoch with the smoothed antenna position (and, when recorded,
+    /// its covariance and σ) in place of the filtered one.
     pub fn smoothed(&self) -> Option<Epoch> {
-        self.smoothed_antenna
-            .map(|antenna| Epoch { antenna, ..*self })
+        self.smoothed_antenna.map(|antenna| {
+            let position_covariance = self
+                .smoothed_position_covariance
+                .unwrap_or(self.position_covariance);
+            Epoch {
+                antenna,
+                sigma: position_covariance.diagonal().map(|v| v.max(0.0).sqrt()),
+                position_covariance,
+                ..*self
+            }
+        })
     }
 
     /// The epoch of a loop record, reporting `row` and `instruments` (the
@@ -164,6 +177,7 @@ impl Epoch {
             outcome: rec.outcome,
             instruments,
             smoothed_antenna: None,
+            smoothed_position_covariance: None,
             convergence: rec.convergence,
             k_eff,
             bridged: None,
@@ -363,14 +377,17 @@ pub fn run_filter_rows(
 
 /// Add the RTS-smoothed antenna position to every recorded epoch.
 fn smooth(filter: &NedFilter, epochs: &mut [Epoch]) -> Result<(), ProcessError> {
-    let states = filter.smoothed_states()?.ok_or_else(|| {
+    let states = filter.smoothed_states_with_covariance()?.ok_or_else(|| {
         ProcessError::Data(format!(
             "the log is too long to smooth: more than {MAX_RECORDED_EPOCHS} covariance epochs ({} MB)",
             (MAX_RECORDED_EPOCHS * aidnav_integration::ned::BYTES_PER_RECORDED_EPOCH) >> 20
         ))
     })?;
     for e in epochs {
-        e.smoothed_antenna = e.record_index.map(|i| filter.antenna_of(&states[i]));
+        if let Some((state, covariance)) = e.record_index.and_then(|i| states.get(i)) {
+            e.smoothed_antenna = Some(filter.antenna_of(state));
+            e.smoothed_position_covariance = Some(*covariance);
+        }
     }
     Ok(())
 }
@@ -448,6 +465,7 @@ pub(crate) mod synthetic {
             outcome: nis.is_finite().then_some(Outcome::Accepted),
             instruments: Default::default(),
             smoothed_antenna: None,
+            smoothed_position_covariance: None,
             convergence: f64::NAN,
             k_eff: f64::NAN,
             bridged: None,

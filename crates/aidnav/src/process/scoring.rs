@@ -58,6 +58,9 @@ pub struct Scores {
     /// The coasting filter's covariance against its actual error in the
     /// outage windows, per length.
     pub consistency: Vec<OutageConsistency>,
+    /// The same for the RTS-smoothed solution and its covariance (with
+    /// `output.smooth`).
+    pub consistency_smoothed: Vec<OutageConsistency>,
     /// (fraction, policy, RMS 3-D error over the reference epochs against
     /// the clean fixes; None: no reference, NaN: the run failed).
     pub anomalies: Vec<(f64, PolicyName, Option<f64>)>,
@@ -102,8 +105,14 @@ pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, Process
 /// (L, free INS?, the windows of L)
 type OutagePlan = (f64, bool, Vec<(f64, f64)>);
 
-/// (L, free INS?, score, score of the smoothed solution, epochs)
-type Scored = (f64, bool, OutageScore, Option<OutageScore>, Vec<Epoch>);
+/// (L, free INS?, score, score and consistency of the smoothed solution, epochs)
+type Scored = (
+    f64,
+    bool,
+    OutageScore,
+    Option<(OutageScore, OutageConsistency)>,
+    Vec<Epoch>,
+);
 
 /// What a scoring run reports: its score (None: no reference) or why it failed.
 type ScoredOrNan<'a> = dyn Fn(String, Result<Option<f64>, ProcessError>) -> Option<f64> + Sync + 'a;
@@ -143,7 +152,12 @@ fn outage_scores(
                 l,
                 free,
                 score_windows(&epochs, windows, l, reference),
-                (!smoothed.is_empty()).then(|| score_windows(&smoothed, windows, l, reference)),
+                (!smoothed.is_empty()).then(|| {
+                    (
+                        score_windows(&smoothed, windows, l, reference),
+                        outage_consistency(&smoothed, windows, l, reference),
+                    )
+                }),
                 epochs,
             ))
         })
@@ -190,7 +204,10 @@ fn outage_scores(
                 .map(|e| (e.fix.time_s - first, (3.0 * e.sigma.norm()).max(1e-3)))
                 .collect(),
         });
-        scores.outages_smoothed.extend(smoothed);
+        if let Some((score, consistency)) = smoothed {
+            scores.outages_smoothed.push(score);
+            scores.consistency_smoothed.push(consistency);
+        }
         scores.outages.push(s);
     }
     Ok(())
