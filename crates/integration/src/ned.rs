@@ -186,6 +186,10 @@ struct ConvergenceMonitor {
     before: f64,
 }
 
+/// A smoothed navigation state and the covariance of its antenna position
+/// error (NED, m²).
+pub type SmoothedAntenna = (NedState, Matrix3<f64>);
+
 impl NedFilter {
     /// Start at `state` with the prior σ of every error state and the
     /// antenna lever arm (body frame, from the IMU to the antenna).
@@ -387,7 +391,7 @@ impl NedFilter {
     /// at the smoothed attitude).
     pub fn smoothed_states_with_covariance(
         &self,
-    ) -> Result<Option<Vec<(NedState, Matrix3<f64>)>>, EstimationError> {
+    ) -> Result<Option<Vec<SmoothedAntenna>>, EstimationError> {
         let Some(r) = self.record.as_ref().filter(|r| !r.overflow) else {
             return Ok(None);
         };
