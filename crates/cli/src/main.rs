@@ -106,10 +106,11 @@ struct ProcessArgs {
     /// Exit with status 3 (after writing every output) when the run gave a
     /// warning: divergence (mean position NIS per degree of freedom above
     /// 10 over 30 s, for longer than 30 s), a run of rejected or limited
-    /// updates longer than 10 s, levelling while moving, implausible units,
-    /// a failed scoring run or non-finite output values. The readers' notes
-    /// (a truncated line dropped, epochs outside the IMU span) are printed
-    /// but do not fail.
+    /// updates longer than 10 s, levelling while moving, implausible units
+    /// or non-finite output values. The readers' notes (a truncated line
+    /// dropped, epochs outside the IMU span) and failed runs of the
+    /// comparison tables (another policy on corrupted data: NaN in the
+    /// table) are printed but do not fail.
     #[arg(long)]
     strict: bool,
 }

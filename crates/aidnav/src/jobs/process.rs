@@ -79,7 +79,8 @@ use crate::process::{Warning, WarningKind};
 
 impl ProcessReport {
     /// The warnings `aidnav process --strict` fails on
-    /// ([`WarningKind::fails_strict`]: all but the readers' notes).
+    /// ([`WarningKind::fails_strict`]: all but the readers' notes and the
+    /// comparison tables' failed runs).
     pub fn strict_failures(&self) -> impl Iterator<Item = &Warning> {
         self.warnings.iter().filter(|w| w.kind.fails_strict())
     }

@@ -10,6 +10,13 @@
 //! `result.warnings` (`kind`, `message`, `start_s`, `end_s`), the CLI prints
 //! each on stderr, and `aidnav process --strict` exits non-zero when any
 //! warning is of a kind that [`WarningKind::fails_strict`].
+//!
+//! Where a new check goes: one on the main run (levelling while moving, say)
+//! pushes its `Warning` in [`super::Process::run`] next to
+//! [`divergence_warnings`]; one at reading (implausible units) must reach
+//! `ProcessResult::warnings` typed — the strings of
+//! [`super::Inputs::warnings`] become `input` notes, which never fail
+//! `--strict`.
 
 use aidnav_estimation::Outcome;
 use serde::Serialize;
@@ -35,7 +42,9 @@ pub enum WarningKind {
     LevellingWhileMoving,
     /// Input values in units that cannot be right (g for m/s², deg for rad …).
     ImplausibleUnits,
-    /// A scoring run failed (its score is NaN).
+    /// A run of the comparison tables (another policy on corrupted data)
+    /// failed: its score is NaN. A result of the table, not of the
+    /// configured run: not a `--strict` failure.
     ScoringRun,
     /// A written table holds non-finite values.
     Output,
@@ -43,9 +52,10 @@ pub enum WarningKind {
 
 impl WarningKind {
     /// Whether `aidnav process --strict` fails on a warning of this kind:
-    /// every kind but the readers' notes.
+    /// every kind but the readers' notes and the comparison tables' failed
+    /// runs.
     pub fn fails_strict(self) -> bool {
-        self != WarningKind::Input
+        !matches!(self, WarningKind::Input | WarningKind::ScoringRun)
     }
 }
 
@@ -301,14 +311,14 @@ mod tests {
     }
 
     #[test]
-    fn input_notes_do_not_fail_strict() {
+    fn input_notes_and_failed_table_runs_do_not_fail_strict() {
         assert!(!WarningKind::Input.fails_strict());
+        assert!(!WarningKind::ScoringRun.fails_strict());
         for k in [
             WarningKind::Divergence,
             WarningKind::RejectionRun,
             WarningKind::LevellingWhileMoving,
             WarningKind::ImplausibleUnits,
-            WarningKind::ScoringRun,
             WarningKind::Output,
         ] {
             assert!(k.fails_strict(), "{k:?}");
