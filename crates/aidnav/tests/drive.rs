@@ -29,7 +29,8 @@ fn thirty_second_outages_stay_bounded() {
     let (_, cfg, inputs) = drive();
     assert_eq!(inputs.imu.len(), 54_858);
     let clean = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
-    let tracking = tracking_rms(&clean);
+    let reference = &cfg.score.reference_quality;
+    let tracking = tracking_rms(&clean, reference).unwrap();
     assert!(tracking < 0.05, "tracking {tracking} m");
     let first = inputs.imu[0].time_s;
     let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
@@ -42,16 +43,15 @@ fn thirty_second_outages_stay_bounded() {
             ..RunPlan::default()
         };
         let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept).unwrap();
-        score_windows(&epochs, &windows, 30.0)
+        score_windows(&epochs, &windows, 30.0, reference)
     };
     let filter = score(false);
     let free = score(true);
-    assert_eq!(filter.windows, 8);
+    assert_eq!((filter.windows, filter.windows_cut_short), (8, 0));
+    let (filter, free) = (filter.three_d_m.unwrap(), free.three_d_m.unwrap());
     assert!(
-        filter.three_d_m < free.three_d_m / 3.0 && filter.three_d_m < 30.1,
-        "30 s drift {} m, free INS {} m",
-        filter.three_d_m,
-        free.three_d_m
+        filter < free / 3.0 && filter < 30.1,
+        "30 s drift {filter} m, free INS {free} m"
     );
 }
 
@@ -118,7 +118,15 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
     assert_eq!(again.imu.len(), inputs.imu.len() - 1);
     let a = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
     let b = run_filter(&kf, &again, &RunPlan::default(), PolicyName::Accept).unwrap();
-    let (ta, tb) = (tracking_rms(&a), tracking_rms(&b));
+    // KF-GINS text has no quality column (Q = 0): not a reference unless
+    // the configuration names it; scored against itself it would be.
+    assert_eq!(tracking_rms(&b, &kf.score.reference_quality), None);
+    // Against the same fixes: all of the drive's (fixed and float alike).
+    use aidnav::process::FixQuality::{Fixed, Float, Unknown};
+    let (ta, tb) = (
+        tracking_rms(&a, &[Fixed, Float]).unwrap(),
+        tracking_rms(&b, &[Unknown]).unwrap(),
+    );
     assert!((ta - tb).abs() < 0.002, "{ta} vs {tb}");
     let last_a = a.last().unwrap().antenna;
     let last_b = b.last().unwrap().antenna;
@@ -156,23 +164,24 @@ fn supervisors_on_the_drive() {
             }
         }
     }
-    let coasting = score_windows(&epochs, &windows, 30.0);
+    let reference = &cfg.score.reference_quality;
+    let coasting = score_windows(&epochs, &windows, 30.0, reference);
     for k in 0..4 {
-        let s = score_windows(&bridged_epochs(&epochs, k), &windows, 30.0);
+        let s = score_windows(&bridged_epochs(&epochs, k), &windows, 30.0, reference);
         assert_eq!(s.windows, coasting.windows);
-        assert!(s.three_d_m.is_finite() && s.three_d_m != coasting.three_d_m);
+        assert!(s.three_d_m.unwrap().is_finite() && s.three_d_m != coasting.three_d_m);
     }
     // Efficiency: K_eff starts above 1 in every window and falls below it
     // within the 30 s; the actual error crosses 1.5 m in most windows too.
-    let eff = efficiency_in_windows(&epochs, &windows, 30.0);
-    assert_eq!(eff.windows, 8);
+    let eff = efficiency_in_windows(&epochs, &windows, 30.0, reference);
+    assert_eq!((eff.windows, eff.reference_windows), (8, 8));
     assert!((eff.sigma_gnss_m - 1.5).abs() < 1e-12);
     assert!(eff.predicted_crossed >= 6 && eff.predicted_crossing_s > 5.0);
-    assert!(eff.actual_crossed >= 6 && eff.actual_crossing_s > 5.0);
+    assert!(eff.actual_crossed >= 6 && eff.actual_crossing_s.unwrap() > 5.0);
     // Eq. 3: measured 0.025 m with the model's Q, 0.011 m with the term.
     let clean = |cfg: &ProcessConfig| {
         let e = run_filter(cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
-        tracking_rms(&e)
+        tracking_rms(&e, &cfg.score.reference_quality).unwrap()
     };
     let fixed = clean(&cfg);
     cfg.filter.adaptive_noise = AdaptiveNoise::Hard;
@@ -253,7 +262,7 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
     }
     let run = |cfg: &ProcessConfig, i: &aidnav::process::Inputs| {
         let e = run_filter(cfg, i, &RunPlan::default(), PolicyName::Accept).unwrap();
-        tracking_rms(&e)
+        tracking_rms(&e, &cfg.score.reference_quality).unwrap()
     };
     let (ta, tb) = (run(&cfg, &inputs), run(&nmea, &again));
     assert!((ta - tb).abs() < 0.01, "{ta} vs {tb}");

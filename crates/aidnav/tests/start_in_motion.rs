@@ -134,7 +134,11 @@ fn run(platform: &str, offset_deg: [f64; 3], after_s: &[f64]) -> (StartKind, Vec
                 .fold(0.0, f64::max)
         })
         .collect();
-    (result.start.kind, worst, result.tracking_rms_m)
+    (
+        result.start.kind,
+        worst,
+        result.tracking_rms_m.unwrap_or(f64::NAN),
+    )
 }
 
 /// A car leaning 3° (roll unknown to the alignment) at 25 m/s from the

@@ -80,7 +80,15 @@ enum Command {
     /// withheld RTK fixes: filter, RTS-smoothed, free INS, and bridged by
     /// spec 20's predictors), the efficiency criterion K_eff in the outages,
     /// injected outliers per measurement policy, and bursts after outages.
-    /// `--no-score` runs the filter only.
+    /// `--no-score` runs the filter only. Scores are measured against the
+    /// fixes whose quality `[score] reference_quality` names (RTK fixed by
+    /// default); a score without such a fix prints "no reference" (null in
+    /// summary.json). summary.json's `result.consistency` compares the
+    /// filter's covariance with its actual error in the outages (fraction
+    /// inside the 99 % ellipsoid, mean NEES) and gives the mean NIS per
+    /// degree of freedom with all GNSS. Warnings (divergence, long runs of
+    /// rejected updates, …) go to stderr and to summary.json's
+    /// `result.warnings`.
     Process(ProcessArgs),
 }
 
@@ -106,6 +114,16 @@ struct ProcessArgs {
     /// Skip the outage and anomaly scoring (one filter pass only).
     #[arg(long)]
     no_score: bool,
+    /// Exit with status 3 (after writing every output) when the run gave a
+    /// warning: divergence (mean position NIS per degree of freedom above
+    /// 10 over 30 s, for longer than 30 s), a run of rejected or limited
+    /// updates longer than 10 s, levelling while moving, implausible units
+    /// or non-finite output values. The readers' notes (a truncated line
+    /// dropped, epochs outside the IMU span) and failed runs of the
+    /// comparison tables (another policy on corrupted data: NaN in the
+    /// table) are printed but do not fail.
+    #[arg(long)]
+    strict: bool,
 }
 
 #[derive(Debug, Args)]
@@ -206,13 +224,13 @@ fn main() -> ExitCode {
     stop_quietly_on_closed_stdout();
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Filter(a) => run_filter(a),
-        Command::Reproduce(a) => run_reproduce(a),
-        Command::Run(a) => run_scenario(a),
+        Command::Filter(a) => run_filter(a).map(|()| ExitCode::SUCCESS),
+        Command::Reproduce(a) => run_reproduce(a).map(|()| ExitCode::SUCCESS),
+        Command::Run(a) => run_scenario(a).map(|()| ExitCode::SUCCESS),
         Command::Process(a) => run_process(a),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("error: {}", error_chain(&e));
             ExitCode::FAILURE

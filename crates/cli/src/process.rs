@@ -1,18 +1,31 @@
 //! `aidnav process`: run the job, print its tables.
 
 use std::path::Path;
+use std::process::ExitCode;
 
 use aidnav::jobs::{self, ProcessReport};
 use anyhow::Result;
 
 use super::ProcessArgs;
 
-pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
+/// Exit status of `aidnav process --strict` when the run gave a warning
+/// (distinct from 1, an error, and 2, clap's usage error).
+pub(crate) const STRICT_EXIT: u8 = 3;
+
+/// What a score with no reference epoch prints.
+const NO_REFERENCE: &str = "no reference";
+
+/// A score with `decimals`, or "no reference"; NaN (a failed run) as NaN.
+fn score(value: Option<f64>, decimals: usize) -> String {
+    value.map_or_else(|| NO_REFERENCE.to_string(), |v| format!("{v:.decimals$}"))
+}
+
+pub(crate) fn run_process(a: ProcessArgs) -> Result<ExitCode> {
     if a.print_config {
         let platform: aidnav::process::Platform =
             serde_json::from_value(serde_json::Value::String(a.platform.clone()))?;
         print!("{}", aidnav::process::config_template(platform));
-        return Ok(());
+        return Ok(ExitCode::SUCCESS);
     }
     let Some(config) = a.config else {
         anyhow::bail!("a configuration file is needed (or --print-config)");
@@ -23,7 +36,7 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
     let out = a.out.unwrap_or_else(|| Path::new("results").join(stem));
     let r = jobs::process(&config, a.data.as_deref(), &out, !a.no_score)?;
     for w in &r.warnings {
-        eprintln!("warning: {w}");
+        eprintln!("warning: {}", w.message);
     }
     println!(
         "{} IMU samples, {} GNSS epochs; read {:.2} s, filter pass (+ smoother when on) {:.2} s ({:.0} IMU epochs/s), scoring {:.2} s; aidnav {}",
@@ -37,9 +50,11 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
     );
     let outcomes: Vec<String> = r.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
-        "all GNSS, policy {:?}: RMS 3-D antenna error over RTK-fixed epochs {:.4} m; updates: {}",
+        "all GNSS, policy {:?}: RMS 3-D antenna error over the {} reference epochs {}; updates: {}",
         r.policy,
-        r.tracking_rms_m,
+        r.reference_epochs,
+        r.tracking_rms_m
+            .map_or_else(|| NO_REFERENCE.to_string(), |v| format!("{v:.4} m")),
         outcomes.join(", ")
     );
     println!(
@@ -74,18 +89,31 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<()> {
         );
     }
     if let Some(s) = r.tracking_smoothed_rms_m {
-        println!("RTS-smoothed: RMS 3-D antenna error over RTK-fixed epochs {s:.4} m");
+        println!(
+            "RTS-smoothed: RMS 3-D antenna error over the reference epochs {}",
+            s.map_or_else(|| NO_REFERENCE.to_string(), |v| format!("{v:.4} m"))
+        );
     }
     print_outages(&r);
+    print_consistency(&r);
+    print_efficiency(&r);
     print_anomalies(&r);
     for f in &r.files {
         println!("wrote {}", f.display());
     }
-    Ok(())
+    let failing = r.strict_failures().count();
+    if a.strict && failing > 0 {
+        eprintln!(
+            "error: --strict: {failing} warning{} (outputs written)",
+            if failing == 1 { "" } else { "s" }
+        );
+        return Ok(ExitCode::from(STRICT_EXIT));
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
-/// The outage tables: coasting, free INS and smoothed drift; the bridged
-/// drift; the efficiency criterion.
+/// The outage tables: coasting, free INS and smoothed drift; windows cut
+/// short by the end of the reference; the bridged drift.
 fn print_outages(r: &ProcessReport) {
     if !r.outages.is_empty() {
         println!("simulated outages — RMS over windows of the maximum drift [m]:");
@@ -93,21 +121,49 @@ fn print_outages(r: &ProcessReport) {
             "{:>6} {:>8} {:>12} {:>10} {:>8} {:>14} {:>12}",
             "L [s]", "windows", "horizontal", "vertical", "3-D", "free INS 3-D", "smoothed 3-D"
         );
-        for (k, (s, f)) in r.outages.iter().zip(&r.outages_free_ins).enumerate() {
+        for (k, s) in r.outages.iter().enumerate() {
+            let free = r
+                .outages_free_ins
+                .get(k)
+                .map_or_else(|| "—".to_string(), |f| score(f.three_d_m, 1));
             let smoothed = r
                 .outages_smoothed
                 .get(k)
-                .map_or_else(|| "—".to_string(), |o| format!("{:.2}", o.three_d_m));
+                .map_or_else(|| "—".to_string(), |o| score(o.three_d_m, 2));
             println!(
-                "{:>6.0} {:>8} {:>12.2} {:>10.2} {:>8.2} {:>14.1} {:>12}",
+                "{:>6.0} {:>8} {:>12} {:>10} {:>8} {:>14} {:>12}",
                 s.outage_s,
-                s.windows,
-                s.horizontal_m,
-                s.vertical_m,
-                s.three_d_m,
-                f.three_d_m,
+                format!("{}/{}", s.windows, s.windows_scheduled),
+                score(s.horizontal_m, 2),
+                score(s.vertical_m, 2),
+                score(s.three_d_m, 2),
+                free,
                 smoothed
             );
+        }
+        for s in &r.outages {
+            if s.windows_cut_short > 0 {
+                let spans: Vec<String> = s
+                    .cut_short_scored_s
+                    .iter()
+                    .map(|t| format!("{t:.1} s"))
+                    .collect();
+                println!(
+                    "  {:.0} s: {} of {} scored windows cut short by the end of the reference (scored over the first {} only)",
+                    s.outage_s,
+                    s.windows_cut_short,
+                    s.windows,
+                    spans.join(", ")
+                );
+            }
+            if s.windows < s.windows_scheduled {
+                println!(
+                    "  {:.0} s: {} of {} windows hold no reference epoch (not scored)",
+                    s.outage_s,
+                    s.windows_scheduled - s.windows,
+                    s.windows_scheduled
+                );
+            }
         }
     }
     if !r.outages_bridged.is_empty() {
@@ -118,7 +174,7 @@ fn print_outages(r: &ProcessReport) {
             let cells: Vec<String> = b
                 .scores
                 .iter()
-                .map(|s| format!("{:.0} s: {:.2}", s.outage_s, s.three_d_m))
+                .map(|s| format!("{:.0} s: {}", s.outage_s, score(s.three_d_m, 2)))
                 .collect();
             println!(
                 "  {:<15} {}",
@@ -127,22 +183,78 @@ fn print_outages(r: &ProcessReport) {
             );
         }
     }
+}
+
+/// The consistency table: the coasting filter's covariance against its
+/// actual error in the outage windows; the NIS with all GNSS.
+fn print_consistency(r: &ProcessReport) {
+    let c = &r.consistency;
+    if !c.outages.is_empty() {
+        println!(
+            "covariance consistency in the outages — 3-D antenna error against the filter's covariance (+ the reference's σ); honest: 99 % inside, mean NEES 3:"
+        );
+        println!(
+            "{:>6} {:>8} {:>22} {:>10} {:>24}",
+            "L [s]", "epochs", "inside 99 % ellipsoid", "mean NEES", "smoothed: inside, NEES"
+        );
+        let inside = |f: Option<f64>| {
+            f.map_or_else(
+                || NO_REFERENCE.to_string(),
+                |f| format!("{:.1} %", 100.0 * f),
+            )
+        };
+        for (k, o) in c.outages.iter().enumerate() {
+            let smoothed = c.outages_smoothed.get(k).map_or_else(
+                || "—".to_string(),
+                |s| match s.mean_nees {
+                    Some(_) => format!(
+                        "{}, {}",
+                        inside(s.inside_99_fraction),
+                        score(s.mean_nees, 2)
+                    ),
+                    None => NO_REFERENCE.to_string(),
+                },
+            );
+            println!(
+                "{:>6.0} {:>8} {:>22} {:>10} {:>24}",
+                o.outage_s,
+                o.epochs,
+                inside(o.inside_99_fraction),
+                score(o.mean_nees, 2),
+                smoothed
+            );
+        }
+    }
+    let n = &c.all_gnss;
+    println!(
+        "all GNSS: mean position NIS per degree of freedom {} over {} updates ({} inside χ²₃(0.99) = {:.2}; honest: 1 and 99 %)",
+        n.mean_nis_per_dof
+            .map_or_else(|| "—".to_string(), |v| format!("{v:.2}")),
+        n.epochs,
+        n.inside_99_fraction
+            .map_or_else(|| "—".to_string(), |f| format!("{:.1} %", 100.0 * f)),
+        c.chi2_99
+    );
+}
+
+/// The efficiency criterion in the outages.
+fn print_efficiency(r: &ProcessReport) {
     if !r.efficiency.is_empty() {
         println!(
             "efficiency criterion K_eff = σ_GNSS / σ_filter in the outages (clean run: K_eff > 1 at {:.1} % of the epochs):",
             100.0 * r.k_eff_integrated_fraction
         );
         for e in &r.efficiency {
+            let actual = match e.actual_crossing_s {
+                Some(t) => format!(
+                    "actual error > σ_GNSS after {t:.1} s (in {}/{})",
+                    e.actual_crossed, e.reference_windows
+                ),
+                None => format!("actual error: {NO_REFERENCE}"),
+            };
             println!(
-                "  {:>3.0} s: σ_GNSS {:.3} m; K_eff < 1 after {:.1} s (in {}/{} windows), actual error > σ_GNSS after {:.1} s (in {}/{})",
-                e.outage_s,
-                e.sigma_gnss_m,
-                e.predicted_crossing_s,
-                e.predicted_crossed,
-                e.windows,
-                e.actual_crossing_s,
-                e.actual_crossed,
-                e.windows
+                "  {:>3.0} s: σ_GNSS {:.3} m; K_eff < 1 after {:.1} s (in {}/{} windows), {actual}",
+                e.outage_s, e.sigma_gnss_m, e.predicted_crossing_s, e.predicted_crossed, e.windows,
             );
         }
     }
@@ -152,22 +264,27 @@ fn print_outages(r: &ProcessReport) {
 fn print_anomalies(r: &ProcessReport) {
     if !r.anomalies.is_empty() {
         println!(
-            "injected outliers (5–50 m jumps, σ unchanged) — RMS 3-D error over RTK-fixed epochs [m]:"
+            "injected outliers (5–50 m jumps, σ unchanged) — RMS 3-D error over the reference epochs [m]:"
         );
         for (f, p, rms) in &r.anomalies {
-            println!("  {:>3.0} %  {:<22} {:>8.3}", f * 100.0, p.name(), rms);
+            println!(
+                "  {:>3.0} %  {:<22} {:>8}",
+                f * 100.0,
+                p.name(),
+                score(*rms, 3)
+            );
         }
     }
     if !r.post_outage_bursts.is_empty() {
         println!(
-            "30 s outages, each followed by a burst (one 5–50 m jump on the first fixes back) — RMS 3-D error over RTK-fixed epochs with GNSS [m]:"
+            "30 s outages, each followed by a burst (one 5–50 m jump on the first fixes back) — RMS 3-D error over the reference epochs with GNSS [m]:"
         );
         for (p, burst, clean) in &r.post_outage_bursts {
             println!(
-                "  {:<22} {:>8.3}   (same outages without bursts {:.3})",
+                "  {:<22} {:>8}   (same outages without bursts {})",
                 p.name(),
-                burst,
-                clean
+                score(*burst, 3),
+                score(*clean, 3)
             );
         }
     }

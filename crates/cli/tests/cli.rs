@@ -262,6 +262,12 @@ fn help_explains_every_subcommand() {
         text.contains("--print-scenario") && text.contains("consistency"),
         "{text}"
     );
+    let out = aidnav(&["process", "--help"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("--strict") && text.contains("status 3") && text.contains("no reference"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -495,11 +501,14 @@ fn reproduce_extended_state_writes_the_case_keys_other_tools_read() {
 fn process_runs_the_recorded_drive_and_scores_it() {
     let dir = tempfile::tempdir().unwrap();
     let config = repo().join("examples/drive_0708.toml");
+    // `--strict`: the readers' notes (a truncated line dropped, fixes
+    // before the first IMU sample) do not fail it; a healthy run passes.
     let stdout = success(&[
         "process",
         config.to_str().unwrap(),
         "--out",
         dir.path().to_str().unwrap(),
+        "--strict",
     ]);
     assert!(
         stdout.contains("54858 IMU samples")
@@ -576,6 +585,173 @@ fn process_runs_the_recorded_drive_and_scores_it() {
     for f in ["solution.csv", "trajectory.svg", "outage_drift.svg"] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
+    // Item 7 of issue 13: the covariance against the actual error, per
+    // outage length, and the NIS with all GNSS; printed after the outages.
+    let consistency = &summary["result"]["consistency"];
+    assert!((consistency["chi2_99"].as_f64().unwrap() - 11.3449).abs() < 1e-4);
+    let lengths = consistency["outages"].as_array().unwrap();
+    assert_eq!(lengths.len(), 3);
+    for (o, l) in lengths.iter().zip([10.0, 30.0, 60.0]) {
+        assert_eq!(o["outage_s"], l);
+        assert_eq!(o["nees_dof"], 3);
+        assert!(o["epochs"].as_u64().unwrap() > 100, "{o}");
+        let inside = o["inside_99_fraction"].as_f64().unwrap();
+        assert!(inside > 0.0 && inside <= 1.0, "{o}");
+        assert!(o["mean_nees"].as_f64().unwrap() > 0.0, "{o}");
+    }
+    let all = &consistency["all_gnss"];
+    assert!(all["mean_nis_per_dof"].as_f64().unwrap() > 0.0, "{all}");
+    assert_eq!(all["epochs"], 2183);
+    assert_eq!(summary["result"]["reference_epochs"], 2175);
+    assert_eq!(outages[1]["windows_cut_short"], 0);
+    let table = stdout
+        .find("covariance consistency in the outages")
+        .unwrap();
+    assert!(
+        stdout.find("simulated outages").unwrap() < table,
+        "{stdout}"
+    );
+    // Input notes are in the summary with their kind.
+    let warnings = summary["result"]["warnings"].as_array().unwrap();
+    assert!(
+        warnings.iter().all(|w| w["kind"] == "input"),
+        "{warnings:?}"
+    );
+}
+
+/// The drive as a cheap scoring run: 10 s outages only, no anomaly or
+/// burst runs, no bridging or smoothing; `extra` appended.
+fn quick_drive_config(dir: &Path, extra: &str) -> PathBuf {
+    let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
+    let data = repo().join("data/rtklibexplorer-gnss-imu/drive_0708");
+    let config = example
+        .replace(
+            "dir = \"../data/rtklibexplorer-gnss-imu/drive_0708\"",
+            &format!("dir = {:?}", data.to_str().unwrap()),
+        )
+        .replace("outages_s = [10.0, 30.0, 60.0]", "outages_s = [10.0]")
+        .replace(
+            "outlier_fractions = [0.1, 0.3]",
+            "outlier_fractions = []\npost_outage_burst_s = 0.0",
+        )
+        .replace("enabled = true", "enabled = false")
+        .replace("smooth = true ", "smooth = false ")
+        + extra;
+    let c = dir.join("c.toml");
+    std::fs::write(&c, config).unwrap();
+    c
+}
+
+#[test]
+fn process_without_a_reference_quality_fix_says_no_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    // The drive has RTK fixed and float fixes, no PPP: naming PPP as the
+    // only reference leaves nothing to score against.
+    let c = quick_drive_config(dir.path(), "");
+    let text = std::fs::read_to_string(&c).unwrap().replace(
+        "reference_quality = [\"fixed\"]",
+        "reference_quality = [\"ppp\"]",
+    );
+    assert!(text.contains("[\"ppp\"]"));
+    std::fs::write(&c, text).unwrap();
+    let out = dir.path().join("out");
+    let stdout = success(&[
+        "process",
+        c.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("over the 0 reference epochs no reference")
+            && stdout.contains("0/12")
+            && stdout.contains("12 of 12 windows hold no reference epoch")
+            && stdout.contains("actual error: no reference"),
+        "{stdout}"
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    let row = lines.iter().position(|l| l.contains("L [s]")).unwrap() + 1;
+    assert!(
+        lines[row].matches("no reference").count() >= 4,
+        "{}",
+        lines[row]
+    );
+    let summary = read_summary(&out);
+    let r = &summary["result"];
+    assert!(r["tracking_rms_m"].is_null());
+    assert_eq!(r["reference_epochs"], 0);
+    assert!(r["outages"][0]["three_d_m"].is_null() && r["outages"][0]["horizontal_m"].is_null());
+    assert_eq!(r["outages"][0]["windows"], 0);
+    assert!(r["consistency"]["outages"][0]["mean_nees"].is_null());
+    assert!(r["efficiency"][0]["actual_crossing_s"].is_null());
+    // The NIS needs no reference.
+    assert!(
+        r["consistency"]["all_gnss"]["mean_nis_per_dof"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+}
+
+#[test]
+fn process_strict_exits_non_zero_after_writing_when_the_filter_diverges() {
+    let dir = tempfile::tempdir().unwrap();
+    // A χ² gate on the drive locks out after a turn: its innovations grow
+    // while it rejects every fix (RMS 1.4 m against the 2.5 cm of
+    // accepting them all) — a divergence and long rejection runs.
+    let c = quick_drive_config(dir.path(), "");
+    let text = std::fs::read_to_string(&c)
+        .unwrap()
+        .replace("policy = \"accept\"", "policy = \"chi2_gate\"");
+    std::fs::write(&c, text).unwrap();
+    let out = dir.path().join("out");
+    let args = [
+        "process",
+        c.to_str().unwrap(),
+        "--no-score",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    // Without --strict: warnings, exit 0.
+    let o = aidnav(&args);
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("warning: divergence: the mean position NIS per degree of freedom over 30 s stayed above 10 from")
+            && err.contains("position updates in a row rejected or limited, from"),
+        "{err}"
+    );
+    // With it: exit status 3, every output written first.
+    std::fs::remove_dir_all(&out).unwrap();
+    let mut strict = args.to_vec();
+    strict.push("--strict");
+    let o = aidnav(&strict);
+    assert_eq!(o.status.code(), Some(3), "{o:?}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("error: --strict: ") && !err.contains("panicked"),
+        "{err}"
+    );
+    for f in ["solution.csv", "summary.json"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let summary = read_summary(&out);
+    let kinds: Vec<&str> = summary["result"]["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w["kind"].as_str().unwrap())
+        .collect();
+    assert!(
+        kinds.contains(&"divergence") && kinds.contains(&"rejection_run"),
+        "{kinds:?}"
+    );
+    let divergence = summary["result"]["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|w| w["kind"] == "divergence")
+        .unwrap();
+    assert!(divergence["end_s"].as_f64().unwrap() - divergence["start_s"].as_f64().unwrap() > 30.0);
 }
 
 /// The README's main job: the handheld walk from the repository's data, with

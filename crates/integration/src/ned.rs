@@ -186,6 +186,10 @@ struct ConvergenceMonitor {
     before: f64,
 }
 
+/// A smoothed navigation state and the covariance of its antenna position
+/// error (NED, m²).
+pub type SmoothedAntenna = (NedState, Matrix3<f64>);
+
 impl NedFilter {
     /// Start at `state` with the prior σ of every error state and the
     /// antenna lever arm (body frame, from the IMU to the antenna).
@@ -262,6 +266,18 @@ impl NedFilter {
     /// σ of every error state (as of the last covariance propagation).
     pub fn sigmas(&self) -> Vector21 {
         self.kf.covariance().diagonal().map(f64::sqrt)
+    }
+
+    /// Covariance of the antenna position error (NED, m²) as of the last
+    /// covariance propagation: `H P Hᵀ` with the position measurement's
+    /// `H = [I, 0, [(C l)×], 0 …]` — the IMU position block plus the
+    /// attitude error seen through the lever arm `C l`, and their
+    /// cross-covariance (symmetrised).
+    pub fn antenna_position_covariance(&self) -> Matrix3<f64> {
+        let c = self.solution().attitude.matrix();
+        let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
+        let p = h * self.kf.covariance() * h.transpose();
+        (p + p.transpose()) * 0.5
     }
 
     /// The antenna position and NED velocity implied by the INS.
@@ -364,6 +380,18 @@ impl NedFilter {
     /// epoch (IMU position, velocity, attitude), or None when not
     /// recording or when the record overflowed its epoch limit.
     pub fn smoothed_states(&self) -> Result<Option<Vec<NedState>>, EstimationError> {
+        Ok(self
+            .smoothed_states_with_covariance()?
+            .map(|v| v.into_iter().map(|(s, _)| s).collect()))
+    }
+
+    /// [`smoothed_states`](Self::smoothed_states), each with the smoothed
+    /// covariance of its antenna position error (NED, m²; `H P Hᵀ` as in
+    /// [`antenna_position_covariance`](Self::antenna_position_covariance),
+    /// at the smoothed attitude).
+    pub fn smoothed_states_with_covariance(
+        &self,
+    ) -> Result<Option<Vec<SmoothedAntenna>>, EstimationError> {
         let Some(r) = self.record.as_ref().filter(|r| !r.overflow) else {
             return Ok(None);
         };
@@ -372,7 +400,13 @@ impl NedFilter {
             smoothed
                 .iter()
                 .zip(&r.states)
-                .map(|(e, s)| corrected(s, &e.x))
+                .map(|(e, s)| {
+                    let state = corrected(s, &e.x);
+                    let c = state.attitude.matrix();
+                    let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
+                    let p = h * e.p * h.transpose();
+                    (state, (p + p.transpose()) * 0.5)
+                })
                 .collect(),
         ))
     }

@@ -17,9 +17,9 @@ use aidnav_ins::increments::{Rates, trapezoid};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::samples::{GnssFix, ImuSample};
 use aidnav_ins::standstill::{StandstillThresholds, WindowStats, window_ending_at};
-use aidnav_models::ned_ins::{ATTITUDE, POSITION, VELOCITY};
+use aidnav_models::ned_ins::{ATTITUDE, VELOCITY};
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 use crate::ned::{InstrumentEstimate, NedFilter};
 
@@ -104,8 +104,13 @@ pub struct SolutionRow {
     pub velocity: Vec3<Ned>,
     /// Attitude, body to NED.
     pub attitude: Rotation<Body, Ned>,
-    /// σ of the position error (N, E, D) \[m\].
+    /// σ of the antenna position error (N, E, D) \[m\]: the square roots of
+    /// the diagonal of `position_covariance`.
     pub sigma: Vector3<f64>,
+    /// Covariance of the antenna position error (NED) \[m²\]
+    /// ([`NedFilter::antenna_position_covariance`]: IMU position and the
+    /// attitude error through the lever arm).
+    pub position_covariance: Matrix3<f64>,
     /// σ of the velocity error (N, E, D) \[m/s\].
     pub sigma_velocity: Vector3<f64>,
     /// σ of the attitude error φ (tilt about N, E; heading about D) \[rad\].
@@ -114,10 +119,12 @@ pub struct SolutionRow {
 
 impl SolutionRow {
     /// The filter's navigation solution at `time_s`: antenna and IMU
-    /// position, the IMU's velocity and attitude, their σ.
+    /// position, the IMU's velocity and attitude, the antenna position's
+    /// covariance and σ, the σ of velocity and attitude.
     pub fn of(filter: &NedFilter, time_s: f64) -> Self {
         let (antenna, _) = filter.antenna();
         let solution = filter.solution();
+        let position_covariance = filter.antenna_position_covariance();
         let s = filter.sigmas();
         let block = |o: usize| Vector3::new(s[o], s[o + 1], s[o + 2]);
         Self {
@@ -126,7 +133,8 @@ impl SolutionRow {
             imu: solution.position,
             velocity: solution.velocity,
             attitude: solution.attitude,
-            sigma: block(POSITION),
+            sigma: position_covariance.diagonal().map(|v| v.max(0.0).sqrt()),
+            position_covariance,
             sigma_velocity: block(VELOCITY),
             sigma_attitude: block(ATTITUDE),
         }

@@ -15,16 +15,21 @@ pub struct ProcessReport {
     pub gnss_epochs: usize,
     /// Policy of the GNSS updates in the main run and the outage scores.
     pub policy: crate::process::PolicyName,
-    /// RMS 3-D antenna error over RTK-fixed epochs, all GNSS used \[m\].
-    pub tracking_rms_m: f64,
+    /// Epochs of the main run whose fix is a reference
+    /// (`score.reference_quality`; RTK fixed by default).
+    pub reference_epochs: usize,
+    /// RMS 3-D antenna error over the reference epochs, all GNSS used \[m\]
+    /// (null: no reference epoch).
+    pub tracking_rms_m: Option<f64>,
     /// Updates by outcome in the clean run.
     pub outcomes: Vec<(String, usize)>,
     /// How and when the filter started.
     pub start: crate::process::StartSummary,
     /// Standstill (zero-velocity + zero-angular-rate) updates in the clean run.
     pub standstill_updates: usize,
-    /// RMS 3-D error of the RTS-smoothed antenna positions (with `output.smooth`).
-    pub tracking_smoothed_rms_m: Option<f64>,
+    /// RMS 3-D error of the RTS-smoothed antenna positions over the
+    /// reference epochs (null: not smoothed, or no reference).
+    pub tracking_smoothed_rms_m: Option<Option<f64>>,
     /// Time after the first fix at which spec 10's rule (δ non-increasing
     /// 15 s, then ≤ threshold) declares the instruments converged, for
     /// δ_thr = 3 % and 1 % (None: never).
@@ -40,16 +45,33 @@ pub struct ProcessReport {
     pub outages_bridged: Vec<BridgedScores>,
     /// Spec 20's efficiency criterion in the outage windows, per length.
     pub efficiency: Vec<crate::process::EfficiencyScore>,
+    /// Is the covariance honest? `consistency.outages[]`: per outage length
+    /// (`outage_s`) the coasting filter's reference epochs in the windows
+    /// (`epochs`), the fraction whose 3-D antenna error lies inside the
+    /// filter's 99 % ellipsoid (`inside_99_fraction`, NEES ≤ `chi2_99`) and
+    /// the mean position NEES (`mean_nees`, `nees_dof` = 3 for an honest
+    /// covariance); `consistency.all_gnss`: the mean position NIS per degree
+    /// of freedom of the main run (`mean_nis_per_dof`, 1 when honest) over
+    /// its `epochs` updates; `consistency.outages_smoothed[]`: the outages'
+    /// figures for the RTS-smoothed solution against the smoother's
+    /// covariance (with `output.smooth`). See [`crate::process::consistency`].
+    pub consistency: crate::process::Consistency,
     /// Fraction of the clean run's epochs at which K_eff > 1 (the
     /// integrated solution is predicted better than GNSS).
     pub k_eff_integrated_fraction: f64,
-    /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
-    pub anomalies: Vec<(f64, crate::process::PolicyName, f64)>,
-    /// (policy, RMS 3-D error over the RTK-fixed epochs with GNSS) with the
-    /// 30 s outages and a burst after each; and the same without bursts.
-    pub post_outage_bursts: Vec<(crate::process::PolicyName, f64, f64)>,
-    /// Reader warnings.
-    pub warnings: Vec<String>,
+    /// (fraction, policy, RMS 3-D error over the reference epochs against
+    /// the clean fixes; null: no reference or the run failed).
+    pub anomalies: Vec<(f64, crate::process::PolicyName, Option<f64>)>,
+    /// (policy, RMS 3-D error over the reference epochs with GNSS) with the
+    /// 30 s outages and a burst after each; and the same without bursts
+    /// (null: no reference or the run failed).
+    pub post_outage_bursts: Vec<(crate::process::PolicyName, Option<f64>, Option<f64>)>,
+    /// Every warning of the run, its scoring and its outputs: `kind`
+    /// (`input`, `divergence`, `rejection_run`, `levelling_while_moving`,
+    /// `implausible_units`, `scoring_run`, `output`), `message`, and the
+    /// stretch it concerns (`start_s`, `end_s`, GPST s, or null). See
+    /// [`crate::process::warnings`].
+    pub warnings: Vec<crate::process::Warning>,
     /// Wall time \[s\]: reading, one filter pass, scoring.
     pub timing_s: [f64; 3],
     /// Files written.
@@ -57,6 +79,16 @@ pub struct ProcessReport {
 }
 
 pub use crate::process::BridgedScores;
+use crate::process::{Warning, WarningKind};
+
+impl ProcessReport {
+    /// The warnings `aidnav process --strict` fails on
+    /// ([`WarningKind::fails_strict`]: all but the readers' notes and the
+    /// comparison tables' failed runs).
+    pub fn strict_failures(&self) -> impl Iterator<Item = &Warning> {
+        self.warnings.iter().filter(|w| w.kind.fails_strict())
+    }
+}
 
 /// Run `aidnav process CONFIG.toml`: read the log named in the
 /// configuration (`data_dir` replaces its `data.dir`), filter it, write
@@ -100,11 +132,17 @@ pub fn process(
         [read_s, run_s, score_s],
         files,
     );
-    report.warnings.extend(written);
-    if !report.tracking_rms_m.is_finite() {
-        report.warnings.push(format!(
-            "the RMS 3-D antenna error over RTK-fixed epochs is {} (no finite error to average)",
-            report.tracking_rms_m
+    report.warnings.extend(
+        written
+            .into_iter()
+            .map(|w| Warning::new(WarningKind::Output, w)),
+    );
+    if let Some(rms) = report.tracking_rms_m.filter(|v| !v.is_finite()) {
+        report.warnings.push(Warning::new(
+            WarningKind::Divergence,
+            format!(
+                "the RMS 3-D antenna error over the reference epochs is {rms} (no finite error to average)"
+            ),
         ));
     }
     let path = export::write_summary(out, cfg, &report)?;
@@ -124,6 +162,7 @@ impl ProcessReport {
             imu_samples: result.imu_samples,
             gnss_epochs: result.gnss_epochs,
             policy: result.policy,
+            reference_epochs: result.reference_epochs,
             tracking_rms_m: result.tracking_rms_m,
             outcomes: result.outcomes,
             start: result.start,
@@ -135,6 +174,12 @@ impl ProcessReport {
             outages_free_ins: scores.outages_free_ins,
             outages_bridged: scores.outages_bridged,
             efficiency: scores.efficiency,
+            consistency: crate::process::Consistency {
+                outages: scores.consistency,
+                outages_smoothed: scores.consistency_smoothed,
+                all_gnss: result.nis,
+                ..crate::process::Consistency::default()
+            },
             k_eff_integrated_fraction: result.k_eff_integrated_fraction,
             anomalies: scores.anomalies,
             post_outage_bursts: scores.post_outage_bursts,

@@ -7,9 +7,11 @@ use std::path::Path;
 use aidnav_frames::earth::Geodetic;
 
 use super::config::{PolicyName, ProcessConfig};
+use super::consistency::{NisConsistency, nis_consistency};
 use super::run::{Epoch, RunPlan, SolutionRow, run_filter_rows};
-use super::score::{convergence_times, tracking_rms};
+use super::score::{convergence_times, reference_epochs, tracking_rms};
 use super::scoring::{Scores, score_log};
+use super::warnings::{Warning, WarningKind, divergence_warnings, rejection_run_warnings};
 use super::{Inputs, ProcessError, StartKind, initialise};
 use serde::Serialize;
 
@@ -55,7 +57,8 @@ use serde::Serialize;
 /// let process = Process::new(cfg, inputs).unwrap();
 /// let result = process.run().unwrap();
 /// assert_eq!(result.epochs.len(), 47); // every fix after the first IMU sample
-/// assert!(result.tracking_rms_m < 0.05, "{}", result.tracking_rms_m);
+/// let rms = result.tracking_rms_m.unwrap(); // the fixes are RTK fixed (Q = 1)
+/// assert!(rms < 0.05, "{rms}");
 /// ```
 #[derive(Debug, Clone)]
 pub struct Process {
@@ -84,10 +87,16 @@ pub struct ProcessResult {
     pub first_fix_time_s: f64,
     /// Updates by outcome, in order of first appearance.
     pub outcomes: Vec<(String, usize)>,
-    /// RMS 3-D antenna error over RTK-fixed epochs \[m\].
-    pub tracking_rms_m: f64,
-    /// RMS 3-D error of the RTS-smoothed antenna positions (with `output.smooth`).
-    pub tracking_smoothed_rms_m: Option<f64>,
+    /// Epochs whose fix is a reference (`score.reference_quality`).
+    pub reference_epochs: usize,
+    /// RMS 3-D antenna error over the reference epochs \[m\] (None: no
+    /// reference epoch).
+    pub tracking_rms_m: Option<f64>,
+    /// RMS 3-D error of the RTS-smoothed antenna positions over the
+    /// reference epochs (None: not smoothed; `Some(None)`: no reference).
+    pub tracking_smoothed_rms_m: Option<Option<f64>>,
+    /// The position NIS of the updates against χ²(3).
+    pub nis: NisConsistency,
     /// Time after the first fix at which spec 10's rule declares the
     /// instruments converged, for δ_thr = 3 % and 1 % (with
     /// `filter.convergence_monitor`; None: never).
@@ -98,8 +107,10 @@ pub struct ProcessResult {
     pub start: StartSummary,
     /// Standstill (zero-velocity + zero-angular-rate) updates made.
     pub standstill_updates: usize,
-    /// Reader and start warnings.
-    pub warnings: Vec<String>,
+    /// Warnings: the readers' notes (kind `input`), divergence and long
+    /// rejection runs of this run ([`super::warnings`]); other checks of
+    /// the run push theirs here.
+    pub warnings: Vec<Warning>,
 }
 
 /// How and when the filter started (`summary.json`'s `result.start`).
@@ -167,17 +178,33 @@ impl Process {
             .map(|g| g.time_s)
             .find(|&t| t >= inputs.imu[0].time_s)
             .unwrap_or(start_time_s);
-        let mut warnings = inputs.warnings.clone();
-        warnings.extend(begin.warnings.iter().cloned());
         let smoothed: Vec<Epoch> = run.epochs.iter().filter_map(|e| e.smoothed()).collect();
         let epochs = run.epochs;
+        let reference = &cfg.score.reference_quality;
+        let t0 = inputs.imu[0].time_s;
+        let mut warnings: Vec<Warning> = inputs
+            .warnings
+            .iter()
+            .map(|w| Warning::new(WarningKind::Input, w.clone()))
+            .collect();
+        warnings.extend(
+            begin
+                .warnings
+                .iter()
+                .map(|w| Warning::new(WarningKind::Start, w.clone())),
+        );
+        warnings.extend(divergence_warnings(&epochs, t0));
+        warnings.extend(rejection_run_warnings(&epochs, t0));
         Ok(ProcessResult {
             imu_samples: inputs.imu.len(),
             gnss_epochs: inputs.gnss.len(),
             policy: cfg.gnss.policy,
             outcomes: outcomes(&epochs),
-            tracking_rms_m: tracking_rms(&epochs),
-            tracking_smoothed_rms_m: (!smoothed.is_empty()).then(|| tracking_rms(&smoothed)),
+            reference_epochs: reference_epochs(&epochs, reference),
+            tracking_rms_m: tracking_rms(&epochs, reference),
+            tracking_smoothed_rms_m: (!smoothed.is_empty())
+                .then(|| tracking_rms(&smoothed, reference)),
+            nis: nis_consistency(&epochs),
             instrument_convergence_s: if cfg.filter.convergence_monitor {
                 [0.03, 0.01]
                     .into_iter()

@@ -412,6 +412,50 @@ pub struct ScoreConfig {
     /// fixes carry one common 5–50 m jump (a bad re-acquisition) \[s\]; 0: no
     /// burst run. Default 2.5 (10 epochs at 4 Hz).
     pub post_outage_burst_s: f64,
+    /// Fix qualities that serve as the reference of every score (outage
+    /// drift, consistency, efficiency, tracking, anomalies): `fixed`
+    /// (RTKLIB Q = 1, NMEA GGA 4), `float` (2), `sbas` (3), `dgps` (4),
+    /// `single` (5), `ppp` (6), `unknown` (0: formats without a quality
+    /// column, e.g. KF-GINS text — name it to score against such a file).
+    /// A log without a fix of these qualities scores "no reference" (null
+    /// in `summary.json`). Default `["fixed"]`.
+    pub reference_quality: Vec<FixQuality>,
+}
+
+/// Quality of a GNSS fix, named after RTKLIB's Q (the readers map their
+/// formats' qualities onto it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FixQuality {
+    /// Q = 0: not given by the format.
+    Unknown,
+    /// Q = 1: RTK fixed (cm level).
+    Fixed,
+    /// Q = 2: RTK float.
+    Float,
+    /// Q = 3: SBAS.
+    Sbas,
+    /// Q = 4: DGPS.
+    Dgps,
+    /// Q = 5: single point.
+    Single,
+    /// Q = 6: PPP.
+    Ppp,
+}
+
+impl FixQuality {
+    /// RTKLIB's Q of this quality.
+    pub fn rtklib_q(self) -> u8 {
+        match self {
+            FixQuality::Unknown => 0,
+            FixQuality::Fixed => 1,
+            FixQuality::Float => 2,
+            FixQuality::Sbas => 3,
+            FixQuality::Dgps => 4,
+            FixQuality::Single => 5,
+            FixQuality::Ppp => 6,
+        }
+    }
 }
 
 impl Default for ScoreConfig {
@@ -424,6 +468,7 @@ impl Default for ScoreConfig {
             outlier_m: [5.0, 50.0],
             seed: 20261123,
             post_outage_burst_s: 2.5,
+            reference_quality: vec![FixQuality::Fixed],
         }
     }
 }

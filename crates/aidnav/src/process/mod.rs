@@ -19,11 +19,14 @@
 //! the plan becomes a prepared GNSS stream and observers of
 //! [`aidnav_integration::ned_loop`]), [`score`] (the outage, efficiency and
 //! anomaly scores of a run), [`scoring`] (every scoring run of a log,
-//! [`Scores`]), [`export`] (a result and its scores as files); the configuration's
-//! validation lives beside [`config`].
+//! [`Scores`]), [`consistency`] (the filter's covariance against the actual
+//! error), [`warnings`] (divergence, rejection runs and the other warnings
+//! of a run), [`export`] (a result and its scores as files); the
+//! configuration's validation lives beside [`config`].
 
 pub mod api;
 pub mod config;
+pub mod consistency;
 pub mod export;
 pub mod run;
 pub mod score;
@@ -31,14 +34,17 @@ pub mod scoring;
 mod start;
 pub mod template;
 mod validate;
+pub mod warnings;
 
 pub use api::*;
 pub use config::*;
+pub use consistency::*;
 pub use run::*;
 pub use score::*;
 pub use scoring::*;
 pub use start::{Start, StartKind, initialise};
 pub use template::{config_template, doc_of};
+pub use warnings::*;
 
 pub use aidnav_ins::mounting::euler_to_ctm;
 

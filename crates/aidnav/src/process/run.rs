@@ -20,7 +20,7 @@ use aidnav_models::ned_ins::{
     Vector21,
 };
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 use super::config::{AdaptiveNoise, Feedback, PolicyName, QualitySigmaScale};
 use super::{Inputs, ProcessConfig, ProcessError, initialise};
@@ -93,8 +93,15 @@ pub struct Epoch {
     pub velocity: Vec3<Ned>,
     /// Attitude.
     pub attitude: Rotation<Body, Ned>,
-    /// σ of the position error (N, E, D).
+    /// σ of the antenna position error (N, E, D) \[m\]: the square roots of
+    /// the diagonal of `position_covariance`.
     pub sigma: Vector3<f64>,
+    /// The filter's covariance of the antenna position error (NED) \[m²\]:
+    /// the IMU position block and the attitude error seen through the lever
+    /// arm (`H P Hᵀ` of the position update). In a free-INS window
+    /// (`RunPlan::free_ins_in_windows`) it is the filter's at the window's
+    /// start, not propagated.
+    pub position_covariance: Matrix3<f64>,
     /// Position NIS of the update (NaN when withheld).
     pub nis: f64,
     /// Position innovation, antenna estimate minus fix (NED) \[m\] (NaN when withheld).
@@ -107,6 +114,9 @@ pub struct Epoch {
     pub smoothed_antenna: Option<Geodetic>,
     /// RTS-smoothed IMU position (runs with `RunPlan::smooth`).
     pub smoothed_imu: Option<Geodetic>,
+    /// The smoother's covariance of the antenna position error (NED)
+    /// \[m²\] (runs with `RunPlan::smooth`).
+    pub smoothed_position_covariance: Option<Matrix3<f64>>,
     /// Spec 10's δ(n) on the instrument states (runs with
     /// `RunPlan::monitor`; NaN otherwise or while the Fisher information is
     /// singular).
@@ -137,20 +147,27 @@ impl Epoch {
             sigma: self.sigma,
             sigma_velocity: self.sigma_velocity,
             sigma_attitude: self.sigma_attitude,
+            position_covariance: self.position_covariance,
         }
     }
 
-    /// This epoch with the smoothed antenna and IMU positions in place of
-    /// the filtered ones.
+    /// This epoch with the smoothed antenna and IMU positions (and, when
+    /// recorded, the antenna's covariance and σ) in place of the filtered
+    /// ones.
     pub fn smoothed(&self) -> Option<Epoch> {
-        match (self.smoothed_antenna, self.smoothed_imu) {
-            (Some(antenna), Some(imu_position)) => Some(Epoch {
-                antenna,
-                imu_position,
-                ..*self
-            }),
-            _ => None,
-        }
+        let (Some(antenna), Some(imu_position)) = (self.smoothed_antenna, self.smoothed_imu) else {
+            return None;
+        };
+        let position_covariance = self
+            .smoothed_position_covariance
+            .unwrap_or(self.position_covariance);
+        Some(Epoch {
+            antenna,
+            imu_position,
+            sigma: position_covariance.diagonal().map(|v| v.max(0.0).sqrt()),
+            position_covariance,
+            ..*self
+        })
     }
 
     /// The epoch of a loop record, reporting `row` and `instruments` (the
@@ -172,12 +189,14 @@ impl Epoch {
             sigma: row.sigma,
             sigma_velocity: row.sigma_velocity,
             sigma_attitude: row.sigma_attitude,
+            position_covariance: row.position_covariance,
             nis: rec.nis,
             innovation: rec.innovation,
             outcome: rec.outcome,
             instruments,
             smoothed_antenna: None,
             smoothed_imu: None,
+            smoothed_position_covariance: None,
             convergence: rec.convergence,
             k_eff,
             bridged: None,
@@ -407,15 +426,18 @@ pub fn run_filter_rows(
 
 /// Add the RTS-smoothed antenna position to every recorded epoch.
 fn smooth(filter: &NedFilter, epochs: &mut [Epoch]) -> Result<(), ProcessError> {
-    let states = filter.smoothed_states()?.ok_or_else(|| {
+    let states = filter.smoothed_states_with_covariance()?.ok_or_else(|| {
         ProcessError::Data(format!(
             "the log is too long to smooth: more than {MAX_RECORDED_EPOCHS} covariance epochs ({} MB)",
             (MAX_RECORDED_EPOCHS * aidnav_integration::ned::BYTES_PER_RECORDED_EPOCH) >> 20
         ))
     })?;
     for e in epochs {
-        e.smoothed_antenna = e.record_index.map(|i| filter.antenna_of(&states[i]));
-        e.smoothed_imu = e.record_index.map(|i| states[i].position);
+        if let Some((state, covariance)) = e.record_index.and_then(|i| states.get(i)) {
+            e.smoothed_antenna = Some(filter.antenna_of(state));
+            e.smoothed_imu = Some(state.position);
+            e.smoothed_position_covariance = Some(*covariance);
+        }
     }
     Ok(())
 }
@@ -441,6 +463,67 @@ mod tests {
             let p: PolicyName =
                 serde_json::from_value(serde_json::Value::String(n.clone())).unwrap();
             assert_eq!(p.name(), n);
+        }
+    }
+}
+
+/// Synthetic epochs for the scores' unit tests.
+#[cfg(test)]
+pub(crate) mod synthetic {
+    use super::*;
+    use aidnav_estimation::Outcome;
+    use nalgebra::Matrix3;
+
+    /// Where the synthetic fixes are.
+    pub(crate) const PLACE: Geodetic = Geodetic {
+        latitude_rad: 0.7,
+        longitude_rad: 0.3,
+        height_m: 100.0,
+    };
+
+    /// An epoch at `time_s` whose fix (quality `quality`, σ `fix_sigma_m`
+    /// on each axis) is at [`PLACE`] and whose antenna lies `error_ned`
+    /// from it, with the filter's antenna covariance `covariance`; updated
+    /// (accepted, NIS `nis`) unless `nis` is NaN (withheld).
+    pub(crate) fn epoch(
+        time_s: f64,
+        quality: u8,
+        fix_sigma_m: f64,
+        error_ned: Vector3<f64>,
+        covariance: Matrix3<f64>,
+        nis: f64,
+    ) -> Epoch {
+        let fix = GnssFix {
+            time_s,
+            position: PLACE,
+            quality,
+            satellites: 20,
+            position_sigma_neu: Vector3::repeat(fix_sigma_m),
+            velocity_ned: None,
+            velocity_sigma_neu: None,
+        };
+        Epoch {
+            index: 0,
+            fix,
+            antenna: PLACE.offset_by(&Vec3::assume_in_frame(error_ned)),
+            imu_position: PLACE,
+            sigma_velocity: Vector3::repeat(0.01),
+            sigma_attitude: Vector3::repeat(1e-3),
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, 0.0),
+            sigma: covariance.diagonal().map(f64::sqrt),
+            position_covariance: covariance,
+            nis,
+            innovation: Vector3::repeat(f64::NAN),
+            outcome: nis.is_finite().then_some(Outcome::Accepted),
+            instruments: Default::default(),
+            smoothed_antenna: None,
+            smoothed_imu: None,
+            smoothed_position_covariance: None,
+            convergence: f64::NAN,
+            k_eff: f64::NAN,
+            bridged: None,
+            record_index: None,
         }
     }
 }

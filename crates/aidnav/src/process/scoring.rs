@@ -10,11 +10,14 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::config::{BRIDGE_PREDICTORS, PolicyName};
+use super::consistency::{OutageConsistency, outage_consistency};
 use super::run::{Epoch, RunPlan, run_filter};
 use super::score::{
     EfficiencyScore, OutageScore, bridged_epochs, efficiency_in_windows, inject_outliers,
-    outage_windows, post_outage_bursts, score_windows, tracking_rms, tracking_rms_with_gnss,
+    is_reference, outage_windows, post_outage_bursts, score_windows, tracking_rms,
+    tracking_rms_with_gnss,
 };
+use super::warnings::{Warning, WarningKind};
 use super::{Inputs, ProcessConfig, ProcessError};
 
 /// Outage scores of one bridging predictor.
@@ -52,15 +55,23 @@ pub struct Scores {
     pub outages_bridged: Vec<BridgedScores>,
     /// Spec 20's efficiency criterion in the outage windows, per length.
     pub efficiency: Vec<EfficiencyScore>,
-    /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
-    pub anomalies: Vec<(f64, PolicyName, f64)>,
-    /// (policy, RMS 3-D error over the RTK-fixed epochs with GNSS) with the
-    /// 30 s outages and a burst after each; and the same without bursts.
-    pub post_outage_bursts: Vec<(PolicyName, f64, f64)>,
+    /// The coasting filter's covariance against its actual error in the
+    /// outage windows, per length.
+    pub consistency: Vec<OutageConsistency>,
+    /// The same for the RTS-smoothed solution and its covariance (with
+    /// `output.smooth`).
+    pub consistency_smoothed: Vec<OutageConsistency>,
+    /// (fraction, policy, RMS 3-D error over the reference epochs against
+    /// the clean fixes; None: no reference, NaN: the run failed).
+    pub anomalies: Vec<(f64, PolicyName, Option<f64>)>,
+    /// (policy, RMS 3-D error over the reference epochs with GNSS) with the
+    /// 30 s outages and a burst after each; and the same without bursts
+    /// (None: no reference, NaN: the run failed).
+    pub post_outage_bursts: Vec<(PolicyName, Option<f64>, Option<f64>)>,
     /// The coasting filter's drift per outage length.
     pub drift: Vec<DriftSeries>,
-    /// Runs that failed (their score is NaN), and why.
-    pub warnings: Vec<String>,
+    /// Runs that failed (their score is NaN), and why (kind `scoring_run`).
+    pub warnings: Vec<Warning>,
 }
 
 /// Score a log: every table of [`Scores`].
@@ -71,13 +82,16 @@ pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, Process
     // on corrupted data (eq. 4's gain, say): that is a result of the
     // table (NaN, and a warning saying why), not a reason to stop.
     let failures = Mutex::new(Vec::new());
-    let scored_or_nan = |what: String, run: Result<f64, ProcessError>| {
+    let scored_or_nan = |what: String, run: Result<Option<f64>, ProcessError>| {
         run.unwrap_or_else(|e| {
             failures
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .push(format!("{what}: {e}"));
-            f64::NAN
+                .push(Warning::new(
+                    WarningKind::ScoringRun,
+                    format!("{what}: {e}"),
+                ));
+            Some(f64::NAN)
         })
     };
     scores.anomalies = anomaly_scores(cfg, inputs, &scored_or_nan);
@@ -91,8 +105,17 @@ pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, Process
 /// (L, free INS?, the windows of L)
 type OutagePlan = (f64, bool, Vec<(f64, f64)>);
 
-/// (L, free INS?, score, score of the smoothed solution, epochs)
-type Scored = (f64, bool, OutageScore, Option<OutageScore>, Vec<Epoch>);
+/// (L, free INS?, score, score and consistency of the smoothed solution, epochs)
+type Scored = (
+    f64,
+    bool,
+    OutageScore,
+    Option<(OutageScore, OutageConsistency)>,
+    Vec<Epoch>,
+);
+
+/// What a scoring run reports: its score (None: no reference) or why it failed.
+type ScoredOrNan<'a> = dyn Fn(String, Result<Option<f64>, ProcessError>) -> Option<f64> + Sync + 'a;
 
 /// The outage tables and the drift series.
 fn outage_scores(
@@ -102,6 +125,7 @@ fn outage_scores(
 ) -> Result<(), ProcessError> {
     let first = inputs.imu[0].time_s;
     let last = inputs.gnss[inputs.gnss.len() - 1].time_s;
+    let reference = &cfg.score.reference_quality;
     let plans: Vec<OutagePlan> = cfg
         .score
         .outages_s
@@ -127,8 +151,13 @@ fn outage_scores(
             Ok((
                 l,
                 free,
-                score_windows(&epochs, windows, l),
-                (!smoothed.is_empty()).then(|| score_windows(&smoothed, windows, l)),
+                score_windows(&epochs, windows, l, reference),
+                (!smoothed.is_empty()).then(|| {
+                    (
+                        score_windows(&smoothed, windows, l, reference),
+                        outage_consistency(&smoothed, windows, l, reference),
+                    )
+                }),
                 epochs,
             ))
         })
@@ -149,15 +178,20 @@ fn outage_scores(
         }
         for (k, b) in scores.outages_bridged.iter_mut().enumerate() {
             let bridged = bridged_epochs(&epochs, k);
-            b.scores.push(score_windows(&bridged, windows, l));
+            b.scores
+                .push(score_windows(&bridged, windows, l, reference));
         }
         scores
             .efficiency
-            .push(efficiency_in_windows(&epochs, windows, l));
+            .push(efficiency_in_windows(&epochs, windows, l, reference));
+        scores
+            .consistency
+            .push(outage_consistency(&epochs, windows, l, reference));
         scores.drift.push(DriftSeries {
             outage_s: l,
             error_m: epochs
                 .iter()
+                .filter(|e| is_reference(&e.fix, reference))
                 .map(|e| {
                     (
                         e.fix.time_s - first,
@@ -170,7 +204,10 @@ fn outage_scores(
                 .map(|e| (e.fix.time_s - first, (3.0 * e.sigma.norm()).max(1e-3)))
                 .collect(),
         });
-        scores.outages_smoothed.extend(smoothed);
+        if let Some((score, consistency)) = smoothed {
+            scores.outages_smoothed.push(score);
+            scores.consistency_smoothed.push(consistency);
+        }
         scores.outages.push(s);
     }
     Ok(())
@@ -180,8 +217,8 @@ fn outage_scores(
 fn anomaly_scores(
     cfg: &ProcessConfig,
     inputs: &Inputs,
-    scored_or_nan: &(dyn Fn(String, Result<f64, ProcessError>) -> f64 + Sync),
-) -> Vec<(f64, PolicyName, f64)> {
+    scored_or_nan: &ScoredOrNan<'_>,
+) -> Vec<(f64, PolicyName, Option<f64>)> {
     let policies = PolicyName::ALL;
     let mut cases: Vec<(f64, PolicyName)> = policies.iter().map(|&p| (0.0, p)).collect();
     for &f in &cfg.score.outlier_fractions {
@@ -199,7 +236,8 @@ fn anomaly_scores(
                 ),
                 ..RunPlan::default()
             };
-            let run = run_filter(cfg, inputs, &plan, p).map(|epochs| tracking_rms(&epochs));
+            let run = run_filter(cfg, inputs, &plan, p)
+                .map(|epochs| tracking_rms(&epochs, &cfg.score.reference_quality));
             let what = format!("{:.0} % outliers, {}", 100.0 * f, p.name());
             (f, p, scored_or_nan(what, run))
         })
@@ -210,8 +248,8 @@ fn anomaly_scores(
 fn burst_scores(
     cfg: &ProcessConfig,
     inputs: &Inputs,
-    scored_or_nan: &(dyn Fn(String, Result<f64, ProcessError>) -> f64 + Sync),
-) -> Vec<(PolicyName, f64, f64)> {
+    scored_or_nan: &ScoredOrNan<'_>,
+) -> Vec<(PolicyName, Option<f64>, Option<f64>)> {
     // (Written so that a NaN length scores nothing, as `> 0` is false.)
     let scheduled = cfg.score.post_outage_burst_s > 0.0;
     if !scheduled {
@@ -236,7 +274,8 @@ fn burst_scores(
                     outliers,
                     ..RunPlan::default()
                 };
-                let run = run_filter(cfg, inputs, &plan, p).map(|e| tracking_rms_with_gnss(&e));
+                let run = run_filter(cfg, inputs, &plan, p)
+                    .map(|e| tracking_rms_with_gnss(&e, &cfg.score.reference_quality));
                 scored_or_nan(format!("30 s outages {what}, {}", p.name()), run)
             };
             (

@@ -250,6 +250,10 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("score.outlier_m", "outlier size range [m]"),
     ("score.seed", "seed of the injected outliers"),
     (
+        "score.reference_quality",
+        "fix qualities scored against: fixed | float | sbas | dgps | single | ppp | unknown",
+    ),
+    (
         "score.post_outage_burst_s",
         "a burst this long after every 30 s outage [s] (0: no burst run)",
     ),

@@ -302,6 +302,10 @@ fn validate_supervision_and_scores(cfg: &ProcessConfig) -> Result<(), Invalid> {
         60.0,
     )
     .map_err(|e| e.within("score"))?;
+    // An empty list would score nothing while reading as "no reference";
+    // seven qualities exist.
+    count_in_range("reference_quality", cfg.score.reference_quality.len(), 1, 7)
+        .map_err(|e| e.within("score"))?;
     for f in &cfg.score.outlier_fractions {
         in_range("outlier_fractions", *f, 0.0, 1.0).map_err(|e| e.within("score"))?;
     }
