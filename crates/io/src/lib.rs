@@ -10,6 +10,7 @@
 //! - [`kfgins`]: KF-GINS IMU and GNSS text files, aidnav's generic IMU CSV.
 //! - [`rtklib`]: RTKLIB `.pos` solutions and the raw IMU CSV with its `.tag` time tags.
 //! - [`nmea`]: NMEA 0183 GNSS logs.
+//! - [`ubx`]: u-blox UBX binary logs (NAV-PVT).
 //! - [`text`]: UTF-8 decoding with line and byte, BOM, line splitting, excerpts.
 //! - [`limits`]: the physical bounds every reader checks values against.
 //!
@@ -26,6 +27,7 @@ pub mod nmea;
 pub mod plot;
 pub mod rtklib;
 pub mod text;
+pub mod ubx;
 pub mod writers;
 
 pub use config::{Invalid, Validate, load_toml, parse_toml};
