@@ -182,7 +182,7 @@ pub const GPS_EPOCH_1970_S: f64 = 315_964_800.0;
 /// Seconds in a GPS week.
 pub const WEEK_S: f64 = 604_800.0;
 
-/// GPS − UTC [s] from each date on (IERS Bulletin C; 18 s since 2017-01-01,
+/// GPS − UTC \[s\] from each date on (IERS Bulletin C; 18 s since 2017-01-01,
 /// no leap second announced up to the time of writing).
 const LEAP_SECONDS: [((i64, i64, i64), f64); 18] = [
     ((1981, 7, 1), 1.0),
@@ -205,7 +205,7 @@ const LEAP_SECONDS: [((i64, i64, i64), f64); 18] = [
     ((2017, 1, 1), 18.0),
 ];
 
-/// GPS − UTC [s] on the UTC day `days` since 1970-01-01 (0 before 1981-07-01,
+/// GPS − UTC \[s\] on the UTC day `days` since 1970-01-01 (0 before 1981-07-01,
 /// the value of the last table entry after it): GPST = UTC + this.
 ///
 /// ```
