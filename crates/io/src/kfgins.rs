@@ -8,12 +8,10 @@
 //! `time [s] latitude [deg] longitude [deg] height [m] σN σE σD [m]`
 //! (optionally followed by `vN vE vD σvN σvE σvD`).
 //!
-//! Generic CSV (header required, column order free, extra columns
-//! ignored): IMU `time_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2,
-//! az_m_s2` (rates and specific force, body or sensor frame); GNSS
-//! `time_s, lat_deg, lon_deg, height_m, sigma_n_m, sigma_e_m, sigma_d_m` and
-//! optionally `vn_mps, ve_mps, vd_mps, sigma_vn_mps, sigma_ve_mps,
-//! sigma_vd_mps`.
+//! Generic IMU CSV (header required, column order free, extra columns
+//! ignored): `time_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2,
+//! az_m_s2` (rates and specific force, body or sensor frame). The generic
+//! GNSS CSV has a module of its own: [`crate::generic_gnss`].
 //!
 //! Errors name the file, line and column: non-numbers, non-finite values,
 //! σ ≤ 0, time that does not increase, a KF-GINS row with another number of
