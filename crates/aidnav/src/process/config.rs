@@ -48,6 +48,12 @@ pub enum GnssFormat {
     KfGins,
     /// NMEA 0183: GGA + RMC (+ GST for σ), see `aidnav_io::nmea`.
     Nmea,
+    /// u-blox UBX binary log: NAV-PVT epochs, ellipsoidal heights, see
+    /// `aidnav_io::ubx`.
+    Ubx,
+    /// aidnav's generic GNSS CSV (named columns; σ from its columns or
+    /// `data.gnss_sigma_m`), see `aidnav_io::generic_gnss`.
+    GenericCsv,
 }
 
 /// Where the data are.
@@ -69,6 +75,11 @@ pub struct DataFiles {
     /// Its format. Default `rtklib_pos`.
     #[serde(default)]
     pub gnss_format: GnssFormat,
+    /// σ of each horizontal axis and of up \[m\] for every fix of a
+    /// `generic_csv` GNSS file without σ columns (its columns win when it
+    /// has them); only with `gnss_format = "generic_csv"`. Default none.
+    #[serde(default, deserialize_with = "exact_array_option")]
+    pub gnss_sigma_m: Option<[f64; 2]>,
 }
 
 /// IMU handling.

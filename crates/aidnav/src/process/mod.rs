@@ -2,7 +2,8 @@
 //! filter ([`aidnav_integration::ned`]) and score it with simulated GNSS
 //! outages and injected anomalies.
 //!
-//! Pipeline: read (GNSS: RTKLIB `.pos`, KF-GINS text, NMEA; IMU: raw CSV +
+//! Pipeline: read (GNSS: RTKLIB `.pos`, KF-GINS text, NMEA, u-blox UBX
+//! (NAV-PVT), generic CSV; IMU: raw CSV +
 //! `.tag`, KF-GINS increments, generic CSV), shift the IMU time
 //! by `imu.time_offset_s`, rotate sensor → body (`imu.mounting_deg`, Groves'
 //! Euler_to_CTM convention as the data set's upstream uses), smooth with a
@@ -113,6 +114,13 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
         GnssFormat::RtklibPos => read_pos(&gnss_path)?,
         GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(&gnss_path)?,
         GnssFormat::Nmea => aidnav_io::nmea::read_nmea(&gnss_path)?,
+        GnssFormat::Ubx => aidnav_io::ubx::read_ubx(&gnss_path)?,
+        GnssFormat::GenericCsv => aidnav_io::generic_gnss::read_generic_gnss(
+            &gnss_path,
+            aidnav_io::generic_gnss::GenericGnssOptions {
+                default_sigma_m: cfg.data.gnss_sigma_m,
+            },
+        )?,
     };
     warnings.extend(w);
     aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
