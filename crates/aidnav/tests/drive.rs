@@ -367,3 +367,66 @@ fn the_walk_from_its_ubx_log_tracks_as_from_its_pos_file() {
     eprintln!("walk .ubx vs .pos solutions: max {max:.5} m apart after the datum shift");
     assert!(max < 0.005, "{max} m");
 }
+
+/// The turn-rate check on the recorded logs: the gyro's yaw change about
+/// the specific-force axis against the GNSS course change, while moving,
+/// is close to 1 on the car (0.93 measured) and on the handheld walk
+/// (0.80) — far from the 57.3 (or 1/57.3) a degree/radian mix-up gives.
+#[test]
+fn the_gyro_turns_with_the_gnss_course_on_both_logs() {
+    use aidnav::process::check_turn_rate;
+    let (_, _, drive) = drive();
+    let (_, walk) = walk("gnss_1730.ubx", "ubx");
+    let p = Path::new("x");
+    let a = check_turn_rate(&drive.imu, &drive.gnss, p, p)
+        .unwrap()
+        .unwrap();
+    let b = check_turn_rate(&walk.imu, &walk.gnss, p, p)
+        .unwrap()
+        .unwrap();
+    eprintln!("turn ratio: drive {a:.4}, walk {b:.4}");
+    assert!(
+        (0.8..1.2).contains(&a) && (0.6..1.4).contains(&b),
+        "{a} {b}"
+    );
+}
+
+/// The walk's IMU written as a generic CSV in rad/s and m/s² with unit-free
+/// column names: declared right it loads; with the gyro declared in deg/s
+/// (every rate 57.3× too small — nothing a reader can see at rest) the
+/// GNSS course gives it away, and the error says how.
+#[test]
+fn a_gyro_unit_mistake_in_a_generic_csv_is_refused_by_the_gnss_course() {
+    use std::fmt::Write as _;
+    let (cfg, walk) = walk("gnss_1730.ubx", "ubx");
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("time_s,gx,gy,gz,ax,ay,az\n");
+    for s in &walk.imu {
+        let (w, f) = (s.angular_rate, s.specific_force);
+        writeln!(
+            csv,
+            "{:.6},{:e},{:e},{:e},{:e},{:e},{:e}",
+            s.time_s, w.x, w.y, w.z, f.x, f.y, f.z
+        )
+        .unwrap();
+    }
+    std::fs::write(dir.path().join("imu.csv"), csv).unwrap();
+    let load = |gyro: &str| {
+        let mut c = cfg.clone();
+        c.data.imu = dir.path().join("imu.csv");
+        c.data.imu_format = aidnav::process::ImuFormat::GenericCsv;
+        c.data.imu_tags = None;
+        c.data.imu_units =
+            Some(toml::from_str(&format!("gyro = \"{gyro}\"\naccel = \"m_s2\"\n")).unwrap());
+        c.imu.mounting_deg = [0.0; 3];
+        c.imu.smoothing_s = 0.0;
+        load_inputs(&c, dir.path())
+    };
+    assert_eq!(load("rad_s").unwrap().imu.len(), walk.imu.len());
+    let e = load("deg_s").unwrap_err().to_string();
+    assert!(
+        e.contains("imu.csv: the gyro turns 0.014")
+            && e.contains("radians per second read as degrees"),
+        "{e}"
+    );
+}

@@ -86,7 +86,14 @@ enum Command {
     /// or `speed_mps` + `course_deg` [+ `vertical_speed_mps`, up positive],
     /// with `sigma_vel_mps`; optional `quality` (fixed, float, dgps, single
     /// or RTKLIB Q) and `satellites`. Any other column is an error listing
-    /// these; examples/data/gnss_generic_example.csv is an example. Writes solution.csv, instruments.csv,
+    /// these; examples/data/gnss_generic_example.csv is an example.
+    ///
+    /// Generic IMU CSV: `time_s` and `gx_rad_s … az_m_s2`, or `gx, gy, gz,
+    /// ax, ay, az` with `[data] imu_units = { gyro = "rad_s" | "deg_s",
+    /// accel = "m_s2" | "g", kind = "rates" | "increments" }`. Units that
+    /// cannot be right are refused with the evidence: the median specific
+    /// force against g, the gyro at rest, and the gyro's turn against the
+    /// GNSS course while moving (57× or 1/57×: degrees and radians mixed). Writes solution.csv, instruments.csv,
     /// smoothed.csv, trajectory.svg, innovations.svg, outage_drift.svg and
     /// summary.json, and prints the score tables: simulated GNSS outages of
     /// 10/30/60 s (RMS over windows of the maximum drift against the

@@ -70,6 +70,14 @@ pub struct DataFiles {
     /// RTKLIB time-tag file of the IMU (for `rtklib_tagged`).
     #[serde(default)]
     pub imu_tags: Option<PathBuf>,
+    /// Units of a `generic_csv` IMU file whose columns are named `gx, gy,
+    /// gz, ax, ay, az`: `{ gyro = "rad_s" | "deg_s", accel = "m_s2" | "g",
+    /// kind = "rates" | "increments" }` (kind default `rates`); only with
+    /// `imu_format = "generic_csv"`. Default none: the columns carry their
+    /// units in their names (`gx_rad_s … az_m_s2`). See
+    /// `aidnav_io::kfgins`.
+    #[serde(default)]
+    pub imu_units: Option<aidnav_io::kfgins::ImuUnits>,
     /// GNSS file.
     pub gnss: PathBuf,
     /// Its format. Default `rtklib_pos`.

@@ -140,6 +140,13 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
             "the RTKLIB .tag file of the IMU CSV (imu_format = \"rtklib_tagged\")",
         ));
     }
+    if cfg.data.imu_units.is_some() && cfg.data.imu_format != ImuFormat::GenericCsv {
+        return Err(Invalid::new(
+            "data.imu_units",
+            "(given)",
+            "only with imu_format = \"generic_csv\" (the other formats fix their units)",
+        ));
+    }
     if let Some(sigma) = cfg.data.gnss_sigma_m {
         if cfg.data.gnss_format != GnssFormat::GenericCsv {
             return Err(Invalid::new(
@@ -338,6 +345,32 @@ mod tests {
             e.contains("data.gnss_sigma_m") && e.contains("length 2"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn imu_units_are_for_the_generic_csv_only() {
+        let units = "imu_units = { gyro = \"deg_s\", accel = \"g\" }\n";
+        let cfg = aidnav_io::config::parse_toml::<ProcessConfig>(
+            &format!("{DATA}{units}"),
+            std::path::Path::new("p.toml"),
+        )
+        .unwrap();
+        assert_eq!(
+            cfg.data.imu_units.map(|u| u.kind),
+            Some(aidnav_io::kfgins::ImuKind::Rates)
+        );
+        let e = aidnav_io::config::parse_toml::<ProcessConfig>(
+            &format!("{}{units}", DATA.replace("generic_csv", "kf_gins")),
+            std::path::Path::new("p.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("data.imu_units") && e.contains("only with imu_format = \"generic_csv\""),
+            "{e}"
+        );
+        let e = err("imu_units = { gyro = \"deg\", accel = \"g\" }\n");
+        assert!(e.contains("data.imu_units") && e.contains("deg_s"), "{e}");
     }
 
     #[test]
