@@ -28,9 +28,12 @@
 //!   half a week. Epochs without a valid UTC date take the week from the
 //!   nearest epoch that has one (the week that keeps the two `iTOW`s within
 //!   half a week) and are counted in a warning; a log without any valid
-//!   date is an error. `iTOW` is the epoch the solution refers to, so it is
-//!   used rather than UTC + `nano` (which differ by the receiver's clock
-//!   steering, ≈ 0.45 ms on the rtklibexplorer walk);
+//!   date is an error. `iTOW` (whole milliseconds) is the navigation
+//!   epoch's tag, shared by every NAV message of that epoch; UTC + `nano`
+//!   states the epoch's time to the receiver's time accuracy and lies
+//!   0.42–0.46 ms before `iTOW` on the rtklibexplorer walk (the receiver's
+//!   clock offset) — under 1 cm of travel at 20 m/s, so `iTOW` is used and
+//!   the fixes fall on the receiver's regular epoch grid;
 //! - **position**: `lat`, `lon` (1e-7°) and the **ellipsoidal** height
 //!   (`height`, mm above the WGS-84 ellipsoid) — the height the NED
 //!   mechanization and its gravity model are defined in, and what the NMEA
