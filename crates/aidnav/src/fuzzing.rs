@@ -12,20 +12,22 @@
 use std::path::Path;
 
 use aidnav_io::config::parse_toml;
-use aidnav_io::{kfgins, measurements, nmea, rtklib};
+use aidnav_io::{generic_gnss, kfgins, measurements, nmea, rtklib, ubx};
 
 /// A fuzz target: its name (the cargo-fuzz binary and corpus folder) and
 /// its body.
 pub type Target = (&'static str, fn(&[u8]));
 
 /// Every target, by name.
-pub const TARGETS: [Target; 10] = [
+pub const TARGETS: [Target; 12] = [
     ("rtklib_pos", rtklib_pos),
     ("rtklib_tagged_imu", rtklib_tagged_imu),
     ("kfgins_imu", kfgins_imu),
     ("kfgins_gnss", kfgins_gnss),
     ("generic_imu", generic_imu),
     ("nmea", nmea_sentences),
+    ("ubx", ubx_log),
+    ("generic_gnss", generic_gnss_csv),
     ("filter_measurements", filter_measurements),
     ("filter_model", filter_model),
     ("process_config", process_config),
@@ -82,6 +84,26 @@ pub fn generic_imu(data: &[u8]) {
 /// NMEA 0183 sentences.
 pub fn nmea_sentences(data: &[u8]) {
     let _ = nmea::read_nmea_from(data, Path::new("fuzz.nmea"));
+}
+
+/// A u-blox UBX binary log (NAV-PVT epochs among other frames and NMEA).
+pub fn ubx_log(data: &[u8]) {
+    let _ = ubx::read_ubx_from(data, Path::new("fuzz.ubx"));
+}
+
+/// The generic GNSS CSV, without and with a σ from the configuration (the
+/// two paths a file without σ columns takes).
+pub fn generic_gnss_csv(data: &[u8]) {
+    use generic_gnss::{GenericGnssOptions, read_generic_gnss_from};
+    let origin = Path::new("fuzz-gnss.csv");
+    let _ = read_generic_gnss_from(data, origin, GenericGnssOptions::default());
+    let _ = read_generic_gnss_from(
+        data,
+        origin,
+        GenericGnssOptions {
+            default_sigma_m: Some([0.5, 1.0]),
+        },
+    );
 }
 
 /// `aidnav filter`'s measurement CSV (columns `z1`, `z2`).

@@ -67,13 +67,36 @@ enum Command {
     /// Process a recorded IMU + GNSS log end to end and score it.
     ///
     /// The configuration (TOML) names the files (`[data]`: GNSS as RTKLIB
-    /// `.pos`, KF-GINS text or NMEA; IMU as raw CSV with its RTKLIB `.tag`,
-    /// KF-GINS increments or generic CSV), the IMU mounting, smoothing and
-    /// noise, the initialisation and the lever arm. `--print-config` writes
-    /// a complete configuration with every key, its default and a comment;
-    /// `platform = "car" | "pedestrian" | "aircraft" | "generic"` presets
-    /// the constraints and thresholds. Examples: examples/drive_0708.toml
-    /// (the car drive) and examples/walk_0827.toml (the handheld walk). Writes solution.csv, instruments.csv,
+    /// `.pos`, KF-GINS text, NMEA, a u-blox UBX log (`gnss_format = "ubx"`:
+    /// its NAV-PVT epochs, ellipsoidal heights) or aidnav's generic CSV
+    /// (`gnss_format = "generic_csv"`); IMU as raw CSV with its RTKLIB
+    /// `.tag`, KF-GINS increments or generic CSV), the IMU mounting,
+    /// smoothing and noise, the initialisation and the lever arm.
+    /// `--print-config` writes a complete configuration with every key, its
+    /// default and a comment; `platform = "car" | "pedestrian" | "aircraft"
+    /// | "generic"` presets the constraints and thresholds. Examples:
+    /// examples/drive_0708.toml (the car drive) and examples/walk_0827.toml
+    /// (the handheld walk, read from its UBX log).
+    ///
+    /// Generic GNSS CSV: a header row naming the columns, any order. Time:
+    /// `gpst_s` (GPST s since 1970), or `gps_week` + `tow_s`, or `utc` (ISO
+    /// 8601, e.g. 2024-08-27T17:30:00.2Z; leap seconds applied). Position:
+    /// `lat_deg`, `lon_deg` with `height_m` (ellipsoidal) or `height_msl_m` +
+    /// `geoid_sep_m`; or `ecef_x_m`, `ecef_y_m`, `ecef_z_m`. σ [m]:
+    /// `sigma_n_m`, `sigma_e_m`, `sigma_u_m`, or `sigma_h_m` (each horizontal
+    /// axis) + `sigma_v_m`, or none and `[data] gnss_sigma_m = [horizontal,
+    /// vertical]`. Optional velocity: `vel_n_mps`, `vel_e_mps`, `vel_d_mps`,
+    /// or `speed_mps` + `course_deg` [+ `vertical_speed_mps`, up positive],
+    /// with `sigma_vel_mps`; optional `quality` (fixed, float, dgps, single
+    /// or RTKLIB Q) and `satellites`. Any other column is an error listing
+    /// these; examples/data/gnss_generic_example.csv is an example.
+    ///
+    /// Generic IMU CSV: `time_s` and `gx_rad_s … az_m_s2`, or `gx, gy, gz,
+    /// ax, ay, az` with `[data] imu_units = { gyro = "rad_s" | "deg_s",
+    /// accel = "m_s2" | "g", kind = "rates" | "increments" }`. Units that
+    /// cannot be right are refused with the evidence: the median specific
+    /// force against g, the gyro at rest, and the gyro's turn against the
+    /// GNSS course while moving (57× or 1/57×: degrees and radians mixed). Writes solution.csv, instruments.csv,
     /// smoothed.csv, trajectory.svg, innovations.svg, outage_drift.svg and
     /// summary.json, and prints the score tables: simulated GNSS outages of
     /// 10/30/60 s (RMS over windows of the maximum drift against the

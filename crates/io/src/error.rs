@@ -51,6 +51,20 @@ pub enum IoError {
         /// What is wrong.
         message: String,
     },
+    /// A binary data file (a receiver's UBX log) holds a value that cannot
+    /// be used.
+    #[error("{path}: byte {offset}: {field}: {message}")]
+    Binary {
+        /// File.
+        path: PathBuf,
+        /// Byte offset from the file's start of the frame (its first sync
+        /// byte) holding the value.
+        offset: usize,
+        /// Message and field, e.g. `NAV-PVT hAcc`.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A data file exceeds a documented limit.
     #[error("{path}: {message}")]
     Limit {

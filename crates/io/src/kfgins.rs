@@ -8,12 +8,19 @@
 //! `time [s] latitude [deg] longitude [deg] height [m] σN σE σD [m]`
 //! (optionally followed by `vN vE vD σvN σvE σvD`).
 //!
-//! Generic CSV (header required, column order free, extra columns
-//! ignored): IMU `time_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2,
-//! az_m_s2` (rates and specific force, body or sensor frame); GNSS
-//! `time_s, lat_deg, lon_deg, height_m, sigma_n_m, sigma_e_m, sigma_d_m` and
-//! optionally `vn_mps, ve_mps, vd_mps, sigma_vn_mps, sigma_ve_mps,
-//! sigma_vd_mps`.
+//! Generic IMU CSV (header required, column order free, extra columns
+//! ignored): `time_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2,
+//! az_m_s2` (rates and specific force, body or sensor frame, the units in
+//! the names). A log in other units names its columns `time_s, gx, gy, gz,
+//! ax, ay, az` and declares the units in the configuration ([`ImuUnits`]:
+//! `[data] imu_units = { gyro = "deg_s", accel = "g", kind = "rates" }`;
+//! `kind = "increments"`: each row holds the angle and velocity increments
+//! over the interval that ends at its time, in rad or deg and m/s or g·s).
+//! Units that cannot be right are refused with the evidence: the median
+//! specific-force magnitude against g, and the gyro magnitude while the
+//! specific force says the sensor is at rest (above 0.1 rad/s ≈ 5.7 °/s no
+//! MEMS gyro's bias reaches: degrees read as radians). The generic GNSS CSV
+//! has a module of its own: [`crate::generic_gnss`].
 //!
 //! Errors name the file, line and column: non-numbers, non-finite values,
 //! σ ≤ 0, time that does not increase, a KF-GINS row with another number of
@@ -300,6 +307,73 @@ fn columns(path: &Path, header: &str, wanted: &[&str]) -> Result<Vec<usize>> {
         .collect()
 }
 
+/// Standard gravity \[m/s²\]: the unit `g` of [`AccelUnit::G`].
+pub const STANDARD_GRAVITY_M_S2: f64 = 9.806_65;
+
+/// Unit of the gyro columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum GyroUnit {
+    /// rad/s (rates) or rad (increments).
+    #[serde(rename = "rad_s")]
+    RadPerS,
+    /// deg/s (rates) or deg (increments).
+    #[serde(rename = "deg_s")]
+    DegPerS,
+}
+
+/// Unit of the accelerometer columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum AccelUnit {
+    /// m/s² (rates) or m/s (increments).
+    #[serde(rename = "m_s2")]
+    MPerS2,
+    /// Standard gravity, 9.80665 m/s² (rates) or g·s (increments).
+    #[serde(rename = "g")]
+    G,
+}
+
+/// What the sensor columns hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImuKind {
+    /// Angular rate and specific force at the row's time.
+    Rates,
+    /// Angle and velocity increments over the interval that ends at the
+    /// row's time (the first row, with no interval, is dropped).
+    Increments,
+}
+
+/// Units of a generic IMU CSV whose columns are named `gx … az`
+/// (`[data] imu_units` of `aidnav process`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImuUnits {
+    /// `rad_s` or `deg_s`.
+    pub gyro: GyroUnit,
+    /// `m_s2` or `g`.
+    pub accel: AccelUnit,
+    /// `rates` (default) or `increments`.
+    #[serde(default = "rates")]
+    pub kind: ImuKind,
+}
+
+fn rates() -> ImuKind {
+    ImuKind::Rates
+}
+
+/// Options of the generic IMU reader that come from the configuration.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GenericImuOptions {
+    /// Units of `gx … az` columns; None: the columns carry their units in
+    /// their names (`gx_rad_s … az_m_s2`).
+    pub units: Option<ImuUnits>,
+}
+
+/// Largest gyro magnitude accepted while the sensor is at rest \[rad/s\]
+/// (≈ 5.7 °/s): consumer MEMS gyro biases stay below about 1 °/s, so more
+/// is a unit mistake (degrees read as radians).
+pub const MAX_RATE_AT_REST_RAD_S: f64 = 0.1;
+
 /// Read a generic IMU CSV (see the module docs).
 ///
 /// ```
@@ -321,11 +395,65 @@ pub fn read_generic_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
 /// [`read_generic_imu`] on the file's bytes; `path` names the origin in
 /// messages.
 pub fn read_generic_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    read_generic_imu_with_from(bytes, path, GenericImuOptions::default())
+}
+
+/// [`read_generic_imu`] with the units of `gx … az` columns declared.
+///
+/// ```
+/// use aidnav_io::kfgins::{GenericImuOptions, ImuUnits, GyroUnit, AccelUnit, ImuKind};
+/// let csv = "time_s,gx,gy,gz,ax,ay,az\n1.0,0,0,5.73,0,0,-1\n1.01,0,0,5.73,0,0,-1\n";
+/// let units = ImuUnits { gyro: GyroUnit::DegPerS, accel: AccelUnit::G, kind: ImuKind::Rates };
+/// let (imu, _) = aidnav_io::kfgins::read_generic_imu_with_from(
+///     csv.as_bytes(),
+///     "imu.csv".as_ref(),
+///     GenericImuOptions { units: Some(units) },
+/// )
+/// .unwrap();
+/// assert!((imu[0].angular_rate.z - 0.1).abs() < 1e-3); // 5.73 °/s
+/// assert_eq!(imu[1].specific_force.z, -9.80665);
+/// ```
+pub fn read_generic_imu_with(
+    path: &Path,
+    options: GenericImuOptions,
+) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    read_generic_imu_with_from(&read_bytes(path)?, path, options)
+}
+
+/// [`read_generic_imu_with`] on the file's bytes; `path` names the origin
+/// in messages.
+pub fn read_generic_imu_with_from(
+    bytes: &[u8],
+    path: &Path,
+    options: GenericImuOptions,
+) -> Result<(Vec<ImuSample>, Vec<String>)> {
     let text = decode(bytes, path)?;
     let header = crate::text::lines(text).next().unwrap_or("");
-    let wanted = [
+    const SUFFIXED: [&str; 7] = [
         "time_s", "gx_rad_s", "gy_rad_s", "gz_rad_s", "ax_m_s2", "ay_m_s2", "az_m_s2",
     ];
+    const NEUTRAL: [&str; 7] = ["time_s", "gx", "gy", "gz", "ax", "ay", "az"];
+    let has = |name: &str| header.split(',').any(|n| n.trim() == name);
+    let wanted = match options.units {
+        None if has("gx") && !has("gx_rad_s") => {
+            return Err(data_error(
+                path,
+                1,
+                "gx",
+                "columns gx … az carry no unit: declare them in the configuration, [data] imu_units = { gyro = \"rad_s\" | \"deg_s\", accel = \"m_s2\" | \"g\", kind = \"rates\" | \"increments\" }, or name them gx_rad_s … az_m_s2",
+            ));
+        }
+        None => SUFFIXED,
+        Some(_) if has("gx_rad_s") && !has("gx") => {
+            return Err(data_error(
+                path,
+                1,
+                "gx_rad_s",
+                "imu_units is declared, but the columns are named with their units (gx_rad_s … az_m_s2): name them gx, gy, gz, ax, ay, az, or drop imu_units",
+            ));
+        }
+        Some(_) => NEUTRAL,
+    };
     let idx = columns(path, header, &wanted)?;
     // The named columns, in order, with their original line numbers.
     let lines = crate::text::lines(text)
@@ -338,27 +466,149 @@ pub fn read_generic_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample
         })
         .collect();
     let (rows, warnings) = parse_rows(path, lines, &[7], &wanted)?;
+    let units = options.units.unwrap_or(ImuUnits {
+        gyro: GyroUnit::RadPerS,
+        accel: AccelUnit::MPerS2,
+        kind: ImuKind::Rates,
+    });
+    let (gyro_scale, accel_scale) = (
+        match units.gyro {
+            GyroUnit::RadPerS => 1.0,
+            GyroUnit::DegPerS => 1f64.to_radians(),
+        },
+        match units.accel {
+            AccelUnit::MPerS2 => 1.0,
+            AccelUnit::G => STANDARD_GRAVITY_M_S2,
+        },
+    );
+    let (gyro_col, accel_col) = (wanted[1], wanted[4]);
     let mut out = Vec::with_capacity(rows.len());
+    let mut previous: Option<f64> = None;
     for (line, v) in &rows {
+        // Increments become mean rates over the row's interval.
+        let per_s = match units.kind {
+            ImuKind::Rates => 1.0,
+            ImuKind::Increments => match previous.replace(v[0]) {
+                Some(t) => 1.0 / (v[0] - t),
+                None => continue,
+            },
+        };
         let sample = ImuSample {
             time_s: v[0],
-            angular_rate: Vector3::new(v[1], v[2], v[3]),
-            specific_force: Vector3::new(v[4], v[5], v[6]),
+            angular_rate: Vector3::new(v[1], v[2], v[3]) * gyro_scale * per_s,
+            specific_force: Vector3::new(v[4], v[5], v[6]) * accel_scale * per_s,
         };
-        check_rate(
-            path,
-            *line,
-            "gx_rad_s",
-            &sample.angular_rate,
-            " — degrees given?",
-        )?;
-        check_force(path, *line, "ax_m_s2", &sample.specific_force)?;
+        let hint = match units.gyro {
+            GyroUnit::RadPerS => " — degrees given? (imu_units.gyro = \"deg_s\")",
+            GyroUnit::DegPerS => " — are the gyro columns scaled (milli-degrees/s)?",
+        };
+        check_rate(path, *line, gyro_col, &sample.angular_rate, hint)?;
+        check_force(path, *line, accel_col, &sample.specific_force)?;
         out.push(sample);
     }
     if let Some(&(line, _)) = rows.first() {
-        check_median_force(path, line, "ax_m_s2", out.iter().map(|s| s.specific_force))?;
+        check_median_force_declared(path, line, accel_col, &out, units)?;
+        check_rate_at_rest(path, &rows, gyro_col, &out, units)?;
     }
     Ok((out, warnings))
+}
+
+/// The median specific-force magnitude must be about 1 g; the message
+/// says which unit the numbers look like given the declared one.
+fn check_median_force_declared(
+    path: &Path,
+    line: usize,
+    column: &str,
+    imu: &[ImuSample],
+    units: ImuUnits,
+) -> Result<()> {
+    let mut norms: Vec<f64> = imu.iter().map(|s| s.specific_force.norm()).collect();
+    if norms.is_empty() {
+        return Ok(());
+    }
+    norms.sort_by(f64::total_cmp);
+    let median = norms[norms.len() / 2];
+    let range = crate::limits::MEDIAN_SPECIFIC_FORCE_M_S2;
+    if range.contains(&median) {
+        return Ok(());
+    }
+    let g = STANDARD_GRAVITY_M_S2;
+    let hint = match units.accel {
+        AccelUnit::MPerS2 if (0.5..2.0).contains(&median) => {
+            " — the numbers look like g: is the accelerometer in g instead of m/s²? (imu_units.accel = \"g\")"
+        }
+        AccelUnit::G if (0.5 * g * g..2.0 * g * g).contains(&median) => {
+            " — with imu_units.accel = \"g\" the numbers (≈ 9.8 as written) look like m/s² already: imu_units.accel = \"m_s2\""
+        }
+        _ => "",
+    };
+    Err(data_error(
+        path,
+        line,
+        column,
+        format!(
+            "median |f| = {} m/s² after the declared units, expected about 9.8 (between {} and {}){hint}",
+            num(median),
+            range.start(),
+            range.end()
+        ),
+    ))
+}
+
+/// While the specific force says the sensor is at rest (its magnitude
+/// within 1 % of g and steady over ten samples), the gyro magnitude must
+/// stay below [`MAX_RATE_AT_REST_RAD_S`]: the median over such samples
+/// above it is a unit mistake, reported with the lines it comes from.
+fn check_rate_at_rest(
+    path: &Path,
+    rows: &[(usize, Vec<f64>)],
+    column: &str,
+    imu: &[ImuSample],
+    units: ImuUnits,
+) -> Result<()> {
+    const WINDOW: usize = 10;
+    let g = STANDARD_GRAVITY_M_S2;
+    let still = |w: &[ImuSample]| {
+        w.iter()
+            .all(|s| (s.specific_force.norm() - g).abs() < 0.01 * g)
+            && w.windows(2)
+                .all(|p| (p[1].specific_force - p[0].specific_force).norm() < 0.02 * g)
+    };
+    let mut at_rest: Vec<(usize, f64)> = imu
+        .windows(WINDOW)
+        .enumerate()
+        .filter(|(_, w)| still(w))
+        .map(|(k, w)| {
+            (
+                k,
+                w.iter().map(|s| s.angular_rate.norm()).sum::<f64>() / WINDOW as f64,
+            )
+        })
+        .collect();
+    if at_rest.len() < 10 {
+        return Ok(());
+    }
+    at_rest.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let (k, median) = at_rest[at_rest.len() / 2];
+    if median <= MAX_RATE_AT_REST_RAD_S {
+        return Ok(());
+    }
+    // Rows and samples line up except for increments (first row dropped).
+    let shift = usize::from(units.kind == ImuKind::Increments);
+    let line = rows.get(k + shift).map_or(0, |r| r.0);
+    let hint = match units.gyro {
+        GyroUnit::RadPerS => " — degrees per second read as radians? (imu_units.gyro = \"deg_s\")",
+        GyroUnit::DegPerS => " — the gyro columns look scaled (milli-degrees, or LSB counts?)",
+    };
+    Err(data_error(
+        path,
+        line,
+        column,
+        format!(
+            "|ω| = {median:.4} rad/s (median over {} stretches of {WINDOW} samples at rest: |f| steady within 1 % of g; this one from line {line}) — a MEMS gyro at rest reads its bias, below {MAX_RATE_AT_REST_RAD_S} rad/s ≈ 5.7 °/s{hint}",
+            at_rest.len()
+        ),
+    ))
 }
 
 #[cfg(test)]
@@ -567,6 +817,158 @@ mod tests {
         assert!(
             e.contains("gnss.txt:1: column `(text)`: invalid UTF-8 at byte 10"),
             "{e}"
+        );
+    }
+
+    fn units(gyro: GyroUnit, accel: AccelUnit, kind: ImuKind) -> GenericImuOptions {
+        GenericImuOptions {
+            units: Some(ImuUnits { gyro, accel, kind }),
+        }
+    }
+
+    /// `n` rows at rest at 100 Hz: gyro `w`, accelerometer `f`, as written.
+    fn at_rest(header: &str, n: usize, w: [f64; 3], f: [f64; 3]) -> String {
+        let mut t = format!("{header}\n");
+        for k in 0..n {
+            t += &format!(
+                "{},{},{},{},{},{},{}\n",
+                1.0 + 0.01 * k as f64,
+                w[0],
+                w[1],
+                w[2],
+                f[0],
+                f[1],
+                f[2]
+            );
+        }
+        t
+    }
+
+    #[test]
+    fn declared_units_convert_rates_and_increments() {
+        use std::f64::consts::PI;
+        // Increments over 10 ms: 0.01° about z and 0.01 g·s down.
+        let csv = "time_s,gx,gy,gz,ax,ay,az\n1.00,0,0,0,0,0,0\n1.01,0,0,0.01,0,0,-0.01\n1.02,0,0,0.01,0,0,-0.01\n";
+        let (s, _) = read_generic_imu_with_from(
+            csv.as_bytes(),
+            Path::new("imu.csv"),
+            units(GyroUnit::DegPerS, AccelUnit::G, ImuKind::Increments),
+        )
+        .unwrap();
+        assert_eq!(s.len(), 2);
+        assert!(
+            (s[0].angular_rate.z - PI / 180.0).abs() < 1e-9,
+            "{}",
+            s[0].angular_rate.z
+        );
+        assert!((s[1].specific_force.z + STANDARD_GRAVITY_M_S2).abs() < 1e-9);
+        assert_eq!(s[0].time_s, 1.01);
+        // The same in rad and m/s.
+        let csv = "time_s,gx,gy,gz,ax,ay,az\n1.00,0,0,0,0,0,0\n1.01,0,0,1e-3,0,0,-0.098\n";
+        let (s, _) = read_generic_imu_with_from(
+            csv.as_bytes(),
+            Path::new("imu.csv"),
+            units(GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Increments),
+        )
+        .unwrap();
+        assert!(
+            (s[0].angular_rate.z - 0.1).abs() < 1e-9 && (s[0].specific_force.z + 9.8).abs() < 1e-9
+        );
+    }
+
+    #[test]
+    fn unit_free_names_need_declared_units_and_the_other_way_round() {
+        let csv = at_rest("time_s,gx,gy,gz,ax,ay,az", 3, [0.0; 3], [0.0, 0.0, -9.8]);
+        let e = generic(&csv).unwrap_err().to_string();
+        assert!(
+            e.starts_with("g.csv:1: column `gx`: columns gx … az carry no unit")
+                && e.contains("imu_units"),
+            "{e}"
+        );
+        let csv = at_rest(HEADER, 3, [0.0; 3], [0.0, 0.0, -9.8]);
+        let e = read_generic_imu_with_from(
+            csv.as_bytes(),
+            Path::new("g.csv"),
+            units(GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Rates),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("g.csv:1: column `gx_rad_s`: imu_units is declared"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn wrong_declared_units_are_refused_with_the_evidence() {
+        let neutral = "time_s,gx,gy,gz,ax,ay,az";
+        // A MEMS gyro's bias in deg/s (0.2, −0.3, 0.25) declared rad/s.
+        let csv = at_rest(neutral, 50, [0.2, -0.3, 0.25], [0.1, 0.2, -9.8]);
+        let e = read_generic_imu_with_from(
+            csv.as_bytes(),
+            Path::new("g.csv"),
+            units(GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Rates),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("g.csv:22: column `gx`: |ω| = 0.4387 rad/s")
+                && e.contains("median over 41 stretches of 10 samples at rest")
+                && e.contains("degrees per second read as radians"),
+            "{e}"
+        );
+        // Declared deg/s, it passes (0.0077 rad/s).
+        let ok = read_generic_imu_with_from(
+            csv.as_bytes(),
+            Path::new("g.csv"),
+            units(GyroUnit::DegPerS, AccelUnit::MPerS2, ImuKind::Rates),
+        );
+        assert_eq!(ok.unwrap().0.len(), 50);
+        // m/s² declared g.
+        let e = read_generic_imu_with_from(
+            csv.as_bytes(),
+            Path::new("g.csv"),
+            units(GyroUnit::DegPerS, AccelUnit::G, ImuKind::Rates),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("g.csv:2: column `ax`: median |f| = 96.1")
+                && e.contains("imu_units.accel = \"m_s2\""),
+            "{e}"
+        );
+        // g declared m/s².
+        let csv = at_rest(neutral, 50, [0.0; 3], [0.0, 0.0, -1.0]);
+        let e = read_generic_imu_with_from(
+            csv.as_bytes(),
+            Path::new("g.csv"),
+            units(GyroUnit::DegPerS, AccelUnit::MPerS2, ImuKind::Rates),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("median |f| = 1 m/s²") && e.contains("imu_units.accel = \"g\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn units_deserialize_from_the_configuration_names() {
+        let u: ImuUnits = toml::from_str("gyro = \"deg_s\"\naccel = \"g\"\n").unwrap();
+        assert_eq!(
+            u,
+            ImuUnits {
+                gyro: GyroUnit::DegPerS,
+                accel: AccelUnit::G,
+                kind: ImuKind::Rates
+            }
+        );
+        assert!(toml::from_str::<ImuUnits>("gyro = \"deg\"\naccel = \"g\"\n").is_err());
+        assert!(
+            toml::from_str::<ImuUnits>(
+                "gyro = \"rad_s\"\naccel = \"g\"\nkind = \"increments\"\nx = 1\n"
+            )
+            .is_err()
         );
     }
 }

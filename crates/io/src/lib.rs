@@ -10,6 +10,9 @@
 //! - [`kfgins`]: KF-GINS IMU and GNSS text files, aidnav's generic IMU CSV.
 //! - [`rtklib`]: RTKLIB `.pos` solutions and the raw IMU CSV with its `.tag` time tags.
 //! - [`nmea`]: NMEA 0183 GNSS logs.
+//! - [`ubx`]: u-blox UBX binary logs (NAV-PVT).
+//! - [`generic_gnss`]: aidnav's generic GNSS CSV (named columns, several time,
+//!   position, σ and velocity forms).
 //! - [`text`]: UTF-8 decoding with line and byte, BOM, line splitting, excerpts.
 //! - [`limits`]: the physical bounds every reader checks values against.
 //!
@@ -18,6 +21,7 @@
 
 pub mod config;
 pub mod error;
+pub mod generic_gnss;
 pub mod kfgins;
 pub mod limits;
 pub mod measurements;
@@ -26,6 +30,7 @@ pub mod nmea;
 pub mod plot;
 pub mod rtklib;
 pub mod text;
+pub mod ubx;
 pub mod writers;
 
 pub use config::{Invalid, Validate, load_toml, parse_toml};

@@ -31,9 +31,11 @@ pub const MIN_HEIGHT_M: f64 = -1_000.0;
 /// Kármán line); above that a GNSS-aided INS of this kind does not apply.
 pub const MAX_HEIGHT_M: f64 = 100_000.0;
 
-/// Largest speed accepted \[m/s\]: 2 km/s is above any aircraft or rocket-sled
-/// a receiver would report (COCOM limit 515 m/s).
-pub const MAX_SPEED_M_S: f64 = 2_000.0;
+/// Largest speed accepted \[m/s\]: civil receivers stop reporting above
+/// the COCOM limit of 515 m/s, and the fastest crewed aircraft (SR-71,
+/// ≈ 980 m/s) stays below 1 km/s; a larger value is a unit mistake (km/h,
+/// knots ×1000, mm/s).
+pub const MAX_SPEED_M_S: f64 = 1_000.0;
 
 /// The message for a value outside `[lo, hi]`, or `None` when inside.
 pub(crate) fn outside(value: f64, lo: f64, hi: f64, unit: &str, why: &str) -> Option<String> {

@@ -35,35 +35,9 @@ use crate::error::Result;
 use crate::rtklib::{GnssFix, check_position, data_error, days_from_civil};
 use crate::text::{excerpt, num};
 
-/// GPS − UTC [s] from each date on (IERS bulletins; 18 s since 2017).
-const LEAP_SECONDS: [((i64, i64, i64), f64); 18] = [
-    ((1981, 7, 1), 1.0),
-    ((1982, 7, 1), 2.0),
-    ((1983, 7, 1), 3.0),
-    ((1985, 7, 1), 4.0),
-    ((1988, 1, 1), 5.0),
-    ((1990, 1, 1), 6.0),
-    ((1991, 1, 1), 7.0),
-    ((1992, 7, 1), 8.0),
-    ((1993, 7, 1), 9.0),
-    ((1994, 7, 1), 10.0),
-    ((1996, 1, 1), 11.0),
-    ((1997, 7, 1), 12.0),
-    ((1999, 1, 1), 13.0),
-    ((2006, 1, 1), 14.0),
-    ((2009, 1, 1), 15.0),
-    ((2012, 7, 1), 16.0),
-    ((2015, 7, 1), 17.0),
-    ((2017, 1, 1), 18.0),
-];
-
 /// GPS − UTC [s] on the day `days` since 1970-01-01.
 fn leap_seconds(days: i64) -> f64 {
-    LEAP_SECONDS
-        .iter()
-        .rev()
-        .find(|((y, m, d), _)| days >= days_from_civil(*y, *m, *d))
-        .map_or(0.0, |&(_, s)| s)
+    crate::text::gps_minus_utc_s(days)
 }
 
 /// σ (north, east, up) by GGA quality when no GST is given.

@@ -25,8 +25,7 @@ const G0: f64 = 9.806_65;
 
 pub(crate) use crate::text::days_from_civil;
 
-/// GPS week 0 began 1980-01-06.
-const GPS_EPOCH_1970_S: f64 = 315_964_800.0;
+use crate::text::GPS_EPOCH_1970_S;
 
 /// A data error naming the file, line and column.
 pub(crate) fn data_error(

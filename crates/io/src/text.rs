@@ -175,6 +175,52 @@ pub fn civil_from_days(z: i64) -> (i64, i64, i64) {
     (if m <= 2 { y + 1 } else { y }, m, d)
 }
 
+/// GPS week 0 began 1980-01-06 00:00:00 GPST: this many seconds after
+/// 1970-01-01 on the GPST-since-1970 scale of every reader.
+pub const GPS_EPOCH_1970_S: f64 = 315_964_800.0;
+
+/// Seconds in a GPS week.
+pub const WEEK_S: f64 = 604_800.0;
+
+/// GPS − UTC \[s\] from each date on (IERS Bulletin C; 18 s since 2017-01-01,
+/// no leap second announced up to the time of writing).
+const LEAP_SECONDS: [((i64, i64, i64), f64); 18] = [
+    ((1981, 7, 1), 1.0),
+    ((1982, 7, 1), 2.0),
+    ((1983, 7, 1), 3.0),
+    ((1985, 7, 1), 4.0),
+    ((1988, 1, 1), 5.0),
+    ((1990, 1, 1), 6.0),
+    ((1991, 1, 1), 7.0),
+    ((1992, 7, 1), 8.0),
+    ((1993, 7, 1), 9.0),
+    ((1994, 7, 1), 10.0),
+    ((1996, 1, 1), 11.0),
+    ((1997, 7, 1), 12.0),
+    ((1999, 1, 1), 13.0),
+    ((2006, 1, 1), 14.0),
+    ((2009, 1, 1), 15.0),
+    ((2012, 7, 1), 16.0),
+    ((2015, 7, 1), 17.0),
+    ((2017, 1, 1), 18.0),
+];
+
+/// GPS − UTC \[s\] on the UTC day `days` since 1970-01-01 (0 before 1981-07-01,
+/// the value of the last table entry after it): GPST = UTC + this.
+///
+/// ```
+/// use aidnav_io::text::{days_from_civil, gps_minus_utc_s};
+/// assert_eq!(gps_minus_utc_s(days_from_civil(2016, 12, 31)), 17.0);
+/// assert_eq!(gps_minus_utc_s(days_from_civil(2025, 8, 28)), 18.0);
+/// ```
+pub fn gps_minus_utc_s(days: i64) -> f64 {
+    LEAP_SECONDS
+        .iter()
+        .rev()
+        .find(|((y, m, d), _)| days >= days_from_civil(*y, *m, *d))
+        .map_or(0.0, |&(_, s)| s)
+}
+
 /// Seconds since 1970-01-01 as `YYYY-MM-DD hh:mm:ss.sss` (the scale is kept:
 /// GPST in, GPST out); values too large for a date are printed as seconds.
 ///

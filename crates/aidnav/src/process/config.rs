@@ -48,6 +48,12 @@ pub enum GnssFormat {
     KfGins,
     /// NMEA 0183: GGA + RMC (+ GST for σ), see `aidnav_io::nmea`.
     Nmea,
+    /// u-blox UBX binary log: NAV-PVT epochs, ellipsoidal heights, see
+    /// `aidnav_io::ubx`.
+    Ubx,
+    /// aidnav's generic GNSS CSV (named columns; σ from its columns or
+    /// `data.gnss_sigma_m`), see `aidnav_io::generic_gnss`.
+    GenericCsv,
 }
 
 /// Where the data are.
@@ -64,11 +70,24 @@ pub struct DataFiles {
     /// RTKLIB time-tag file of the IMU (for `rtklib_tagged`).
     #[serde(default)]
     pub imu_tags: Option<PathBuf>,
+    /// Units of a `generic_csv` IMU file whose columns are named `gx, gy,
+    /// gz, ax, ay, az`: `{ gyro = "rad_s" | "deg_s", accel = "m_s2" | "g",
+    /// kind = "rates" | "increments" }` (kind default `rates`); only with
+    /// `imu_format = "generic_csv"`. Default none: the columns carry their
+    /// units in their names (`gx_rad_s … az_m_s2`). See
+    /// `aidnav_io::kfgins`.
+    #[serde(default)]
+    pub imu_units: Option<aidnav_io::kfgins::ImuUnits>,
     /// GNSS file.
     pub gnss: PathBuf,
     /// Its format. Default `rtklib_pos`.
     #[serde(default)]
     pub gnss_format: GnssFormat,
+    /// σ of each horizontal axis and of up \[m\] for every fix of a
+    /// `generic_csv` GNSS file without σ columns (its columns win when it
+    /// has them); only with `gnss_format = "generic_csv"`. Default none.
+    #[serde(default, deserialize_with = "exact_array_option")]
+    pub gnss_sigma_m: Option<[f64; 2]>,
 }
 
 /// IMU handling.

@@ -2,10 +2,13 @@
 //! filter ([`aidnav_integration::ned`]) and score it with simulated GNSS
 //! outages and injected anomalies.
 //!
-//! Pipeline: read (GNSS: RTKLIB `.pos`, KF-GINS text, NMEA; IMU: raw CSV +
+//! Pipeline: read (GNSS: RTKLIB `.pos`, KF-GINS text, NMEA, u-blox UBX
+//! (NAV-PVT), generic CSV; IMU: raw CSV +
 //! `.tag`, KF-GINS increments, generic CSV), shift the IMU time
 //! by `imu.time_offset_s`, rotate sensor → body (`imu.mounting_deg`, Groves'
-//! Euler_to_CTM convention as the data set's upstream uses), smooth with a
+//! Euler_to_CTM convention as the data set's upstream uses), check that the
+//! IMU and GNSS overlap and that the gyro turns with the GNSS course
+//! ([`check_turn_rate`]: a unit mistake), smooth with a
 //! zero-phase centred moving average (`imu.smoothing_s`, offline), initialise
 //! (levelling and gyro bias over the first `initial.static_s` seconds at
 //! rest, heading from the first GNSS course above `initial.heading_speed_mps`
@@ -51,8 +54,10 @@ pub use aidnav_ins::mounting::euler_to_ctm;
 use std::path::Path;
 
 use aidnav_estimation::EstimationError;
+use aidnav_ins::alignment::course;
 use aidnav_ins::samples::moving_average;
 use aidnav_io::rtklib::{GnssFix, ImuSample, read_pos, read_tagged_imu};
+use nalgebra::Vector3;
 
 /// Anything processing can fail with.
 #[derive(Debug, thiserror::Error)]
@@ -112,17 +117,30 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
             read_tagged_imu(&imu_path, &dir.join(tags))?
         }
         ImuFormat::KfGins => aidnav_io::kfgins::read_kfgins_imu(&imu_path)?,
-        ImuFormat::GenericCsv => aidnav_io::kfgins::read_generic_imu(&imu_path)?,
+        ImuFormat::GenericCsv => aidnav_io::kfgins::read_generic_imu_with(
+            &imu_path,
+            aidnav_io::kfgins::GenericImuOptions {
+                units: cfg.data.imu_units,
+            },
+        )?,
     };
     let gnss_path = dir.join(&cfg.data.gnss);
     let (gnss, w) = match cfg.data.gnss_format {
         GnssFormat::RtklibPos => read_pos(&gnss_path)?,
         GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(&gnss_path)?,
         GnssFormat::Nmea => aidnav_io::nmea::read_nmea(&gnss_path)?,
+        GnssFormat::Ubx => aidnav_io::ubx::read_ubx(&gnss_path)?,
+        GnssFormat::GenericCsv => aidnav_io::generic_gnss::read_generic_gnss(
+            &gnss_path,
+            aidnav_io::generic_gnss::GenericGnssOptions {
+                default_sigma_m: cfg.data.gnss_sigma_m,
+            },
+        )?,
     };
     warnings.extend(w);
     aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
     warnings.extend(check_overlap(&imu, &gnss, &imu_path, &gnss_path)?);
+    check_turn_rate(&imu, &gnss, &imu_path, &gnss_path)?;
     if cfg.imu.smoothing_s > 0.0 && imu.len() > 2 {
         let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
         let half = ((cfg.imu.smoothing_s / dt) / 2.0).round() as usize;
@@ -192,11 +210,103 @@ pub fn check_overlap(
     }))
 }
 
+/// Evidence a turn-rate check needs before it may refuse a log: GNSS
+/// intervals while moving, and how much the course turned over them.
+const TURN_CHECK_MIN_INTERVALS: usize = 20;
+/// Total course change over the intervals used \[rad\] (90°).
+const TURN_CHECK_MIN_TURN_RAD: f64 = std::f64::consts::FRAC_PI_2;
+/// Speed above which the GNSS course is used \[m/s\] (below it the course
+/// of a receiver's velocity is noise).
+const TURN_CHECK_MIN_SPEED_MPS: f64 = 1.0;
+/// Accepted ratio of the gyro's yaw change to the GNSS course change: a
+/// unit mistake makes it 57.3 (degrees read as radians) or 1/57.3; a
+/// handheld or a misaligned sensor, lever arms and GNSS noise stay well
+/// within 5×.
+const TURN_RATIO_RANGE: std::ops::RangeInclusive<f64> = 0.2..=5.0;
+
+/// The gyro's turn rate against the GNSS course rate (body-frame IMU, after
+/// mounting): over consecutive fixes above 1 m/s, the yaw change the gyro
+/// integrates about the mean specific-force axis (vertical when the
+/// vehicle does not accelerate much) against the change of the GNSS
+/// course; the least-squares ratio must lie in [`TURN_RATIO_RANGE`]. An
+/// error gives the evidence (intervals, total turns, ratio) and the likely
+/// unit mistake; a log with too little turning is not judged. Returns the
+/// ratio when it was judged.
+pub fn check_turn_rate(
+    imu: &[ImuSample],
+    gnss: &[GnssFix],
+    imu_path: &Path,
+    gnss_path: &Path,
+) -> Result<Option<f64>, ProcessError> {
+    let (mut sxy, mut sxx, mut turned, mut gyro_turned, mut n) = (0.0, 0.0, 0.0, 0.0, 0usize);
+    for pair in gnss.windows(2) {
+        let [a, b] = pair else { continue };
+        let (Some(va), Some(vb)) = (a.velocity_ned, b.velocity_ned) else {
+            continue;
+        };
+        let dt = b.time_s - a.time_s;
+        if va.xy().norm() < TURN_CHECK_MIN_SPEED_MPS
+            || vb.xy().norm() < TURN_CHECK_MIN_SPEED_MPS
+            || !(dt > 0.0 && dt <= 1.5)
+        {
+            continue;
+        }
+        let lo = imu.partition_point(|s| s.time_s < a.time_s);
+        let hi = imu.partition_point(|s| s.time_s < b.time_s);
+        let Some(samples) = imu.get(lo..(hi + 1).min(imu.len())) else {
+            continue;
+        };
+        if samples.len() < 3 {
+            continue;
+        }
+        let up = samples
+            .iter()
+            .map(|s| s.specific_force)
+            .sum::<Vector3<f64>>();
+        let Some(down) = (-up).try_normalize(1e-9) else {
+            continue;
+        };
+        let yaw: f64 = samples
+            .windows(2)
+            .map(|w| w[0].angular_rate.dot(&down) * (w[1].time_s - w[0].time_s))
+            .sum();
+        let course = (course(&vb) - course(&va) + std::f64::consts::PI)
+            .rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        sxy += yaw * course;
+        sxx += course * course;
+        turned += course.abs();
+        gyro_turned += yaw.abs();
+        n += 1;
+    }
+    if n < TURN_CHECK_MIN_INTERVALS || turned < TURN_CHECK_MIN_TURN_RAD || sxx <= 0.0 {
+        return Ok(None);
+    }
+    let ratio = sxy / sxx;
+    if TURN_RATIO_RANGE.contains(&ratio.abs()) {
+        return Ok(Some(ratio));
+    }
+    let hint = if ratio.abs() > 20.0 {
+        "degrees per second read as radians? (a generic CSV: imu_units.gyro = \"deg_s\")"
+    } else if ratio.abs() < 0.05 {
+        "radians per second read as degrees? (a generic CSV: imu_units.gyro = \"rad_s\")"
+    } else {
+        "a scaled gyro, or the wrong IMU file for this GNSS log?"
+    };
+    Err(ProcessError::Data(format!(
+        "{}: the gyro turns {:.3}× the GNSS course of {}: over {n} GNSS intervals above {TURN_CHECK_MIN_SPEED_MPS} m/s the course turned {:.0}° in all and the gyro's yaw {:.0}° — {hint}",
+        imu_path.display(),
+        ratio,
+        gnss_path.display(),
+        turned.to_degrees(),
+        gyro_turned.to_degrees()
+    )))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use aidnav_frames::earth::Geodetic;
-    use nalgebra::Vector3;
 
     fn imu_at(times: impl Iterator<Item = f64>) -> Vec<ImuSample> {
         times
@@ -267,6 +377,53 @@ mod tests {
                 .unwrap()
                 .is_none()
         );
+    }
+
+    /// A vehicle driving a circle at 5 m/s, 10 s per turn, with the
+    /// body's yaw rate `yaw_rate` written into the IMU.
+    fn circle(yaw_scale: f64) -> (Vec<ImuSample>, Vec<GnssFix>) {
+        let rate = std::f64::consts::TAU / 10.0;
+        let imu = (0..3000)
+            .map(|k| ImuSample {
+                time_s: T0 + k as f64 * 0.01,
+                specific_force: Vector3::new(0.0, 0.0, -9.8),
+                angular_rate: Vector3::new(0.0, 0.0, rate * yaw_scale),
+            })
+            .collect();
+        let gnss = gnss_at((0..120).map(|k| T0 + k as f64 * 0.25))
+            .into_iter()
+            .map(|mut g| {
+                let c = rate * (g.time_s - T0);
+                g.velocity_ned = Some(Vector3::new(5.0 * c.cos(), 5.0 * c.sin(), 0.0));
+                g
+            })
+            .collect();
+        (imu, gnss)
+    }
+
+    #[test]
+    fn a_gyro_in_the_wrong_unit_is_caught_by_the_gnss_course() {
+        let (i, g) = (Path::new("imu.csv"), Path::new("g.pos"));
+        let (imu, gnss) = circle(1.0);
+        let ratio = check_turn_rate(&imu, &gnss, i, g).unwrap().unwrap();
+        assert!((ratio - 1.0).abs() < 0.01, "{ratio}");
+        let (imu, gnss) = circle(180.0 / std::f64::consts::PI);
+        let e = check_turn_rate(&imu, &gnss, i, g).unwrap_err().to_string();
+        assert!(
+            e.starts_with("imu.csv: the gyro turns 57.29")
+                && e.contains("over 119 GNSS intervals above 1 m/s the course turned 1071° in all")
+                && e.contains("degrees per second read as radians"),
+            "{e}"
+        );
+        let (imu, gnss) = circle(std::f64::consts::PI / 180.0);
+        let e = check_turn_rate(&imu, &gnss, i, g).unwrap_err().to_string();
+        assert!(e.contains("radians per second read as degrees"), "{e}");
+        // Standing still: nothing to judge.
+        let mut still = gnss.clone();
+        for f in &mut still {
+            f.velocity_ned = Some(Vector3::new(0.1, 0.0, 0.0));
+        }
+        assert_eq!(check_turn_rate(&imu, &still, i, g).unwrap(), None);
     }
 
     #[test]

@@ -23,7 +23,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("data.gnss", "GNSS file"),
     (
         "data.gnss_format",
-        "rtklib_pos | kf_gins | nmea (GGA + RMC, GST for σ)",
+        "rtklib_pos | kf_gins | nmea (GGA + RMC, GST for σ) | ubx (NAV-PVT) | generic_csv (see --help)",
     ),
     (
         "imu.time_offset_s",
@@ -279,6 +279,14 @@ pub const OPTIONAL_KEYS: &[(&str, &str)] = &[
         "# imu_tags = \"imu.csv.tag\"        # RTKLIB time-tag file (imu_format = rtklib_tagged)",
     ),
     (
+        "data",
+        "# imu_units = { gyro = \"deg_s\", accel = \"g\", kind = \"rates\" }   # generic_csv with columns gx … az: rad_s | deg_s, m_s2 | g, rates | increments",
+    ),
+    (
+        "data",
+        "# gnss_sigma_m = [0.02, 0.04]      # σ [horizontal, vertical] of a generic CSV without σ columns [m]",
+    ),
+    (
         "initial",
         "# attitude_deg = [0.0, 0.0, 90.0]   # a given initial attitude (roll, pitch, yaw) [deg]",
     ),
@@ -327,6 +335,8 @@ pub fn config_template(platform: Platform) -> String {
             imu_tags: None,
             gnss: "gnss.pos".into(),
             gnss_format: Default::default(),
+            gnss_sigma_m: None,
+            imu_units: None,
         },
         imu: Default::default(),
         initial: Default::default(),

@@ -5,7 +5,7 @@ use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_rang
 
 use aidnav_estimation::gmdh::{GmdhConfig, GmdhError};
 
-use super::config::{ImuFormat, ProcessConfig};
+use super::config::{GnssFormat, ImuFormat, ProcessConfig};
 
 impl Validate for ProcessConfig {
     fn validate(&self) -> Result<(), Invalid> {
@@ -208,6 +208,31 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
             "the RTKLIB .tag file of the IMU CSV (imu_format = \"rtklib_tagged\")",
         ));
     }
+    if cfg.data.imu_units.is_some() && cfg.data.imu_format != ImuFormat::GenericCsv {
+        return Err(Invalid::new(
+            "data.imu_units",
+            "(given)",
+            "only with imu_format = \"generic_csv\" (the other formats fix their units)",
+        ));
+    }
+    if let Some(sigma) = cfg.data.gnss_sigma_m {
+        if cfg.data.gnss_format != GnssFormat::GenericCsv {
+            return Err(Invalid::new(
+                "data.gnss_sigma_m",
+                format!("[{}, {}]", sigma[0], sigma[1]),
+                "only with gnss_format = \"generic_csv\" (the other formats carry their own σ)",
+            ));
+        }
+        for (i, s) in sigma.iter().enumerate() {
+            if !(s.is_finite() && (1e-9..=1e7).contains(s)) {
+                return Err(Invalid::new(
+                    format!("data.gnss_sigma_m[{i}]"),
+                    s,
+                    "1e-9 ≤ σ ≤ 1e7 m ([horizontal (each axis), vertical])",
+                ));
+            }
+        }
+    }
     in_range("time_offset_s", cfg.imu.time_offset_s, -10.0, 10.0).map_err(|e| e.within("imu"))?;
     in_range("smoothing_s", cfg.imu.smoothing_s, 0.0, 5.0).map_err(|e| e.within("imu"))?;
     all_positive(
@@ -354,6 +379,56 @@ mod tests {
     fn the_base_config_loads() {
         aidnav_io::config::parse_toml::<ProcessConfig>(DATA, std::path::Path::new("p.toml"))
             .unwrap();
+    }
+
+    #[test]
+    fn gnss_sigma_is_for_the_generic_csv_only_and_bounded() {
+        let ok = "gnss_format = \"generic_csv\"\ngnss_sigma_m = [0.5, 1.0]\n";
+        let cfg = aidnav_io::config::parse_toml::<ProcessConfig>(
+            &format!("{DATA}{ok}"),
+            std::path::Path::new("p.toml"),
+        )
+        .unwrap();
+        assert_eq!(cfg.data.gnss_sigma_m, Some([0.5, 1.0]));
+        let e = err("gnss_sigma_m = [0.5, 1.0]\n");
+        assert!(
+            e.contains("data.gnss_sigma_m: [0.5, 1] is out of range")
+                && e.contains("only with gnss_format = \"generic_csv\""),
+            "{e}"
+        );
+        let e = err("gnss_format = \"generic_csv\"\ngnss_sigma_m = [0.5, 0.0]\n");
+        assert!(e.contains("data.gnss_sigma_m[1]: 0 is out of range"), "{e}");
+        let e = err("gnss_format = \"generic_csv\"\ngnss_sigma_m = [0.5]\n");
+        assert!(
+            e.contains("data.gnss_sigma_m") && e.contains("length 2"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn imu_units_are_for_the_generic_csv_only() {
+        let units = "imu_units = { gyro = \"deg_s\", accel = \"g\" }\n";
+        let cfg = aidnav_io::config::parse_toml::<ProcessConfig>(
+            &format!("{DATA}{units}"),
+            std::path::Path::new("p.toml"),
+        )
+        .unwrap();
+        assert_eq!(
+            cfg.data.imu_units.map(|u| u.kind),
+            Some(aidnav_io::kfgins::ImuKind::Rates)
+        );
+        let e = aidnav_io::config::parse_toml::<ProcessConfig>(
+            &format!("{}{units}", DATA.replace("generic_csv", "kf_gins")),
+            std::path::Path::new("p.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("data.imu_units") && e.contains("only with imu_format = \"generic_csv\""),
+            "{e}"
+        );
+        let e = err("imu_units = { gyro = \"deg\", accel = \"g\" }\n");
+        assert!(e.contains("data.imu_units") && e.contains("deg_s"), "{e}");
     }
 
     #[test]
