@@ -1,7 +1,8 @@
 //! Throughput of `aidnav process` on the recorded drive (54 858 IMU samples,
 //! 2 197 GNSS epochs), by stage: reading (+ mounting and smoothing), the NED
 //! mechanization alone, the whole filter pass (mechanization, covariance,
-//! GNSS and non-holonomic updates), and writing the solution CSV.
+//! GNSS, non-holonomic and standstill updates) and the same pass without the
+//! standstill updates, and writing the solution CSV.
 //! Divide 54 858 by the time for IMU epochs per second.
 //!
 //! `cargo bench -p aidnav --bench process` (reads data/ of the
@@ -53,6 +54,19 @@ fn process(c: &mut Criterion) {
         b.iter(|| {
             black_box(
                 run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
+                    .unwrap()
+                    .len(),
+            )
+        })
+    });
+    // The same pass without the standstill updates (zero velocity and zero
+    // angular rate): the ratio of the two is their cost, in one run.
+    let mut without = cfg.clone();
+    without.constraints.zero_velocity = Some(false);
+    g.bench_function("filter_without_standstill_updates", |b| {
+        b.iter(|| {
+            black_box(
+                run_filter(&without, &inputs, &RunPlan::default(), PolicyName::Accept)
                     .unwrap()
                     .len(),
             )
