@@ -181,7 +181,7 @@ fn check(x0: &[f64], o: &NelderMeadOptions) -> Result<(), OptimiseError> {
             });
         }
     }
-    for i in 0..d {
+    for (i, &x) in x0.iter().enumerate() {
         let bad = |what, value, allowed| {
             Err(OptimiseError::Invalid {
                 what,
@@ -190,8 +190,8 @@ fn check(x0: &[f64], o: &NelderMeadOptions) -> Result<(), OptimiseError> {
                 allowed,
             })
         };
-        if !x0[i].is_finite() || x0[i] < o.lower[i] || x0[i] > o.upper[i] {
-            return bad("start", x0[i], "finite and inside the box");
+        if !x.is_finite() || x < o.lower[i] || x > o.upper[i] {
+            return bad("start", x, "finite and inside the box");
         }
         if !(o.initial_step[i].is_finite() && o.initial_step[i] != 0.0) {
             return bad("initial_step", o.initial_step[i], "finite and non-zero");

@@ -175,7 +175,7 @@ fn gnss_slow(gnss: &[GnssFix], t0: f64, t1: f64, max: f64) -> bool {
         return false;
     }
     let mut without = near.iter().filter(|g| g.velocity_ned.is_none());
-    match (without.next(), without.last()) {
+    match (without.next(), without.next_back()) {
         (Some(f), Some(l)) if l.time_s > f.time_s => {
             let d = f.position.ned_to(&l.position).norm();
             let noise = 3.0 * (f.position_sigma_neu.norm() + l.position_sigma_neu.norm());
@@ -701,6 +701,217 @@ fn round_sig(x: f64, digits: i32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use aidnav_frames::Vec3;
+    use aidnav_frames::earth::{Geodetic, earth_rate_ned};
+    use aidnav_sim::rng::{run_rng, standard_normal};
+    use nalgebra::Vector3;
+
+    /// True noise of the synthetic log: ARW \[deg/√h\], VRW \[m/s/√h\],
+    /// the receiver's reported σ \[m\] and the factor by which its real
+    /// errors exceed it.
+    const ARW: f64 = 1.0;
+    const VRW: f64 = 0.3;
+    const GNSS_SIGMA_M: f64 = 0.02;
+    const GNSS_TRUE_SCALE: f64 = 2.0;
+
+    /// A static IMU at 100 Hz (Earth rate and gravity, white noise of
+    /// density ARW and VRW) and position fixes at 4 Hz whose errors are
+    /// `GNSS_TRUE_SCALE` × their σ; the attitude is given (level, north).
+    fn synthetic_log(seconds: f64, seed: u64) -> (ProcessConfig, Inputs) {
+        let mut cfg: ProcessConfig =
+            toml::from_str("[data]\ndir = \".\"\nimu = \"none\"\ngnss = \"none\"\n").unwrap();
+        cfg.initial.attitude_deg = Some([0.0; 3]);
+        let place = Geodetic {
+            latitude_rad: 0.7,
+            longitude_rad: -1.8,
+            height_m: 1600.0,
+        };
+        let g = aidnav_ins::ned::gravity_ned(&place).raw();
+        let w_ie = earth_rate_ned(place.latitude_rad).raw();
+        let dt = 0.01f64;
+        let gyro_sd = ARW.to_radians() / 60.0 / dt.sqrt();
+        let accel_sd = VRW / 60.0 / dt.sqrt();
+        let mut rng = run_rng(seed, 0);
+        let mut noise = |sd: f64| {
+            Vector3::new(
+                standard_normal(&mut rng),
+                standard_normal(&mut rng),
+                standard_normal(&mut rng),
+            ) * sd
+        };
+        let n = (seconds / dt) as usize;
+        let imu = (0..n)
+            .map(|k| ImuSample {
+                time_s: k as f64 * dt,
+                specific_force: -g + noise(accel_sd),
+                angular_rate: w_ie + noise(gyro_sd),
+            })
+            .collect();
+        let gnss = (0..(seconds * 4.0) as usize)
+            .map(|k| GnssFix {
+                time_s: k as f64 * 0.25,
+                position: place.offset_by(&Vec3::assume_in_frame(noise(
+                    GNSS_SIGMA_M * GNSS_TRUE_SCALE,
+                ))),
+                quality: 1,
+                satellites: 20,
+                position_sigma_neu: Vector3::repeat(GNSS_SIGMA_M),
+                velocity_ned: None,
+                velocity_sigma_neu: None,
+            })
+            .collect();
+        (
+            cfg,
+            Inputs {
+                imu,
+                gnss,
+                warnings: Vec::new(),
+            },
+        )
+    }
+
+    /// The Allan deviation of a static log reads the white noise it was
+    /// made with (RMS over three axes, each within a few % at 60 s: 10 %
+    /// allowed); white noise alone has no floor, so the bias instability
+    /// is an upper bound.
+    #[test]
+    fn the_allan_deviation_reads_the_white_noise_of_a_synthetic_log() {
+        let (cfg, inputs) = synthetic_log(60.0, 1);
+        let s = longest_standstill(&cfg, &inputs).unwrap();
+        // The whole log less a window at each end.
+        assert!((s.duration_s - 59.0).abs() < 0.05, "{s:?}");
+        let a = imu_allan(&inputs.imu[s.range.clone()], s, 0.0).unwrap();
+        let arw = a.arw_deg_per_sqrt_h.unwrap();
+        let vrw = a.vrw_mps_per_sqrt_h.unwrap();
+        assert!((arw / ARW - 1.0).abs() < 0.1, "ARW {arw}");
+        assert!((vrw / VRW - 1.0).abs() < 0.1, "VRW {vrw}");
+        assert!(a.gyro_bias_upper_bound && a.accel_bias_upper_bound);
+        assert_eq!(a.axes.len(), 6);
+        assert!((a.sample_interval_s - 0.01).abs() < 1e-12);
+    }
+
+    /// The likelihood search finds the GNSS σ scale the log was made with
+    /// (errors 2 × the reported σ): within 10 % (about three standard
+    /// errors of a scale from 240 three-axis fixes, √(1/1440) ≈ 2.6 %).
+    /// (The IMU terms are weakly seen by a static filter fed 4 cm fixes:
+    /// no assertion on them.)
+    #[test]
+    fn the_likelihood_search_finds_the_gnss_sigma_scale() {
+        let (mut cfg, inputs) = synthetic_log(60.0, 2);
+        cfg.tune.max_evaluations = 80;
+        let r = tune(&cfg, &inputs).unwrap();
+        assert!(r.allan.is_some());
+        let scale = r.fitted.gnss_sigma_scale;
+        assert!((scale / GNSS_TRUE_SCALE - 1.0).abs() < 0.1, "scale {scale}");
+        // The search starts from the better of the two and never ends
+        // below its start.
+        let best_start = r
+            .log_likelihood_configured
+            .max(r.log_likelihood_allan.unwrap());
+        assert!(r.log_likelihood_fitted >= best_start);
+        assert!(r.gain() > 100.0, "{}", r.gain());
+        assert_eq!(r.updates, 239); // every fix after the first
+        assert!(r.passes <= 80 + 2 + PARAMETERS.len());
+        assert_eq!(r.factors.len(), 5);
+        // The fitted file: an [imu.noise] table that reads back.
+        let text = tuned_noise_toml(&r, "synthetic.toml");
+        let table: toml::Table = toml::from_str(&text).unwrap();
+        let noise: crate::process::NoiseConfig = table["imu"]["noise"].clone().try_into().unwrap();
+        assert!(!noise.auto);
+        let back = noise_scalars(&noise.values);
+        for (b, f) in back.iter().zip(noise_scalars(&r.fitted.noise)) {
+            assert!((b / f - 1.0).abs() < 1e-3, "{b} vs {f}");
+        }
+        assert!(text.contains("# sigma_scale = "));
+    }
+
+    /// Serial and parallel evaluations give the same search.
+    #[test]
+    fn the_search_does_not_depend_on_the_thread_count() {
+        let (mut cfg, inputs) = synthetic_log(20.0, 3);
+        cfg.tune.max_evaluations = 12;
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut r = pool.install(|| tune(&cfg, &inputs)).unwrap();
+            r.timing_s = [0.0; 2];
+            r
+        };
+        assert_eq!(run(1), run(2));
+    }
+
+    /// `[imu.noise] auto`: `Process` tunes first and filters with the
+    /// fitted values; with smoothing, `Process::new` (smoothed inputs)
+    /// refuses.
+    #[test]
+    fn auto_noise_tunes_before_processing() {
+        let (mut cfg, inputs) = synthetic_log(20.0, 4);
+        cfg.imu.noise.auto = true;
+        cfg.tune.max_evaluations = 8;
+        let p = crate::process::Process::new(cfg.clone(), inputs.clone()).unwrap();
+        let t = p.tuning().unwrap();
+        assert_eq!(p.config().imu.noise.values, t.fitted.noise);
+        assert_eq!(p.config().gnss.sigma_scale, t.fitted.gnss_sigma_scale);
+        assert!(p.run().unwrap().tracking_rms_m.is_finite());
+        cfg.imu.smoothing_s = 0.05;
+        let e = crate::process::Process::new(cfg.clone(), inputs.clone()).unwrap_err();
+        assert!(e.to_string().contains("unsmoothed"), "{e}");
+        assert!(crate::process::Process::from_unsmoothed(cfg, inputs).is_ok());
+    }
+
+    /// Too short a standstill: no Allan deviation, a note, the search from
+    /// the configured values.
+    #[test]
+    fn a_short_standstill_skips_the_allan_deviation() {
+        let (mut cfg, inputs) = synthetic_log(8.0, 5);
+        cfg.tune.max_evaluations = 6;
+        let r = tune(&cfg, &inputs).unwrap();
+        assert!(r.allan.is_none());
+        assert!((r.stretch.as_ref().unwrap().duration_s - 7.0).abs() < 0.05);
+        assert!(
+            r.notes[0].contains("shorter than tune.min_static_s = 10 s"),
+            "{:?}",
+            r.notes
+        );
+        assert_eq!(r.search_start, "configured");
+        assert_eq!(r.allan_values, r.configured);
+        assert!(r.log_likelihood_allan.is_none());
+    }
+
+    /// `[imu.noise]`: `auto` beside the terms, `noise = "auto"`, and
+    /// errors that name the key.
+    #[test]
+    fn the_noise_table_takes_auto() {
+        let head = "[data]\ndir = \".\"\nimu = \"i\"\ngnss = \"g\"\n";
+        let parse = |tail: &str| toml::from_str::<ProcessConfig>(&format!("{head}{tail}"));
+        let c = parse("[imu.noise]\nauto = true\narw_deg_per_sqrt_h = 2.0\n").unwrap();
+        assert!(c.imu.noise.auto);
+        assert_eq!(c.imu.noise.arw_deg_per_sqrt_h, 2.0);
+        assert_eq!(
+            c.imu.noise.vrw_mps_per_sqrt_h,
+            ImuNoise::default().vrw_mps_per_sqrt_h
+        );
+        let c = parse("[imu]\nnoise = \"auto\"\n").unwrap();
+        assert!(c.imu.noise.auto);
+        assert_eq!(c.imu.noise.values, ImuNoise::default());
+        let c = parse("[imu.noise]\naccel_bias_mg = 3\n").unwrap();
+        assert!(!c.imu.noise.auto);
+        assert_eq!(c.imu.noise.accel_bias_mg, 3.0);
+        let e = parse("[imu.noise]\narw = 2.0\n").unwrap_err().to_string();
+        assert!(e.contains("unknown field `arw`"), "{e}");
+        let e = parse("[imu.noise]\nauto = 1\n").unwrap_err().to_string();
+        assert!(e.contains("auto = 1: expected true or false"), "{e}");
+        let e = parse("[imu]\nnoise = \"manual\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("expected a table of noise terms"), "{e}");
+        // Written back, it reads the same.
+        let c = parse("[imu.noise]\nauto = true\ngyro_bias_deg_per_h = 7.5\n").unwrap();
+        let back: ProcessConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
+        assert_eq!(back, c);
+    }
 
     #[test]
     fn the_accessors_scale_and_set_the_four_scalars() {
