@@ -82,7 +82,9 @@ enum Command {
     /// withheld RTK fixes: filter, RTS-smoothed, free INS, and bridged by
     /// spec 20's predictors), the efficiency criterion K_eff in the outages,
     /// injected outliers per measurement policy, and bursts after outages.
-    /// `--no-score` runs the filter only.
+    /// `--no-score` runs the filter only. `[imu.noise] auto = true` tunes
+    /// the noise first (as `aidnav tune`; also allan.svg, allan.csv,
+    /// tuned_noise.toml) and runs with the fitted values.
     Process(ProcessArgs),
     /// Tune the IMU noise terms and the GNSS σ scale of a log's
     /// configuration.

@@ -661,7 +661,7 @@ pub struct TuneConfig {
     /// bound. Default 10.
     pub min_static_s: f64,
     /// Most filter passes of the likelihood search (each one pass over the
-    /// log). Default 250 (the drive converges in about 140, the walk in
+    /// log; the first simplex's 6 are made whatever this says). Default 250 (the drive converges in about 140, the walk in
     /// about 220).
     pub max_evaluations: usize,
     /// Each fitted factor stays within [1/this, this] of its starting

@@ -454,20 +454,31 @@ fn start_value(configured: f64, allan: Option<f64>, bound: bool) -> (Option<f64>
 }
 
 /// The Allan deviation of the longest standstill, when it lasts
-/// `tune.min_static_s` (else a note).
+/// `tune.min_static_s` and has enough samples (else a note).
 fn allan_of_log(
     cfg: &ProcessConfig,
     unsmoothed: &Inputs,
     notes: &mut Vec<String>,
-) -> Result<(Option<StaticStretch>, Option<ImuAllan>), ProcessError> {
+) -> (Option<StaticStretch>, Option<ImuAllan>) {
     let min_s = cfg.tune.min_static_s;
     let stretch = longest_standstill(cfg, unsmoothed);
     let allan = match &stretch {
-        Some(s) if s.duration_s >= min_s => Some(imu_allan(
-            &unsmoothed.imu[s.range.clone()],
-            s.clone(),
-            cfg.imu.smoothing_s,
-        )?),
+        Some(s) if s.duration_s >= min_s => {
+            match imu_allan(
+                &unsmoothed.imu[s.range.clone()],
+                s.clone(),
+                cfg.imu.smoothing_s,
+            ) {
+                Ok(a) => Some(a),
+                Err(e) => {
+                    notes.push(format!(
+                        "no Allan deviation of the {:.1} s standstill: {e}; the search starts from the configured noise",
+                        s.duration_s
+                    ));
+                    None
+                }
+            }
+        }
         Some(s) => {
             notes.push(format!(
                 "the longest standstill lasts {:.1} s ({:.1} s after the first IMU sample), shorter than tune.min_static_s = {min_s} s: no Allan deviation, the search starts from the configured noise",
@@ -482,7 +493,7 @@ fn allan_of_log(
             None
         }
     };
-    Ok((stretch, allan))
+    (stretch, allan)
 }
 
 /// Tune the noise of `cfg` on a log: `unsmoothed` are its inputs without
@@ -492,7 +503,7 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
     let t = &cfg.tune;
     let clock = Instant::now();
     let mut notes = Vec::new();
-    let (stretch, allan) = allan_of_log(cfg, unsmoothed, &mut notes)?;
+    let (stretch, allan) = allan_of_log(cfg, unsmoothed, &mut notes);
     let configured = NoiseValues {
         noise: cfg.imu.noise.values,
         gnss_sigma_scale: cfg.gnss.sigma_scale,
