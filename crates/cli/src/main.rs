@@ -91,13 +91,13 @@ enum Command {
     ///
     /// Takes `aidnav process`'s configuration. Step 1: the longest
     /// standstill of the log (the `[standstill]` thresholds of the platform
-    /// and the GNSS speed), if it lasts at least `tune.min_static_s` (20 s),
+    /// and the GNSS speed), if it lasts at least `tune.min_static_s` (10 s),
     /// gives the overlapping Allan deviation of the six axes, computed on
     /// the unsmoothed samples: white noise (angle / velocity random walk)
-    /// on the −½ slope, bias instability at the minimum / 0.664 (an upper
-    /// bound when the curve still falls at the longest cluster time).
-    /// Step 2: from those values (the configured ones where the Allan
-    /// deviation says nothing), factors on ARW, VRW, the two bias
+    /// on the −½ slope at τ ≥ `imu.smoothing_s`, bias instability at the
+    /// minimum / 0.664 (an upper bound when the curve still falls at the
+    /// longest cluster time). Step 2: from those values or the configured
+    /// ones, whichever have the higher likelihood, factors on ARW, VRW, the two bias
     /// instabilities and the GNSS σ scale maximise the log-likelihood of
     /// the GNSS innovations, −½ Σ (ln det S + νᵀ S⁻¹ ν), each evaluation
     /// one filter pass (Nelder–Mead, at most `tune.max_evaluations` or

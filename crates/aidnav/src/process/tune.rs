@@ -9,17 +9,22 @@
 //!    stopping and starting motion). When it lasts at least
 //!    `tune.min_static_s`, the overlapping Allan deviation of each of the
 //!    six axes ([`aidnav_estimation::allan`]) gives the white noise (angle
-//!    and velocity random walk, on the −½ slope) and the bias instability
+//!    and velocity random walk, on the −½ slope at τ ≥ `imu.smoothing_s`)
+//!    and the bias instability
 //!    (the flat minimum / 0.664; an upper bound when the record ends before
 //!    the curve flattens). It is computed on the **unsmoothed** samples:
 //!    `imu.smoothing_s`'s moving average of L samples divides the white
 //!    noise's variance at the shortest cluster times by up to L and would
 //!    make the curve's left end a smoothing artefact; the white-noise
 //!    density itself (the spectrum at low frequency) is what the smoothed
-//!    samples the filter sees still carry. The filter takes one number per
-//!    sensor: the RMS over the three axes.
-//! 2. **Maximum likelihood.** From that starting point (the configured
-//!    values where the Allan deviation says nothing), log-scale factors on
+//!    samples the filter sees still carry, and it is read at τ ≥ the
+//!    smoothing window (shorter τ are the band the moving average removes,
+//!    where a vibration line can dominate the raw samples). The filter
+//!    takes one number per sensor: the RMS over the three axes.
+//! 2. **Maximum likelihood.** From the Allan values (the configured ones
+//!    where the Allan deviation says nothing) or the configured values,
+//!    whichever have the higher likelihood (a noise measured at rest can be
+//!    far below what a moving platform needs), log-scale factors on
 //!    ARW, VRW, the gyro and accelerometer bias instabilities and the GNSS σ
 //!    scale maximise the innovation log-likelihood
 //!    `Σ −½ (m ln 2π + ln det S + νᵀ S⁻¹ ν)` of the GNSS updates (position
@@ -34,7 +39,8 @@
 //! The likelihood judges the filter's one-step predictions at the GNSS
 //! rate, so it fits the noise that makes those predictions consistent — not
 //! necessarily the noise that coasts best through an outage; compare with
-//! the outage scores of `aidnav process`.
+//! the outage scores of `aidnav process` (on the recorded drive and walk the
+//! fitted noise tracks better and coasts worse: see the README).
 
 use std::time::Instant;
 
