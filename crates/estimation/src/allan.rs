@@ -88,11 +88,11 @@ impl Default for AllanOptions {
 /// An Allan deviation curve at octave-spaced cluster times.
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct AllanCurve {
-    /// Sample interval τ₀ [s].
+    /// Sample interval τ₀ \[s\].
     pub sample_interval_s: f64,
     /// Number of samples.
     pub samples: usize,
-    /// Cluster times τ = m τ₀ [s], m = 1, 2, 4, ….
+    /// Cluster times τ = m τ₀ \[s\], m = 1, 2, 4, ….
     pub tau_s: Vec<f64>,
     /// σ(τ), in the unit of the rate.
     pub deviation: Vec<f64>,
@@ -103,7 +103,7 @@ pub struct AllanCurve {
 pub struct SlopeFit {
     /// The coefficient (N or K, in the rate's unit × √s or ÷ √s).
     pub value: f64,
-    /// The cluster times used: first and last [s].
+    /// The cluster times used: first and last \[s\].
     pub tau_range_s: (f64, f64),
     /// Number of curve points used.
     pub points: usize,
@@ -114,7 +114,7 @@ pub struct SlopeFit {
 pub struct BiasInstability {
     /// B = σ_min / 0.664, in the rate's unit.
     pub value: f64,
-    /// Cluster time of the minimum [s].
+    /// Cluster time of the minimum \[s\].
     pub tau_s: f64,
     /// The minimum is the curve's last point: the curve had not flattened
     /// yet, so the record is too short to see the floor and `value` is an
