@@ -18,10 +18,12 @@ use anyhow::{Context, Result};
 
 mod print;
 mod process;
+mod tune;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use print::*;
 use process::run_process;
+use tune::run_tune;
 
 /// aidnav — aided inertial navigation toolkit.
 ///
@@ -112,7 +114,48 @@ enum Command {
     /// degree of freedom with all GNSS. Warnings (divergence, long runs of
     /// rejected updates, …) go to stderr and to summary.json's
     /// `result.warnings`.
+    /// `[imu.noise] auto = true` tunes the noise first (as `aidnav tune`;
+    /// also allan.svg, allan.csv, tuned_noise.toml) and runs with the
+    /// fitted values.
     Process(ProcessArgs),
+    /// Tune the IMU noise terms and the GNSS σ scale of a log's
+    /// configuration.
+    ///
+    /// Takes `aidnav process`'s configuration. Step 1: the longest
+    /// standstill of the log (the `[standstill]` thresholds of the platform
+    /// and the GNSS speed), if it lasts at least `tune.min_static_s` (10 s),
+    /// gives the overlapping Allan deviation of the six axes, computed on
+    /// the unsmoothed samples: white noise (angle / velocity random walk)
+    /// on the −½ slope at τ ≥ `imu.smoothing_s`, bias instability at the
+    /// minimum / 0.664 (an upper bound when the curve still falls at the
+    /// longest cluster time). Step 2: from those values or the configured
+    /// ones, whichever have the higher likelihood, factors on ARW, VRW, the two bias
+    /// instabilities and the GNSS σ scale maximise the log-likelihood of
+    /// the GNSS innovations, −½ Σ (ln det S + νᵀ S⁻¹ ν), each evaluation
+    /// one filter pass (Nelder–Mead, at most `tune.max_evaluations` or
+    /// --max-evaluations passes). Prints the Allan table, the fitted values
+    /// and the likelihood gain; writes allan.svg, allan.csv,
+    /// tuned_noise.toml (an [imu.noise] table to paste, gnss.sigma_scale as
+    /// a comment) and summary.json. `[imu.noise] auto = true` makes
+    /// `aidnav process` run this first and use the fitted values.
+    Tune(TuneArgs),
+}
+
+#[derive(Debug, Args)]
+struct TuneArgs {
+    /// Configuration file (TOML), as `aidnav process` takes it.
+    #[arg(value_name = "CONFIG.toml")]
+    config: PathBuf,
+    /// Directory of the data files (replaces data.dir of the configuration).
+    #[arg(long, value_name = "DIR")]
+    data: Option<PathBuf>,
+    /// Output directory [default: results/<config file stem>_tune].
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Most filter passes of the likelihood search (replaces
+    /// tune.max_evaluations; a small number for a quick look).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    max_evaluations: Option<u32>,
 }
 
 #[derive(Debug, Args)]
@@ -251,6 +294,7 @@ fn main() -> ExitCode {
         Command::Reproduce(a) => run_reproduce(a).map(|()| ExitCode::SUCCESS),
         Command::Run(a) => run_scenario(a).map(|()| ExitCode::SUCCESS),
         Command::Process(a) => run_process(a),
+        Command::Tune(a) => run_tune(a).map(|()| ExitCode::SUCCESS),
     };
     match result {
         Ok(code) => code,

@@ -48,6 +48,13 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<ExitCode> {
         r.timing_s[2],
         aidnav::VERSION
     );
+    if let Some(t) = &r.tuning {
+        println!(
+            "[imu.noise] auto: the noise was tuned first (in the read time) and this run uses the fitted values:"
+        );
+        super::tune::print_allan(t);
+        super::tune::print_fit(t);
+    }
     let outcomes: Vec<String> = r.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
         "all GNSS, policy {:?}: RMS 3-D antenna error over the {} reference epochs {}; updates: {}",

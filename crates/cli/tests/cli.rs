@@ -982,3 +982,120 @@ fn process_runs_the_walk_from_its_ubx_log() {
         "{warnings}"
     );
 }
+
+/// `aidnav tune` on the recorded walk, the search cut to 12 filter passes:
+/// the Allan table of its 18 s standstill, a likelihood gain, the files; the
+/// fitted table pasted into the walk's configuration processes.
+#[test]
+fn tune_fits_the_walk_and_its_table_pastes_into_the_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = repo().join("examples/walk_0827.toml");
+    let out = dir.path().join("tune");
+    let stdout = success(&[
+        "tune",
+        config.to_str().unwrap(),
+        "--max-evaluations",
+        "12",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("longest standstill: 18.1 s, 115.6 s into the log")
+            && stdout.contains("Allan deviation of the unsmoothed samples at rest")
+            && stdout.contains("gnss_sigma_scale")
+            && stdout.contains("log-likelihood: configured"),
+        "{stdout}"
+    );
+    let summary = read_summary(&out);
+    assert_eq!(summary["command"], "tune");
+    assert!(summary["seed"].is_null());
+    let t = &summary["result"]["tuning"];
+    // The walk's gyro white noise at rest: RMS over the axes 0.30 deg/√h
+    // (0.25 / 0.42 / 0.17), far below the handheld motion's.
+    let arw = t["allan"]["arw_deg_per_sqrt_h"].as_f64().unwrap();
+    assert!((0.25..0.35).contains(&arw), "ARW {arw}");
+    assert_eq!(t["allan"]["axes"].as_array().unwrap().len(), 6);
+    assert_eq!(t["updates"], 515);
+    assert_eq!(t["passes"], 14);
+    let (conf, fitted) = (
+        t["log_likelihood_configured"].as_f64().unwrap(),
+        t["log_likelihood_fitted"].as_f64().unwrap(),
+    );
+    // The defaults' noise is far from the walk's: thousands gained even
+    // in 12 passes.
+    assert!(fitted - conf > 1000.0, "{conf} → {fitted}");
+    let csv = std::fs::read_to_string(out.join("allan.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 11, "{csv}"); // header, τ = 0.0064 … 3.3 s
+    assert_eq!(column(&csv, "gyro_x [deg/h]").len(), 10);
+    assert!(out.join("allan.svg").is_file());
+    // tuned_noise.toml appended to the walk's configuration (which has no
+    // [imu.noise] table) is a configuration that runs with those values.
+    let tuned = std::fs::read_to_string(out.join("tuned_noise.toml")).unwrap();
+    let example = std::fs::read_to_string(&config).unwrap();
+    let c = dir.path().join("tuned.toml");
+    std::fs::write(&c, format!("{example}\n{tuned}")).unwrap();
+    let data = repo().join("data/rtklibexplorer-gnss-imu/walk_0827");
+    let p_out = dir.path().join("process");
+    success(&[
+        "process",
+        c.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--no-score",
+        "--out",
+        p_out.to_str().unwrap(),
+    ]);
+    let used = &read_summary(&p_out)["scenario"]["imu"]["noise"];
+    let fitted_arw = t["fitted"]["noise"]["arw_deg_per_sqrt_h"].as_f64().unwrap();
+    let used_arw = used["arw_deg_per_sqrt_h"].as_f64().unwrap();
+    assert!(
+        (used_arw / fitted_arw - 1.0).abs() < 1e-3,
+        "{used_arw} {fitted_arw}"
+    );
+    assert_eq!(used["auto"], false);
+}
+
+/// `[imu.noise] auto = true`: `process` tunes first (here 6 passes), says
+/// so, writes the tuning's files and filters with the fitted values.
+#[test]
+fn process_with_auto_noise_tunes_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = std::fs::read_to_string(repo().join("examples/walk_0827.toml")).unwrap();
+    let c = dir.path().join("auto.toml");
+    std::fs::write(
+        &c,
+        format!("{example}\n[imu.noise]\nauto = true\n\n[tune]\nmax_evaluations = 6\n"),
+    )
+    .unwrap();
+    let data = repo().join("data/rtklibexplorer-gnss-imu/walk_0827");
+    let out = dir.path().join("out");
+    let stdout = success(&[
+        "process",
+        c.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--no-score",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("[imu.noise] auto: the noise was tuned first"),
+        "{stdout}"
+    );
+    let summary = read_summary(&out);
+    let t = &summary["result"]["tuning"];
+    assert_eq!(t["passes"], 8);
+    let used = &summary["scenario"]["imu"]["noise"];
+    assert_eq!(used["auto"], true);
+    assert_eq!(
+        used["vrw_mps_per_sqrt_h"],
+        t["fitted"]["noise"]["vrw_mps_per_sqrt_h"]
+    );
+    assert_eq!(
+        summary["scenario"]["gnss"]["sigma_scale"],
+        t["fitted"]["gnss_sigma_scale"]
+    );
+    for f in ["allan.svg", "allan.csv", "tuned_noise.toml", "solution.csv"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+}

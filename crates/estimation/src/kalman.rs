@@ -69,6 +69,39 @@ where
     pub outcome: Outcome,
 }
 
+impl<N: Dim, M: Dim> UpdateRecord<N, M>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    /// Gaussian log-likelihood of the innovation under the model,
+    /// ln p(ν) = −½ (m ln 2π + ln det S + νᵀ S⁻¹ ν) with the S of the R as
+    /// given (the prediction-error decomposition: summed over a run's
+    /// updates it is the log-likelihood of the measurements, Schweppe 1965;
+    /// Harvey, *Forecasting, structural time series models and the Kalman
+    /// filter*, §3.4). ln det S from the Cholesky factor, 2 Σ ln L_ii. NaN
+    /// when S is not positive definite or ν is not finite.
+    ///
+    /// ```
+    /// use aidnav_estimation::{KalmanFilter, nalgebra::{Matrix1, Vector1}};
+    /// let mut kf = KalmanFilter::new(Vector1::new(0.0), Matrix1::new(1.0)).unwrap();
+    /// let rec = kf.update(&Vector1::new(2.0), &Matrix1::new(1.0), &Matrix1::new(1.0)).unwrap();
+    /// // S = 2, ν = 2: −½ (ln 2π + ln 2 + 2).
+    /// let expected = -0.5 * ((2.0 * std::f64::consts::PI).ln() + 2f64.ln() + 2.0);
+    /// assert!((rec.log_likelihood() - expected).abs() < 1e-14);
+    /// ```
+    pub fn log_likelihood(&self) -> f64 {
+        let m = self.residual.len() as f64;
+        match Cholesky::new(self.s.clone()) {
+            Some(chol) if self.nis.is_finite() => {
+                let l = chol.l_dirty();
+                let log_det: f64 = (0..self.residual.len()).map(|i| 2.0 * l[(i, i)].ln()).sum();
+                -0.5 * (m * (2.0 * std::f64::consts::PI).ln() + log_det + self.nis)
+            }
+            _ => f64::NAN,
+        }
+    }
+}
+
 /// A linear Kalman filter over `N` states (`Const<n>` or `Dyn`).
 ///
 /// ```

@@ -21,6 +21,10 @@
 //! - steady-state covariance from the discrete algebraic Riccati equation
 //!   ([`steady_state_covariance`]).
 //! - self-organising (GMDH) time-series model selection ([`gmdh`]).
+//! - overlapping Allan deviation and the noise terms read from it ([`allan`]).
+//! - Nelder–Mead minimisation in a box with batch (parallel) evaluations
+//!   ([`optimise`]), and each update's Gaussian log-likelihood
+//!   ([`UpdateRecord::log_likelihood`]) for fitting noise by maximum likelihood.
 //! - a linear Gaussian model and its filter loop reporting to an [`Observer`]
 //!   ([`LinearGaussianModel`]).
 //!
@@ -40,6 +44,7 @@
 //! ```
 
 pub mod adaptive;
+pub mod allan;
 pub mod blocked;
 mod check;
 pub mod consistency;
@@ -50,6 +55,7 @@ pub mod information;
 pub mod kalman;
 pub mod linear;
 pub mod observer;
+pub mod optimise;
 pub mod policy;
 pub mod riccati;
 pub mod scheme;

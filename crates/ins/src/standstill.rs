@@ -98,6 +98,67 @@ pub fn window_ending_at(imu: &[ImuSample], end: usize, window_s: f64) -> &[ImuSa
     &imu[first..=end]
 }
 
+/// The stretches of `imu` that stand still: runs of consecutive,
+/// non-overlapping windows of `window_s` whose statistics are still
+/// ([`WindowStats::is_still`]) and for which `slow(t_first, t_last)` — the
+/// caller's speed evidence over the window's sample times — holds. Each
+/// stretch is a range of sample indices; longest first (ties: earliest
+/// first). Cost: one pass over the samples.
+///
+/// ```
+/// use aidnav_ins::samples::ImuSample;
+/// use aidnav_ins::standstill::{StandstillThresholds, still_stretches};
+/// use nalgebra::Vector3;
+/// // 10 s at 100 Hz, a shake between 4 and 5 s.
+/// let imu: Vec<ImuSample> = (0..1000)
+///     .map(|k| {
+///         let t = k as f64 * 0.01;
+///         let shake = if (4.0..5.0).contains(&t) && k % 2 == 0 { 1.0 } else { 0.0 };
+///         ImuSample { time_s: t, specific_force: Vector3::new(shake, 0.0, -9.8), angular_rate: Vector3::zeros() }
+///     })
+///     .collect();
+/// let th = StandstillThresholds { accel_std_mps2: 0.1, gyro_std_rad_s: 0.01 };
+/// let s = still_stretches(&imu, 0.5, &th, |_, _| true);
+/// assert_eq!(s[0], 500..1000); // 5 … 10 s
+/// assert_eq!(s[1], 0..400);    // 0 … 4 s
+/// ```
+pub fn still_stretches(
+    imu: &[ImuSample],
+    window_s: f64,
+    thresholds: &StandstillThresholds,
+    mut slow: impl FnMut(f64, f64) -> bool,
+) -> Vec<std::ops::Range<usize>> {
+    let mut stretches = Vec::new();
+    if !(window_s.is_finite() && window_s > 0.0) {
+        return stretches;
+    }
+    let mut current: Option<std::ops::Range<usize>> = None;
+    let mut i = 0;
+    while i < imu.len() {
+        let t0 = imu[i].time_s;
+        let mut j = i + 1;
+        while j < imu.len() && imu[j].time_s < t0 + window_s {
+            j += 1;
+        }
+        let window = &imu[i..j];
+        let still = WindowStats::of(window).is_some_and(|s| s.is_still(thresholds))
+            && slow(t0, window[window.len() - 1].time_s);
+        current = match (still, current.take()) {
+            (true, Some(r)) => Some(r.start..j),
+            (true, None) => Some(i..j),
+            (false, Some(r)) => {
+                stretches.push(r);
+                None
+            }
+            (false, None) => None,
+        };
+        i = j;
+    }
+    stretches.extend(current);
+    stretches.sort_by(|a, b| b.len().cmp(&a.len()).then(a.start.cmp(&b.start)));
+    stretches
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

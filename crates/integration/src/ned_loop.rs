@@ -156,6 +156,12 @@ pub struct FixRecord {
     pub innovation: Vector3<f64>,
     /// What the update did (None: withheld).
     pub outcome: Option<Outcome>,
+    /// Gaussian log-likelihood of the epoch's GNSS innovations, position
+    /// and (when used) velocity, under the filter's model:
+    /// Σ −½ (3 ln 2π + ln det S + νᵀ S⁻¹ ν) over the two updates (the
+    /// velocity's S after the position update, so the sum is the joint
+    /// likelihood of the epoch's fix). NaN when withheld.
+    pub log_likelihood: f64,
     /// The instrument corrections after the epoch.
     pub instruments: InstrumentEstimate,
     /// Spec 10's δ(n) (NaN without the monitor or while singular).
@@ -349,6 +355,7 @@ fn fix_epoch(
     policies: &mut LoopPolicies<'_>,
 ) -> Result<FixRecord, EstimationError> {
     let (mut nis, mut outcome) = (f64::NAN, None);
+    let mut log_likelihood = f64::NAN;
     let mut innovation = Vector3::repeat(f64::NAN);
     let mut convergence = f64::NAN;
     if !g.withheld {
@@ -358,11 +365,14 @@ fn fix_epoch(
         nis = rec.nis;
         outcome = Some(rec.outcome);
         innovation = rec.residual;
+        log_likelihood = rec.log_likelihood();
         if cfg.use_velocity
             && let (Some(v), Some(sv)) = (g.fix.velocity_ned, g.fix.velocity_sigma_neu)
         {
             let sv = sv.map(|x| x.max(cfg.min_velocity_sigma_mps));
-            filter.update_velocity_with(&Vec3::assume_in_frame(v), &sv, policies.velocity)?;
+            let rec =
+                filter.update_velocity_with(&Vec3::assume_in_frame(v), &sv, policies.velocity)?;
+            log_likelihood += rec.log_likelihood();
         }
     } else {
         filter.position_fix_missing()?;
@@ -384,6 +394,7 @@ fn fix_epoch(
         nis,
         innovation,
         outcome,
+        log_likelihood,
         instruments: *filter.instruments(),
         convergence,
         sigma_gnss_m,

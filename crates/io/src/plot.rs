@@ -69,11 +69,24 @@ impl LineChart {
     /// temporary name, then renamed).
     pub fn write_svg(&self, path: &Path) -> Result<()> {
         let staged = crate::writers::Staged::new(path);
-        self.render_svg(staged.tmp(), path)?;
+        self.render_svg(staged.tmp(), path, false)?;
         staged.commit().map(|_| ())
     }
 
-    fn render_svg(&self, tmp: &Path, path: &Path) -> Result<()> {
+    /// [`write_svg`](Self::write_svg) with a logarithmic x axis too (and a
+    /// logarithmic y axis whatever `log_y` says): an Allan deviation, a
+    /// spectrum. Points with x ≤ 0 or y ≤ 0 are left out.
+    pub fn write_svg_log_log(&self, path: &Path) -> Result<()> {
+        let staged = crate::writers::Staged::new(path);
+        let chart = LineChart {
+            log_y: true,
+            ..self.clone()
+        };
+        chart.render_svg(staged.tmp(), path, true)?;
+        staged.commit().map(|_| ())
+    }
+
+    fn render_svg(&self, tmp: &Path, path: &Path, log_x: bool) -> Result<()> {
         let err = |e: String| IoError::Write {
             path: path.to_path_buf(),
             message: e,
@@ -82,7 +95,9 @@ impl LineChart {
             .series
             .iter()
             .flat_map(|s| s.points.iter())
-            .filter(|(x, y)| x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0));
+            .filter(|(x, y)| {
+                x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0) && (!log_x || *x > 0.0)
+            });
         let (mut x0, mut x1, mut y0, mut y1) = (
             f64::INFINITY,
             f64::NEG_INFINITY,
@@ -96,10 +111,15 @@ impl LineChart {
             y1 = y1.max(y);
         }
         if !x0.is_finite() {
-            (x0, x1, y0, y1) = (0.0, 1.0, if self.log_y { 0.1 } else { 0.0 }, 1.0);
+            (x0, x1, y0, y1) = (
+                if log_x { 0.1 } else { 0.0 },
+                1.0,
+                if self.log_y { 0.1 } else { 0.0 },
+                1.0,
+            );
         }
         if x1 <= x0 {
-            x1 = x0 + 1.0;
+            x1 = x0 + x0.abs().max(1.0);
         }
         if y1 <= y0 {
             y1 = y0 + y0.abs().max(1.0) * 0.1;
@@ -112,17 +132,22 @@ impl LineChart {
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70);
-        if self.log_y {
+        if log_x {
+            let mut chart = builder
+                .build_cartesian_2d((x0..x1).log_scale(), (y0..y1 * 1.05).log_scale())
+                .map_err(|e| err(e.to_string()))?;
+            self.draw_into(&mut chart, true).map_err(err)?;
+        } else if self.log_y {
             let mut chart = builder
                 .build_cartesian_2d(x0..x1, (y0..y1 * 1.05).log_scale())
                 .map_err(|e| err(e.to_string()))?;
-            self.draw_into(&mut chart).map_err(err)?;
+            self.draw_into(&mut chart, false).map_err(err)?;
         } else {
             let pad = 0.05 * (y1 - y0);
             let mut chart = builder
                 .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
                 .map_err(|e| err(e.to_string()))?;
-            self.draw_into(&mut chart).map_err(err)?;
+            self.draw_into(&mut chart, false).map_err(err)?;
         }
         root.present().map_err(|e| err(e.to_string()))
     }
@@ -131,6 +156,7 @@ impl LineChart {
     fn draw_into<'a, X, Y>(
         &self,
         chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, Y>>,
+        log_x: bool,
     ) -> std::result::Result<(), String>
     where
         X: Ranged<ValueType = f64> + ValueFormatter<f64>,
@@ -142,7 +168,7 @@ impl LineChart {
             .y_desc(&self.y_label)
             .draw()
             .map_err(|e| e.to_string())?;
-        self.draw_series(chart)?;
+        self.draw_series(chart, log_x)?;
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))
@@ -154,6 +180,7 @@ impl LineChart {
     fn draw_series<'a, X, Y>(
         &self,
         chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, Y>>,
+        log_x: bool,
     ) -> std::result::Result<(), String>
     where
         X: Ranged<ValueType = f64>,
@@ -165,7 +192,8 @@ impl LineChart {
             // Split at non-finite points so gaps stay gaps.
             let mut segments: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
             for &(x, y) in &s.points {
-                if x.is_finite() && y.is_finite() && (!self.log_y || y > 0.0) {
+                if x.is_finite() && y.is_finite() && (!self.log_y || y > 0.0) && (!log_x || x > 0.0)
+                {
                     if let Some(v) = segments.last_mut() {
                         v.push((x, y));
                     }

@@ -15,9 +15,11 @@ use crate::VERSION;
 
 mod process;
 mod reproduce;
+mod tune;
 
 pub use process::*;
 pub use reproduce::*;
+pub use tune::*;
 
 /// Anything a job can fail with.
 #[derive(Debug, thiserror::Error)]

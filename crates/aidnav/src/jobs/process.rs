@@ -72,7 +72,11 @@ pub struct ProcessReport {
     /// stretch it concerns (`start_s`, `end_s`, GPST s, or null). See
     /// [`crate::process::warnings`].
     pub warnings: Vec<crate::process::Warning>,
-    /// Wall time \[s\]: reading, one filter pass, scoring.
+    /// The tuning made first with `[imu.noise] auto` (the run used its
+    /// fitted noise and GNSS σ scale); None: the configured noise.
+    pub tuning: Option<crate::process::tune::TuneResult>,
+    /// Wall time \[s\]: reading (and tuning, with `auto`), one filter
+    /// pass, scoring.
     pub timing_s: [f64; 3],
     /// Files written.
     pub files: Vec<PathBuf>,
@@ -94,7 +98,10 @@ impl ProcessReport {
 /// configuration (`data_dir` replaces its `data.dir`), filter it, write
 /// `solution.csv` (per GNSS epoch: antenna position, NED velocity, attitude,
 /// σ, NIS, update outcome), `trajectory.svg`, `outage_drift.svg` and
-/// `summary.json`; with `score`, also the outage and anomaly tables.
+/// `summary.json`; with `score`, also the outage and anomaly tables. With
+/// `[imu.noise] auto` the noise is tuned first ([`crate::process::tune`];
+/// `allan.svg`, `allan.csv`, `tuned_noise.toml` too, `result.tuning` in
+/// `summary.json`) and the run uses the fitted values.
 pub fn process(
     config: &Path,
     data_dir: Option<&Path>,
@@ -109,9 +116,10 @@ pub fn process(
     }
     let base = config.parent().unwrap_or(Path::new("."));
     let t_read = Instant::now();
-    let inputs = Inputs::load(&cfg, base).map_err(process_error)?;
+    let inputs = Inputs::load_unsmoothed(&cfg, base).map_err(process_error)?;
+    // With `[imu.noise] auto` this tunes the noise first.
+    let process = Process::from_unsmoothed(cfg, inputs).map_err(process_error)?;
     let read_s = t_read.elapsed().as_secs_f64();
-    let process = Process::new(cfg, inputs).map_err(process_error)?;
     let t_run = Instant::now();
     let result = process.run().map_err(process_error)?;
     let run_s = t_run.elapsed().as_secs_f64();
@@ -124,8 +132,17 @@ pub fn process(
     let score_s = t_score.elapsed().as_secs_f64();
     let cfg = process.config();
     aidnav_io::writers::begin_outputs(out)?;
-    let (files, written) =
+    let (mut files, mut written) =
         export::write_files(&result, scores.as_ref(), out, cfg.output.kf_gins_text)?;
+    if let Some(t) = process.tuning() {
+        let name = config.file_name().map_or_else(
+            || config.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        let (f, w) = export::write_tune_files(t, out, &name)?;
+        files.extend(f);
+        written.extend(w);
+    }
     let mut report = ProcessReport::new(
         result,
         scores.unwrap_or_default(),
@@ -137,6 +154,14 @@ pub fn process(
             .into_iter()
             .map(|w| Warning::new(WarningKind::Output, w)),
     );
+    report.tuning = process.tuning().cloned();
+    if let Some(t) = &report.tuning {
+        report.warnings.extend(
+            t.notes
+                .iter()
+                .map(|n| Warning::new(WarningKind::Input, n.clone())),
+        );
+    }
     if let Some(rms) = report.tracking_rms_m.filter(|v| !v.is_finite()) {
         report.warnings.push(Warning::new(
             WarningKind::Divergence,
@@ -183,6 +208,7 @@ impl ProcessReport {
             k_eff_integrated_fraction: result.k_eff_integrated_fraction,
             anomalies: scores.anomalies,
             post_outage_bursts: scores.post_outage_bursts,
+            tuning: None,
             warnings: result.warnings.into_iter().chain(scores.warnings).collect(),
             timing_s,
             files,
@@ -190,7 +216,7 @@ impl ProcessReport {
     }
 }
 
-fn process_error(e: crate::process::ProcessError) -> JobError {
+pub(super) fn process_error(e: crate::process::ProcessError) -> JobError {
     match e {
         crate::process::ProcessError::Io(io) => JobError::Io(io),
         crate::process::ProcessError::Estimation(source) => estimation("GNSS/INS filter")(source),

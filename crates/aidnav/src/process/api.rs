@@ -11,6 +11,7 @@ use super::consistency::{NisConsistency, nis_consistency};
 use super::run::{Epoch, RunPlan, SolutionRow, run_filter_rows};
 use super::score::{convergence_times, reference_epochs, tracking_rms};
 use super::scoring::{Scores, score_log};
+use super::tune::{TuneResult, tune};
 use super::warnings::{Warning, WarningKind, divergence_warnings, rejection_run_warnings};
 use super::{Inputs, ProcessError, StartKind, initialise};
 use serde::Serialize;
@@ -64,6 +65,7 @@ use serde::Serialize;
 pub struct Process {
     cfg: ProcessConfig,
     inputs: Inputs,
+    tuning: Option<TuneResult>,
 }
 
 /// What a filter pass over the whole log gives (all GNSS used).
@@ -127,9 +129,36 @@ pub struct StartSummary {
 }
 
 impl Process {
-    /// A log to process under a configuration; refuses inputs the filter
-    /// cannot start on (fewer than two IMU samples, no GNSS fix).
+    /// A log to process under a configuration, the inputs ready to filter
+    /// ([`Inputs::load`]: smoothed as configured); refuses inputs the
+    /// filter cannot start on (fewer than two IMU samples, no GNSS fix).
+    ///
+    /// With `[imu.noise] auto` the noise is tuned first ([`tune`]) and the
+    /// fitted values replace the configured ones ([`Process::tuning`]).
+    /// The tuning needs the unsmoothed samples: with `imu.smoothing_s > 0`
+    /// use [`Process::from_unsmoothed`] or [`Process::load`] (an error here).
     pub fn new(config: ProcessConfig, inputs: Inputs) -> Result<Self, ProcessError> {
+        if config.imu.noise.auto && config.imu.smoothing_s > 0.0 {
+            return Err(ProcessError::Data(
+                "[imu.noise] auto with imu.smoothing_s > 0 needs the unsmoothed samples: use Process::from_unsmoothed or Process::load".into(),
+            ));
+        }
+        Self::build(config, inputs, false)
+    }
+
+    /// A log to process from its inputs *before* smoothing
+    /// ([`Inputs::load_unsmoothed`]): tuned first with `[imu.noise] auto`
+    /// (the Allan deviation on these samples), then smoothed as configured.
+    pub fn from_unsmoothed(config: ProcessConfig, inputs: Inputs) -> Result<Self, ProcessError> {
+        Self::build(config, inputs, true)
+    }
+
+    /// Check, tune (with `auto`), smooth (with `smooth`).
+    fn build(
+        mut config: ProcessConfig,
+        inputs: Inputs,
+        smooth: bool,
+    ) -> Result<Self, ProcessError> {
         if inputs.imu.len() < 2 || inputs.gnss.is_empty() {
             return Err(ProcessError::Data(format!(
                 "{} IMU samples and {} GNSS fixes: need at least 2 and 1",
@@ -137,17 +166,36 @@ impl Process {
                 inputs.gnss.len()
             )));
         }
+        let tuning = if config.imu.noise.auto {
+            let t = tune(&config, &inputs)?;
+            t.fitted.apply_to(&mut config);
+            Some(t)
+        } else {
+            None
+        };
+        let inputs = if smooth {
+            inputs.smoothed(config.imu.smoothing_s)
+        } else {
+            inputs
+        };
         Ok(Self {
             cfg: config,
             inputs,
+            tuning,
         })
     }
 
     /// Read the inputs the configuration names (relative to `base`) and
-    /// make a [`Process`] of them.
+    /// make a [`Process`] of them (tuned first with `[imu.noise] auto`).
     pub fn load(config: ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
-        let inputs = Inputs::load(&config, base)?;
-        Self::new(config, inputs)
+        let inputs = Inputs::load_unsmoothed(&config, base)?;
+        Self::from_unsmoothed(config, inputs)
+    }
+
+    /// The tuning made with `[imu.noise] auto` (the configuration then
+    /// holds the fitted noise and GNSS σ scale, `auto` still set).
+    pub fn tuning(&self) -> Option<&TuneResult> {
+        self.tuning.as_ref()
     }
 
     /// The configuration.

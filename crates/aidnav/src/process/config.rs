@@ -105,8 +105,9 @@ pub struct ImuConfig {
     /// Zero-phase moving-average window \[s\] (0: none), against a
     /// vibration line in the gyros. Default 0.
     pub smoothing_s: f64,
-    /// Noise terms of the filter model.
-    pub noise: aidnav_models::ned_ins::ImuNoise,
+    /// Noise terms of the filter model (`[imu.noise]`), and whether
+    /// `process` tunes them first (`auto = true`).
+    pub noise: NoiseConfig,
 }
 
 impl Default for ImuConfig {
@@ -115,8 +116,87 @@ impl Default for ImuConfig {
             time_offset_s: 0.0,
             mounting_deg: [0.0; 3],
             smoothing_s: 0.0,
-            noise: aidnav_models::ned_ins::ImuNoise::default(),
+            noise: NoiseConfig::default(),
         }
+    }
+}
+
+/// The `[imu.noise]` table: the model's noise terms
+/// ([`aidnav_models::ned_ins::ImuNoise`], every key of it) and `auto`.
+///
+/// With `auto = true`, `aidnav process` first runs the tuning of
+/// [`super::tune`] (Allan deviation of the longest standstill, then the
+/// noise scalars and the GNSS σ scale by maximum likelihood, starting from
+/// the values written here) and filters with the fitted values. It derefs
+/// to the noise terms, so `cfg.imu.noise.arw_deg_per_sqrt_h` reads them.
+/// `noise = "auto"` is short for `auto = true` with the default terms.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NoiseConfig {
+    /// Tune the noise before processing. Default false.
+    pub auto: bool,
+    /// The noise terms (with `auto`: the tuning's starting point).
+    pub values: aidnav_models::ned_ins::ImuNoise,
+}
+
+impl std::ops::Deref for NoiseConfig {
+    type Target = aidnav_models::ned_ins::ImuNoise;
+    fn deref(&self) -> &Self::Target {
+        &self.values
+    }
+}
+
+impl std::ops::DerefMut for NoiseConfig {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.values
+    }
+}
+
+impl Serialize for NoiseConfig {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Table<'a> {
+            auto: bool,
+            #[serde(flatten)]
+            values: &'a aidnav_models::ned_ins::ImuNoise,
+        }
+        Table {
+            auto: self.auto,
+            values: &self.values,
+        }
+        .serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for NoiseConfig {
+    /// A table: `auto` (a boolean) taken out, the rest read as the noise
+    /// terms (unknown keys refused); or the string `"auto"`.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error as _;
+        let expected = "a table of noise terms or the string \"auto\"";
+        let mut table = match toml::Value::deserialize(d)? {
+            toml::Value::String(w) if w == "auto" => {
+                return Ok(Self {
+                    auto: true,
+                    values: Default::default(),
+                });
+            }
+            toml::Value::Table(t) => t,
+            other => {
+                return Err(D::Error::custom(format!("{other}: expected {expected}")));
+            }
+        };
+        let auto = match table.remove("auto") {
+            None => false,
+            Some(toml::Value::Boolean(b)) => b,
+            Some(v) => {
+                return Err(D::Error::custom(format!(
+                    "auto = {v}: expected true or false"
+                )));
+            }
+        };
+        let values = aidnav_models::ned_ins::ImuNoise::deserialize(toml::Value::Table(table))
+            .map_err(|e| D::Error::custom(e.message().trim()))?;
+        Ok(Self { auto, values })
     }
 }
 
@@ -217,6 +297,10 @@ pub struct GnssConfig {
     /// Innovations in eq. 4's sliding window (`adaptive_gain`,
     /// `limited_adaptive_gain`). Default 20 (5 s at 4 Hz).
     pub adaptive_window: usize,
+    /// Every GNSS σ (position and velocity, after the quality factors and
+    /// the floors) × this: the receiver's σ may be optimistic or
+    /// pessimistic as a whole (`aidnav tune` fits it). Default 1.
+    pub sigma_scale: f64,
 }
 
 /// Vehicle constraints.
@@ -406,6 +490,7 @@ impl Default for GnssConfig {
             policy: PolicyName::Accept,
             anomaly_gamma: 9.0,
             adaptive_window: 20,
+            sigma_scale: 1.0,
         }
     }
 }
@@ -627,6 +712,44 @@ pub struct EfficiencyConfig {
     pub sigma_gnss_m: Option<f64>,
 }
 
+/// Self-tuning of the noise (`aidnav tune`, `[imu.noise] auto = true`):
+/// see [`super::tune`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TuneConfig {
+    /// Shortest standstill for an Allan deviation \[s\]: 10 s of samples
+    /// give the white noise at τ up to about 1 s from ten or more clusters;
+    /// a shorter record shows little beyond the shortest cluster times (the
+    /// configured noise is then the starting point). A MEMS bias
+    /// instability needs minutes; from a shorter record it is an upper
+    /// bound. Default 10.
+    pub min_static_s: f64,
+    /// Most filter passes of the likelihood search (each one pass over the
+    /// log; the first simplex's 6 are made whatever this says). Default 250 (the drive converges in about 140, the walk in
+    /// about 220).
+    pub max_evaluations: usize,
+    /// Each fitted factor stays within [1/this, this] of its starting
+    /// value. Default 100.
+    pub max_factor: f64,
+    /// First step of the search, as a factor on each value. Default 2.
+    pub initial_factor: f64,
+    /// Stop when the log-likelihood over the simplex spans less than this
+    /// and every factor is settled to 5 %. Default 0.05.
+    pub tolerance: f64,
+}
+
+impl Default for TuneConfig {
+    fn default() -> Self {
+        Self {
+            min_static_s: 10.0,
+            max_evaluations: 250,
+            max_factor: 100.0,
+            initial_factor: 2.0,
+            tolerance: 0.05,
+        }
+    }
+}
+
 /// Outputs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -692,6 +815,9 @@ pub struct ProcessConfig {
     /// Scoring.
     #[serde(default)]
     pub score: ScoreConfig,
+    /// Self-tuning of the noise.
+    #[serde(default)]
+    pub tune: TuneConfig,
     /// Outputs.
     #[serde(default)]
     pub output: OutputConfig,

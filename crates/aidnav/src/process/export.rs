@@ -1,7 +1,8 @@
 //! A [`ProcessResult`] and its optional [`Scores`] as the files `aidnav
 //! process` writes: `solution.csv`, `navresult.txt` (optional),
 //! `smoothed.csv`, `trajectory.svg`, `instruments.csv`, `innovations.svg`,
-//! `outage_drift.svg` (with scores) and `summary.json`.
+//! `outage_drift.svg` (with scores) and `summary.json`; a tuning's
+//! `allan.svg`, `allan.csv` and `tuned_noise.toml`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -17,6 +18,7 @@ use super::api::ProcessResult;
 use super::config::ProcessConfig;
 use super::run::{Epoch, SolutionRow};
 use super::scoring::Scores;
+use super::tune::{AxisAllan, ImuAllan, TuneResult, tuned_noise_toml};
 
 /// Write every file of a result (and of its scores) into `out`, in the
 /// order `aidnav process` lists them; `navresult` adds `navresult.txt`.
@@ -59,6 +61,119 @@ pub fn write_files(
         files.push(path);
     }
     Ok((files, warnings))
+}
+
+/// Write the files of a tuning into `out`: `allan.svg` and `allan.csv`
+/// (when the log had a standstill long enough) and `tuned_noise.toml`
+/// (`config_name` names the configuration in its comment). Returns the
+/// files and the warnings of the tables.
+pub fn write_tune_files(
+    result: &TuneResult,
+    out: &Path,
+    config_name: &str,
+) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
+    let mut files = Vec::new();
+    let mut warnings = Vec::new();
+    if let Some(allan) = &result.allan {
+        let path = out.join("allan.svg");
+        allan_chart(allan).write_svg_log_log(&path)?;
+        files.push(path);
+        let path = out.join("allan.csv");
+        warnings.extend(write_allan(&path, allan)?);
+        files.push(path);
+    }
+    let path = out.join("tuned_noise.toml");
+    aidnav_io::writers::write_atomic(&path, tuned_noise_toml(result, config_name).as_bytes())?;
+    files.push(path);
+    Ok((files, warnings))
+}
+
+/// σ(τ) of an axis in datasheet units: gyro \[deg/h\], accelerometer \[mg\].
+fn datasheet_deviation(axis: &AxisAllan, sigma_si: f64) -> f64 {
+    if axis.axis.starts_with("gyro") {
+        sigma_si.to_degrees() * 3600.0
+    } else {
+        sigma_si / 9.806_65 * 1e3
+    }
+}
+
+/// Write `allan.csv`: per cluster time the six axes' Allan deviation in
+/// datasheet units.
+pub fn write_allan(path: &Path, allan: &ImuAllan) -> Result<Vec<String>, IoError> {
+    let tau = allan.axes.first().map_or(&[][..], |a| &a.curve.tau_s[..]);
+    let rows = tau.iter().enumerate().map(|(i, t)| {
+        let mut row = vec![*t];
+        row.extend(allan.axes.iter().map(|a| {
+            a.curve
+                .deviation
+                .get(i)
+                .map_or(f64::NAN, |&d| datasheet_deviation(a, d))
+        }));
+        row
+    });
+    write_table_noting_infinities(
+        path,
+        &[
+            "tau [s]",
+            "gyro_x [deg/h]",
+            "gyro_y [deg/h]",
+            "gyro_z [deg/h]",
+            "accel_x [mg]",
+            "accel_y [mg]",
+            "accel_z [mg]",
+        ],
+        rows,
+    )
+}
+
+/// The six Allan deviation curves, log–log; the legend carries what each
+/// curve reads (white noise, bias instability; ≤ when a bound).
+pub fn allan_chart(allan: &ImuAllan) -> LineChart {
+    let series = allan
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(k, a)| {
+            let gyro = k < 3;
+            let white = a.white_datasheet.map_or("—".to_string(), |v| {
+                format!("{v:.3} {}", if gyro { "deg/√h" } else { "m/s/√h" })
+            });
+            let bias = match (a.bias_datasheet, a.bias_instability) {
+                (Some(v), Some(b)) => format!(
+                    "{}{v:.3} {}",
+                    if b.upper_bound { "≤ " } else { "" },
+                    if gyro { "deg/h" } else { "mg" }
+                ),
+                _ => "—".to_string(),
+            };
+            Series {
+                label: format!("{} (white {white}, bias instability {bias})", a.axis),
+                points: a
+                    .curve
+                    .tau_s
+                    .iter()
+                    .zip(&a.curve.deviation)
+                    .map(|(&t, &d)| (t, datasheet_deviation(a, d)))
+                    .collect(),
+                style: if gyro {
+                    LineStyle::Solid
+                } else {
+                    LineStyle::Dashed
+                },
+                color: k % 3 + if gyro { 0 } else { 3 },
+            }
+        })
+        .collect();
+    LineChart {
+        title: format!(
+            "Allan deviation at rest ({:.1} s, {:.1} s into the log)",
+            allan.stretch.duration_s, allan.stretch.after_first_sample_s
+        ),
+        x_label: "cluster time τ [s]".into(),
+        y_label: "σ(τ): gyro [deg/h], accelerometer [mg]".into(),
+        series,
+        log_y: true,
+    }
 }
 
 /// Write `summary.json` with the configuration and `report` as its result.

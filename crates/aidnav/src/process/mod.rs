@@ -36,6 +36,7 @@ pub mod score;
 pub mod scoring;
 mod start;
 pub mod template;
+pub mod tune;
 mod validate;
 pub mod warnings;
 
@@ -99,10 +100,36 @@ impl Inputs {
     pub fn load(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
         load_inputs(cfg, base)
     }
+
+    /// [`Inputs::load`] without the smoothing (`imu.smoothing_s`): the
+    /// samples as the sensor gave them, for noise analysis.
+    pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
+        load_unsmoothed(cfg, base)
+    }
+
+    /// These inputs with the IMU smoothed by a zero-phase centred moving
+    /// average over `smoothing_s` (none at 0 or for fewer than 3 samples).
+    pub fn smoothed(&self, smoothing_s: f64) -> Self {
+        let mut out = self.clone();
+        let imu = &self.imu;
+        if smoothing_s > 0.0 && imu.len() > 2 {
+            let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
+            let half = ((smoothing_s / dt) / 2.0).round() as usize;
+            if half > 0 {
+                out.imu = moving_average(imu, half);
+            }
+        }
+        out
+    }
 }
 
 /// Read, time-shift, rotate to the body frame and smooth.
 pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
+    Ok(load_unsmoothed(cfg, base)?.smoothed(cfg.imu.smoothing_s))
+}
+
+/// Read, time-shift and rotate to the body frame.
+pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     let dir = if cfg.data.dir.is_absolute() {
         cfg.data.dir.clone()
     } else {
@@ -141,13 +168,6 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
     aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
     warnings.extend(check_overlap(&imu, &gnss, &imu_path, &gnss_path)?);
     check_turn_rate(&imu, &gnss, &imu_path, &gnss_path)?;
-    if cfg.imu.smoothing_s > 0.0 && imu.len() > 2 {
-        let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
-        let half = ((cfg.imu.smoothing_s / dt) / 2.0).round() as usize;
-        if half > 0 {
-            imu = moving_average(&imu, half);
-        }
-    }
     Ok(Inputs {
         imu,
         gnss,

@@ -108,6 +108,10 @@ pub struct Epoch {
     pub innovation: Vector3<f64>,
     /// What the update did (None: withheld).
     pub outcome: Option<Outcome>,
+    /// Gaussian log-likelihood of the epoch's GNSS innovations (position
+    /// and velocity) under the filter's model (NaN when withheld): see
+    /// [`aidnav_integration::ned_loop::FixRecord::log_likelihood`].
+    pub log_likelihood: f64,
     /// The instrument corrections after the epoch.
     pub instruments: aidnav_integration::ned::InstrumentEstimate,
     /// RTS-smoothed antenna position (runs with `RunPlan::smooth`).
@@ -193,6 +197,7 @@ impl Epoch {
             nis: rec.nis,
             innovation: rec.innovation,
             outcome: rec.outcome,
+            log_likelihood: rec.log_likelihood,
             instruments,
             smoothed_antenna: None,
             smoothed_imu: None,
@@ -237,7 +242,7 @@ fn new_filter(
 ) -> Result<(NedFilter, usize), ProcessError> {
     let begin = initialise(cfg, inputs)?;
     let model = NedErrorModel {
-        noise: cfg.imu.noise,
+        noise: cfg.imu.noise.values,
     };
     let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
     let mut sig = Vector21::zeros();
@@ -282,10 +287,11 @@ fn new_filter(
 }
 
 /// σ of every non-fixed solution × its quality's factor (position and
-/// velocity), before the σ floors of the loop.
-fn inflate_by_quality(fixes: &mut [AidingFix], scale: &QualitySigmaScale) {
+/// velocity), and every σ × `sigma_scale` (the loop's floors are scaled
+/// too: the scale applies after the floors).
+fn inflate_by_quality(fixes: &mut [AidingFix], scale: &QualitySigmaScale, sigma_scale: f64) {
     for f in fixes {
-        let k = scale.factor(f.fix.quality);
+        let k = scale.factor(f.fix.quality) * sigma_scale;
         f.fix.position_sigma_neu *= k;
         if let Some(v) = f.fix.velocity_sigma_neu.as_mut() {
             *v *= k;
@@ -302,9 +308,9 @@ fn smoothing(cfg: &ProcessConfig, plan: &RunPlan) -> bool {
 fn loop_config(cfg: &ProcessConfig, plan: &RunPlan, interval_s: f64) -> LoopConfig {
     let nhc = &cfg.constraints;
     LoopConfig {
-        min_position_sigma_m: cfg.gnss.min_position_sigma_m,
+        min_position_sigma_m: cfg.gnss.min_position_sigma_m * cfg.gnss.sigma_scale,
         use_velocity: cfg.gnss.use_velocity,
-        min_velocity_sigma_mps: cfg.gnss.min_velocity_sigma_mps,
+        min_velocity_sigma_mps: cfg.gnss.min_velocity_sigma_mps * cfg.gnss.sigma_scale,
         non_holonomic: cfg.non_holonomic().then_some(NonHolonomic {
             rate_hz: nhc.non_holonomic_rate_hz,
             sigma_mps: nhc.non_holonomic_sigma_mps,
@@ -343,7 +349,11 @@ pub fn run_filter_rows(
     let (mut filter, start) = new_filter(cfg, inputs, plan, policy)?;
     let (imu, gnss) = (&inputs.imu, &inputs.gnss);
     let mut fixes = plan.prepare(gnss);
-    inflate_by_quality(&mut fixes, &cfg.gnss.quality_sigma_scale);
+    inflate_by_quality(
+        &mut fixes,
+        &cfg.gnss.quality_sigma_scale,
+        cfg.gnss.sigma_scale,
+    );
     let span = imu[imu.len() - 1].time_s - imu[start].time_s;
     let mut collector = Collector {
         fixes: Vec::with_capacity(gnss.len()),
@@ -517,6 +527,7 @@ pub(crate) mod synthetic {
             innovation: Vector3::repeat(f64::NAN),
             outcome: nis.is_finite().then_some(Outcome::Accepted),
             instruments: Default::default(),
+            log_likelihood: f64::NAN,
             smoothed_antenna: None,
             smoothed_imu: None,
             smoothed_position_covariance: None,

@@ -218,9 +218,11 @@ fn build(
         StartKind::Moving => (i.moving_tilt_sigma_deg, i.moving_heading_sigma_deg),
         StartKind::Static | StartKind::Given => (i.tilt_sigma_deg, i.heading_sigma_deg),
     };
+    // As the loop uses the fix: × the quality factor, floored, × the scale.
+    let scale = cfg.gnss.sigma_scale;
     let quality = cfg.gnss.quality_sigma_scale.factor(g.quality);
     let position_sigma_m = i.position_sigma_m.unwrap_or_else(|| {
-        (g.position_sigma_neu.max() * quality).max(cfg.gnss.min_position_sigma_m)
+        (g.position_sigma_neu.max() * quality).max(cfg.gnss.min_position_sigma_m) * scale
     });
     let velocity_sigma_mps = i.velocity_sigma_mps.unwrap_or_else(|| match kind {
         StartKind::Static => cfg
@@ -228,7 +230,7 @@ fn build(
             .max_speed_mps
             .max(cfg.gnss.min_velocity_sigma_mps),
         StartKind::Moving | StartKind::Given => g.velocity_sigma_neu.map_or(0.5, |s| {
-            (s.max() * quality).max(cfg.gnss.min_velocity_sigma_mps)
+            (s.max() * quality).max(cfg.gnss.min_velocity_sigma_mps) * scale
         }),
     });
     // The antenna fix → the IMU's position.

@@ -38,6 +38,10 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "zero-phase moving average [s] against a gyro vibration line (0: none)",
     ),
     (
+        "imu.noise.auto",
+        "tune the noise first (Allan deviation at rest, then maximum likelihood; `aidnav tune`), starting from the values below",
+    ),
+    (
         "imu.noise.arw_deg_per_sqrt_h",
         "angle random walk [deg/√h]; this and the next five: one number or [x, y, z] per sensor axis",
     ),
@@ -130,6 +134,10 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     (
         "gnss.quality_sigma_scale.single",
         "σ of single-point solutions × this",
+    ),
+    (
+        "gnss.sigma_scale",
+        "every GNSS σ (after the quality factors and floors) × this",
     ),
     (
         "constraints.non_holonomic",
@@ -258,6 +266,26 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "a burst this long after every 30 s outage [s] (0: no burst run)",
     ),
     (
+        "tune.min_static_s",
+        "shortest standstill for an Allan deviation [s] (shorter: start from [imu.noise])",
+    ),
+    (
+        "tune.max_evaluations",
+        "most filter passes of the likelihood search",
+    ),
+    (
+        "tune.max_factor",
+        "each fitted factor within [1/this, this] of its start",
+    ),
+    (
+        "tune.initial_factor",
+        "first step of the search, as a factor",
+    ),
+    (
+        "tune.tolerance",
+        "stop when the log-likelihood over the simplex spans less than this",
+    ),
+    (
         "output.smooth",
         "also the RTS-smoothed solution and its scores",
     ),
@@ -347,6 +375,7 @@ pub fn config_template(platform: Platform) -> String {
         outage_bridge: Default::default(),
         efficiency: Default::default(),
         score: Default::default(),
+        tune: Default::default(),
         output: Default::default(),
     }
     .resolved();

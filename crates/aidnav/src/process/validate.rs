@@ -176,6 +176,14 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
     for (key, value) in [("float", q.float), ("dgps", q.dgps), ("single", q.single)] {
         bounded("gnss.quality_sigma_scale", key, value, 1.0, 1e4)?;
     }
+    bounded("gnss", "sigma_scale", cfg.gnss.sigma_scale, 1e-3, 1e3)?;
+    let t = &cfg.tune;
+    bounded("tune", "min_static_s", t.min_static_s, 1.0, 1e5)?;
+    count_in_range("max_evaluations", t.max_evaluations, 1, 10_000)
+        .map_err(|e| e.within("tune"))?;
+    bounded("tune", "max_factor", t.max_factor, 1.01, 1e6)?;
+    bounded("tune", "initial_factor", t.initial_factor, 1.01, 100.0)?;
+    bounded("tune", "tolerance", t.tolerance, 1e-9, 1e6)?;
     if let Some(sg) = cfg.efficiency.sigma_gnss_m {
         bounded("efficiency", "sigma_gnss_m", sg, 1e-9, 1e4)?;
     }

@@ -7,6 +7,7 @@ mod errors;
 mod gmdh;
 mod information;
 mod kalman;
+mod likelihood;
 mod policies;
 mod riccati;
 mod smoother;
