@@ -51,6 +51,7 @@ pub mod kalman;
 pub mod linear;
 pub mod observer;
 pub mod policy;
+pub mod recovery;
 pub mod riccati;
 pub mod scheme;
 pub mod smoother;
@@ -67,7 +68,7 @@ pub use linear::{LinearGaussianModel, RunOptions, RunOutput, UpdateMethod};
 pub use observer::{Collect, Discard, EpochRecord, Observer};
 pub use policy::{
     AcceptAll, Chi2Gate, Decision, Huber, InnovationView, MeasurementPolicy, Outcome, PolicyChoice,
-    RecoveringChi2Gate,
+    RecoveringChi2Gate, ScaledChi2Gate,
 };
 pub use riccati::{SteadyState, steady_state_covariance};
 pub use scheme::{NoiseRule, Scheme, SchemeParameters, SchemePolicy};

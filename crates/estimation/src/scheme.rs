@@ -29,6 +29,7 @@ use crate::adaptive::{AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdapti
 use crate::adaptive::{Limiting, Rejection};
 use crate::policy::{
     AcceptAll, Chi2Gate, Decision, Huber, InnovationView, MeasurementPolicy, RecoveringChi2Gate,
+    ScaledChi2Gate,
 };
 
 /// A robust-estimation scheme, by the name it has in configuration files,
@@ -58,6 +59,13 @@ pub enum Scheme {
     /// Spec 20 eq. 9, the developed algorithm: eq. 8 limiting with the
     /// eq. 3 innovation-feedback process noise, fed by normal innovations only.
     Developed,
+    /// The default robust scheme: a χ² gate on an S calibrated from the
+    /// accepted innovations ([`ScaledChi2Gate`]), rejecting what fails it.
+    /// Meant to run with a recovery from lock-out
+    /// ([`recovery`](crate::recovery)): the gate refuses outliers and
+    /// bursts outright, the recovery resets the state when the refused
+    /// measurements agree with each other for long enough.
+    Robust,
 }
 
 /// What a scheme does to the process noise.
@@ -87,11 +95,13 @@ pub struct SchemeParameters {
     pub anomaly_gamma: f64,
     /// Eq. 4's sliding window, innovations (≥ 1).
     pub adaptive_window: usize,
+    /// Accepted innovations over which `robust` calibrates S (≥ 2).
+    pub scale_window: usize,
 }
 
 impl Default for SchemeParameters {
     /// χ² 0.999, recovery after 20 rejections, Huber k = 1.345 (95 %
-    /// efficiency at the normal, Huber 1964), γ = 9 (spec 20), window 20.
+    /// efficiency at the normal, Huber 1964), γ = 9 (spec 20), windows 20.
     fn default() -> Self {
         Self {
             chi2_probability: 0.999,
@@ -99,13 +109,14 @@ impl Default for SchemeParameters {
             huber_k: 1.345,
             anomaly_gamma: 9.0,
             adaptive_window: 20,
+            scale_window: 20,
         }
     }
 }
 
 impl Scheme {
     /// Every scheme, in the order of the comparison tables.
-    pub const ALL: [Scheme; 9] = [
+    pub const ALL: [Scheme; 10] = [
         Scheme::Accept,
         Scheme::Chi2Gate,
         Scheme::RecoveringGate,
@@ -115,6 +126,7 @@ impl Scheme {
         Scheme::AdaptiveGain,
         Scheme::LimitedAdaptiveGain,
         Scheme::Developed,
+        Scheme::Robust,
     ];
 
     /// The name in configuration files and tables.
@@ -129,6 +141,7 @@ impl Scheme {
             Scheme::AdaptiveGain => "adaptive_gain",
             Scheme::LimitedAdaptiveGain => "limited_adaptive_gain",
             Scheme::Developed => "developed",
+            Scheme::Robust => "robust",
         }
     }
 
@@ -165,6 +178,9 @@ impl Scheme {
                 gain: window(),
                 detector,
             }),
+            Scheme::Robust => {
+                SchemePolicy::Robust(ScaledChi2Gate::new(p.chi2_probability, p.scale_window))
+            }
         }
     }
 
@@ -221,6 +237,8 @@ where
     AdaptiveGain(AdaptiveGain<M>),
     /// [`Scheme::LimitedAdaptiveGain`].
     LimitedAdaptiveGain(LimitedAdaptiveGain<M>),
+    /// [`Scheme::Robust`].
+    Robust(ScaledChi2Gate),
 }
 
 impl<M: Dim> MeasurementPolicy<M> for SchemePolicy<M>
@@ -237,6 +255,7 @@ where
             SchemePolicy::Limiting(p) => p.decide(view),
             SchemePolicy::AdaptiveGain(p) => p.decide(view),
             SchemePolicy::LimitedAdaptiveGain(p) => p.decide(view),
+            SchemePolicy::Robust(p) => p.decide(view),
         }
     }
 }

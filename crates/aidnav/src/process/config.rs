@@ -459,6 +459,7 @@ impl GnssConfig {
             huber_k: 1.345,
             anomaly_gamma: self.anomaly_gamma,
             adaptive_window: self.adaptive_window,
+            ..SchemeParameters::default()
         }
     }
 }
