@@ -68,7 +68,7 @@ pub use linear::{LinearGaussianModel, RunOptions, RunOutput, UpdateMethod};
 pub use observer::{Collect, Discard, EpochRecord, Observer};
 pub use policy::{
     AcceptAll, Chi2Gate, Decision, Huber, InnovationView, MeasurementPolicy, Outcome, PolicyChoice,
-    RecoveringChi2Gate, ScaledChi2Gate,
+    RecoveringChi2Gate,
 };
 pub use riccati::{SteadyState, steady_state_covariance};
 pub use scheme::{NoiseRule, Scheme, SchemeParameters, SchemePolicy};

@@ -110,6 +110,11 @@ where
 {
     /// Look at the innovation and decide.
     fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M>;
+
+    /// The stream had no measurement at an epoch where it was expected (a
+    /// gap, an outage). Policies that behave differently on re-acquisition
+    /// note it; by default nothing happens.
+    fn missing(&mut self) {}
 }
 
 impl<M: Dim, F> MeasurementPolicy<M> for F
@@ -205,117 +210,6 @@ where
         } else {
             self.rejected = 0;
             Decision::Accept
-        }
-    }
-}
-
-/// A χ² gate on an innovation covariance calibrated from the innovations
-/// it accepts: the gate that stays a χ² test when the filter's S is
-/// optimistic (a receiver's σ, an unmodelled error).
-///
-/// The NIS of a consistent filter is χ²(m); when S is too small by a
-/// factor λ, the NIS is λ·χ²(m). The gate estimates λ robustly as the
-/// median NIS of the last `window` accepted innovations over the median of
-/// χ²(m), never below 1 (an S larger than needed is left alone), and
-/// rejects when `NIS / λ` exceeds the χ²(m) quantile of `probability`.
-/// Only accepted innovations feed the window, so outliers cannot widen the
-/// gate; the median keeps one large accepted innovation from moving it.
-/// Until the window holds half its length λ = 1 (the plain gate). The
-/// window is allocated once, at construction.
-///
-/// ```
-/// use aidnav_estimation::{KalmanFilter, Outcome, ScaledChi2Gate, nalgebra::{Matrix1, Vector1}};
-/// // S = 1 as modelled, but the innovations spread wider (σ ≈ 2): λ > 1.
-/// let mut gate = ScaledChi2Gate::new(0.999, 20);
-/// let (h, r) = (Matrix1::new(1.0), Matrix1::new(0.5));
-/// let mut kf = KalmanFilter::new(Vector1::new(0.0), Matrix1::new(0.5)).unwrap();
-/// let mut fresh = || kf.clone();
-/// for nu in [1.9, -2.2, 0.8, -1.4, 2.9, -0.5, 1.1, -3.1, 0.3, 2.4] {
-///     fresh().update_with(&Vector1::new(nu), &h, &r, &mut gate).unwrap();
-/// }
-/// assert!(gate.scale() > 2.0, "{}", gate.scale());
-/// // A 4-σ innovation of the true spread (8 = 4 × 2) passes the calibrated
-/// // gate although its NIS, 64, is far beyond χ²₁(0.999) = 10.8; a 20-σ one does not.
-/// let rec = fresh().update_with(&Vector1::new(8.0), &h, &r, &mut gate).unwrap();
-/// assert_eq!(rec.outcome, Outcome::Accepted);
-/// let rec = fresh().update_with(&Vector1::new(40.0), &h, &r, &mut gate).unwrap();
-/// assert_eq!(rec.outcome, Outcome::Rejected);
-/// ```
-#[derive(Debug, Clone, PartialEq)]
-pub struct ScaledChi2Gate {
-    probability: f64,
-    accepted_nis: Vec<f64>,
-    scratch: Vec<f64>,
-    window: usize,
-    next: usize,
-    /// (m, χ²_m quantile of `probability`, median of χ²_m), cached.
-    quantiles: Option<(usize, f64, f64)>,
-    scale: f64,
-}
-
-impl ScaledChi2Gate {
-    /// A gate at `probability` (as [`chi2_quantile`]: ≥ 1 accepts every
-    /// finite NIS, ≤ 0 none) calibrated over the last `window` accepted
-    /// innovations (at least 2).
-    pub fn new(probability: f64, window: usize) -> Self {
-        let window = window.max(2);
-        Self {
-            probability,
-            accepted_nis: Vec::with_capacity(window),
-            scratch: Vec::with_capacity(window),
-            window,
-            next: 0,
-            quantiles: None,
-            scale: 1.0,
-        }
-    }
-
-    /// The current scale λ ≥ 1 of S.
-    pub fn scale(&self) -> f64 {
-        self.scale
-    }
-
-    fn quantiles(&mut self, dof: usize) -> (f64, f64) {
-        match self.quantiles {
-            Some((m, q, median)) if m == dof => (q, median),
-            _ => {
-                let q = chi2_quantile(dof, self.probability);
-                let median = chi2_quantile(dof, 0.5);
-                self.quantiles = Some((dof, q, median));
-                (q, median)
-            }
-        }
-    }
-
-    fn record(&mut self, nis: f64, median_chi2: f64) {
-        if self.accepted_nis.len() < self.window {
-            self.accepted_nis.push(nis);
-        } else {
-            self.accepted_nis[self.next] = nis;
-        }
-        self.next = (self.next + 1) % self.window;
-        if 2 * self.accepted_nis.len() < self.window {
-            return;
-        }
-        self.scratch.clear();
-        self.scratch.extend_from_slice(&self.accepted_nis);
-        let mid = self.scratch.len() / 2;
-        let (_, median, _) = self.scratch.select_nth_unstable_by(mid, f64::total_cmp);
-        self.scale = (*median / median_chi2).max(1.0);
-    }
-}
-
-impl<M: Dim> MeasurementPolicy<M> for ScaledChi2Gate
-where
-    DefaultAllocator: Allocator<M> + Allocator<M, M>,
-{
-    fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M> {
-        let (quantile, median) = self.quantiles(view.residual.len());
-        if view.nis.is_finite() && view.nis / self.scale <= quantile {
-            self.record(view.nis, median);
-            Decision::Accept
-        } else {
-            Decision::Reject
         }
     }
 }

@@ -13,15 +13,14 @@
 //!
 //! [`AgreementDetector`] watches the refused measurements of one stream
 //! and declares a recovery when `run_length` of them agree. Two refused
-//! measurements k−1, k agree when the change the filter predicts for the
+//! measurements j, k agree when the change the filter predicts for the
 //! measured quantity between them matches the change the measurements
 //! show. With ν_k = z_k − H_k x⁻_k the innovation of measurement k and
-//! e_{k−1} = ν_{k−1} − H_{k−1} (x⁺_{k−1} − x⁻_{k−1}) the residual of
-//! measurement k−1 against the state its update left (ν itself when it was
-//! rejected), the difference
+//! e_j = ν_j − H_j (x⁺_j − x⁻_j) the residual of measurement j against the
+//! state its update left (ν itself when it was rejected), the difference
 //!
 //! ```text
-//! d = ν_k − e_{k−1}
+//! d = ν_k − e_j
 //! ```
 //!
 //! is (predicted change) − (measured change) up to sign: it is zero-mean
@@ -29,30 +28,49 @@
 //! common error cancels. Its covariance, with δx the estimation error, is
 //!
 //! ```text
-//! C = R_k + R_{k−1} + H_k P⁻_k H_kᵀ + H_{k−1} P⁺_{k−1} H_{k−1}ᵀ − H_k X − Xᵀ H_kᵀ,
-//! X = Cov(δx_k⁻, H_{k−1} δx⁺_{k−1})
+//! C = R_k + R_j + H_k P⁻_k H_kᵀ + H_j P⁺_j H_jᵀ − H_k X − Xᵀ H_kᵀ,
+//! X = Cov(δx_k⁻, H_j δx⁺_j)
 //! ```
 //!
 //! and the pair agrees when `dᵀ C⁻¹ d ≤ χ²_m(p)`. The cross-covariance X
-//! starts at `P⁺_{k−1} H_{k−1}ᵀ` and follows the filter: `X ← Φ X` at each
-//! time update, `X ← (I − K H) X` at each other measurement update (the
-//! error of any update is `(I − K H) δx⁻ − K v` for any gain K, v
-//! independent of the past). So a moving vehicle is handled by the filter's
-//! own predicted displacement, and C grows with the filter's uncertainty
-//! between the two measurements.
+//! starts at `P⁺_j H_jᵀ` and follows the filter: `X ← Φ X` at each time
+//! update, `X ← (I − K H) X` at each other measurement update (the error
+//! of any update is `(I − K H) δx⁻ − K v` for any gain K, v independent of
+//! the past). So a moving vehicle is handled by the filter's own predicted
+//! change, and C grows with the filter's uncertainty between the two.
 //!
-//! A run is the measurements that agree pairwise in sequence; a measurement
-//! that agrees with no run (an outlier amid a genuine step) starts a run of
-//! its own in a spare slot without breaking the others, so interleaved
-//! outliers cannot hold off a recovery for ever, and alternating outliers
-//! (which agree with nothing) never produce one. An accepted measurement
-//! ends every run (the filter agrees with the stream again).
+//! That test trusts the filter's covariance over the short interval. A
+//! filter that has *diverged* — the lock-out a recovery exists for — may
+//! predict the change wrongly by far more than it admits: its velocity is
+//! off by some b it does not know. The run then also accepts a member
+//! whose discrepancy *rate* d / Δt matches that of the run's previous link
+//! (the hypothesis "the measurements are right, the prediction is off by a
+//! common rate b"): with Δ = d/Δt − d′/Δt′ (d′ the previous link's, which
+//! shares the measurement j with this one),
+//!
+//! ```text
+//! Cov(Δ) = C/Δt² + C′/Δt′² + 2 R_j / (Δt Δt′),   ΔᵀCov(Δ)⁻¹Δ ≤ χ²_m(p).
+//! ```
+//!
+//! Under an unknown b the first link of a run cannot be tested at all: a
+//! measurement that agrees with no run starts a run of its own *and* a
+//! branch of two with the most recent run of one, joined without evidence;
+//! a run recovers when it holds `run_length` measurements that each passed
+//! a test against their predecessor (counting the first): with a healthy
+//! filter, `run_length` members; with a diverged one, one more.
+//!
+//! A run is the measurements that agree in sequence; a measurement that
+//! agrees with no run (an outlier amid a genuine step) starts its own in a
+//! spare slot without breaking the others, so interleaved outliers cannot
+//! hold off a recovery for ever, and outliers (which agree with nothing,
+//! neither in offset nor in rate) never produce one. An accepted
+//! measurement ends every run (the filter agrees with the stream again).
 //!
 //! The detector knows nothing about what the states mean; the reset itself
 //! (which states, to what, with what covariance) is the caller's.
 //!
 //! ```
-//! use aidnav_estimation::recovery::{AgreementConfig, AgreementDetector, Refused, Verdict};
+//! use aidnav_estimation::recovery::{AgreementConfig, AgreementDetector, Update, Verdict};
 //! use aidnav_estimation::nalgebra::{Const, Matrix1, Vector1};
 //!
 //! // A scalar random constant x, measured directly with σ = 0.1: the truth
@@ -62,12 +80,13 @@
 //! let cfg = AgreementConfig { run_length: 3, probability: 0.999 };
 //! let mut detector = AgreementDetector::<Const<1>, Const<1>>::new(cfg).unwrap();
 //! let (h, r, p) = (Matrix1::new(1.0), Matrix1::new(0.01), Matrix1::new(1e-4));
-//! let zero_gain = Matrix1::new(0.0);
+//! let (zero_gain, unchanged) = (Matrix1::new(0.0), Vector1::new(0.0));
 //! let mut verdicts = Vec::new();
 //! for z in [50.05, 49.98, 50.02] {
+//!     detector.propagate(&Matrix1::new(1.0), 0.25);
 //!     let nu = Vector1::new(z); // z − H x with x = 0
-//!     verdicts.push(detector.refused(&Refused {
-//!         residual: &nu, applied_residual: &nu, r: &r, h: &h,
+//!     verdicts.push(detector.refused(&Update {
+//!         residual: &nu, state_change: &unchanged, r: &r, h: &h,
 //!         prior_covariance: &p, gain: &zero_gain, posterior_covariance: &p,
 //!     }));
 //! }
@@ -82,10 +101,11 @@ use crate::consistency::chi2_quantile;
 use crate::dense;
 use crate::kalman::FilterAllocator;
 
-/// Runs followed at once: one for the stream's true step and spares for
-/// the outliers interleaved with it (each of which agrees with nothing and
-/// takes a spare slot until a longer run needs it).
-pub const CANDIDATE_RUNS: usize = 3;
+/// Runs followed at once: the stream's true step, and spares for the
+/// outliers interleaved with it (each agrees with nothing and takes a run
+/// of one, and a branch of two, until a run with more evidence needs the
+/// slot).
+pub const CANDIDATE_RUNS: usize = 5;
 
 /// When refused measurements count as agreeing, and how many make a recovery.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -93,7 +113,7 @@ pub const CANDIDATE_RUNS: usize = 3;
 pub struct AgreementConfig {
     /// Refused measurements that must agree in a run (≥ 2).
     pub run_length: usize,
-    /// Probability of the χ²(m) quantile the pairwise test uses, in (0, 1).
+    /// Probability of the χ²(m) quantile the tests use, in (0, 1).
     pub probability: f64,
 }
 
@@ -108,26 +128,26 @@ pub enum Verdict {
         /// Measurements in the run, this one included.
         members: usize,
     },
-    /// It completes a run of `run_length`: reset the measured states to it.
-    /// Every run is forgotten.
+    /// It completes a run of `run_length` agreeing measurements: reset the
+    /// measured states to it. Every run is forgotten.
     Recover {
         /// Measurements in the run, this one included.
         members: usize,
     },
 }
 
-/// One refused measurement as the detector needs it (the filter's update
-/// with a rejecting or limiting policy has just been made).
+/// One measurement update of the stream as the detector needs it (the
+/// filter's update, whatever its policy decided, has just been made).
 #[derive(Debug)]
-pub struct Refused<'a, N: Dim, M: Dim>
+pub struct Update<'a, N: Dim, M: Dim>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
     /// Innovation ν = z − H x⁻ as measured.
     pub residual: &'a OVector<f64, M>,
-    /// The innovation the update applied (ν itself, a limited ν, or
-    /// anything when `gain` is zero).
-    pub applied_residual: &'a OVector<f64, M>,
+    /// What the update did to the state, x⁺ − x⁻ (zero for a rejection,
+    /// K ν_lim for a limited innovation).
+    pub state_change: &'a OVector<f64, N>,
     /// Measurement noise covariance R.
     pub r: &'a OMatrix<f64, M, M>,
     /// Measurement matrix H.
@@ -148,10 +168,25 @@ where
 {
     /// e = ν − H (x⁺ − x⁻): the member's residual against the state its update left.
     residual: OVector<f64, M>,
+    /// Its R.
+    r: OMatrix<f64, M, M>,
     /// R + H P⁺ Hᵀ of the member.
     covariance: OMatrix<f64, M, M>,
     /// X = Cov(δx now, H δx⁺ of the member), N × m.
     cross: OMatrix<f64, N, M>,
+    /// Time since the member \[s\].
+    age_s: f64,
+}
+
+/// The discrepancy rate of a run's last link: d / Δt and C / Δt².
+#[derive(Debug, Clone)]
+struct Rate<M: Dim>
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    rate: OVector<f64, M>,
+    covariance: OMatrix<f64, M, M>,
+    interval_s: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -160,9 +195,34 @@ where
     DefaultAllocator: FilterAllocator<N, M>,
 {
     anchor: Anchor<N, M>,
+    /// The previous link's rate (None for a run of one).
+    rate: Option<Rate<M>>,
     members: usize,
+    /// Members that passed a test against their predecessor, the first
+    /// counted (a second member joined without evidence is not).
+    evidence: usize,
     /// Order of the last join (larger: more recent).
     stamp: u64,
+}
+
+/// A run a measurement may extend or branch from.
+struct Candidate<M: Dim>
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    slot: usize,
+    rate: Rate<M>,
+    /// (evidence after joining, members, stamp): larger is preferred.
+    key: (usize, usize, u64),
+}
+
+/// How a measurement relates to a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Link {
+    /// Joins without evidence (second member, first test failed).
+    Free,
+    /// Passed a test.
+    Agrees,
 }
 
 /// Watches the refused measurements of one stream for a run that agrees
@@ -174,6 +234,7 @@ where
     DefaultAllocator: FilterAllocator<N, M>,
 {
     config: AgreementConfig,
+    /// χ²_m quantile of the probability (NaN until m is known).
     threshold: f64,
     runs: [Option<Run<N, M>>; CANDIDATE_RUNS],
     clock: u64,
@@ -191,7 +252,7 @@ where
         valid.then(|| Self {
             config,
             threshold: M::try_to_usize().map_or(f64::NAN, |m| chi2_quantile(m, config.probability)),
-            runs: [None, None, None],
+            runs: [None, None, None, None, None],
             clock: 0,
         })
     }
@@ -213,7 +274,7 @@ where
 
     /// Forget every run (a gap in the stream, a reset of the states).
     pub fn clear(&mut self) {
-        self.runs = [None, None, None];
+        self.runs = [None, None, None, None, None];
     }
 
     /// The stream's measurement was accepted: the filter agrees with it
@@ -222,13 +283,15 @@ where
         self.clear();
     }
 
-    /// The filter's time update `x ← Φ x` (between measurements).
-    pub fn propagate(&mut self, phi: &OMatrix<f64, N, N>) {
+    /// The filter's time update `x ← Φ x` over `interval_s` seconds
+    /// (between measurements).
+    pub fn propagate(&mut self, phi: &OMatrix<f64, N, N>, interval_s: f64) {
         for run in self.runs.iter_mut().flatten() {
-            let x = &mut run.anchor.cross;
-            let mut next = x.clone();
-            dense::gemm(&mut next, 1.0, phi, x, 0.0);
-            *x = next;
+            let a = &mut run.anchor;
+            let mut next = a.cross.clone();
+            dense::gemm(&mut next, 1.0, phi, &a.cross, 0.0);
+            a.cross = next;
+            a.age_s += interval_s;
         }
     }
 
@@ -249,69 +312,144 @@ where
     }
 
     /// A measurement of the stream was refused (rejected or limited; the
-    /// update has been made): test it against every run, extend the one it
-    /// agrees with (the longest), or start a run; every run's
-    /// cross-covariance then follows this update.
-    pub fn refused(&mut self, m: &Refused<'_, N, M>) -> Verdict {
+    /// update has been made): test it against every run and extend the one
+    /// it agrees with (the one with the most evidence); if it agrees with
+    /// none, start a run of its own and, paired with the most recent run
+    /// of one, a run of two joined without evidence (the branch a diverged
+    /// filter's runs grow from). Every run's cross-covariance then follows
+    /// this update.
+    pub fn refused(&mut self, m: &Update<'_, N, M>) -> Verdict {
         if self.threshold.is_nan() {
             self.threshold = chi2_quantile(m.residual.len(), self.config.probability);
         }
-        let joined = self.best_agreeing(m);
+        let hph = projected(m.h, m.prior_covariance);
+        // (slot, rate of the link, ranking key): the agreeing run with the
+        // most evidence; the most recent run of one it may branch from.
+        let mut best: Option<Candidate<M>> = None;
+        let mut single: Option<Candidate<M>> = None;
+        for (i, run) in self.runs.iter().enumerate() {
+            let Some(run) = run else { continue };
+            let (choice, key) = match self.link(run, m, &hph) {
+                Some((Link::Agrees, rate)) => (
+                    &mut best,
+                    ((run.evidence + 1, run.members, run.stamp), rate),
+                ),
+                Some((Link::Free, rate)) => (&mut single, ((0, 0, run.stamp), rate)),
+                None => continue,
+            };
+            if choice.as_ref().is_none_or(|c| key.0 > c.key) {
+                *choice = Some(Candidate {
+                    slot: i,
+                    rate: key.1,
+                    key: key.0,
+                });
+            }
+        }
         // This update, seen by every run: X ← (I − K H) X.
         self.updated(m.gain, m.h);
-        let anchor = anchor_of(m);
         self.clock += 1;
         let stamp = self.clock;
-        match joined {
-            Some(i) => {
-                let members = self.runs[i].as_ref().map_or(0, |r| r.members) + 1;
-                if members >= self.config.run_length {
-                    self.clear();
-                    return Verdict::Recover { members };
-                }
-                self.runs[i] = Some(Run {
-                    anchor,
-                    members,
-                    stamp,
-                });
-                Verdict::Joined { members }
+        if let Some(Candidate { slot: i, rate, .. }) = best
+            && let Some(run) = self.runs[i].as_mut()
+        {
+            run.members += 1;
+            run.evidence += 1;
+            if run.evidence >= self.config.run_length {
+                let members = run.members;
+                self.clear();
+                return Verdict::Recover { members };
             }
-            None => {
-                // A free slot, else the run with the fewest members (the
-                // oldest of those).
-                let slot = (0..CANDIDATE_RUNS)
-                    .min_by_key(|&i| {
-                        self.runs[i]
-                            .as_ref()
-                            .map_or((0, 0), |r| (r.members, r.stamp))
-                    })
-                    .unwrap_or(0);
-                self.runs[slot] = Some(Run {
-                    anchor,
-                    members: 1,
-                    stamp,
-                });
-                Verdict::Started
+            run.anchor = anchor_of(m);
+            run.rate = Some(rate);
+            run.stamp = stamp;
+            return Verdict::Joined {
+                members: run.members,
+            };
+        }
+        let alone = Run {
+            anchor: anchor_of(m),
+            rate: None,
+            members: 1,
+            evidence: 1,
+            stamp,
+        };
+        let keep = single.as_ref().map(|s| s.slot);
+        let slot = self.spare_slot(keep);
+        self.runs[slot] = Some(alone);
+        if let Some(Candidate { rate, .. }) = single {
+            let slot = self.spare_slot(keep);
+            self.runs[slot] = Some(Run {
+                anchor: anchor_of(m),
+                rate: Some(rate),
+                members: 2,
+                evidence: 1,
+                stamp,
+            });
+        }
+        Verdict::Started
+    }
+
+    /// A free slot, else the one whose run has the least evidence (the
+    /// fewest members, the oldest, of those), never the just-started ones
+    /// nor `keep`.
+    fn spare_slot(&self, keep: Option<usize>) -> usize {
+        (0..CANDIDATE_RUNS)
+            .filter(|&i| Some(i) != keep)
+            .filter(|&i| self.runs[i].as_ref().is_none_or(|r| r.stamp != self.clock))
+            .min_by_key(|&i| {
+                self.runs[i]
+                    .as_ref()
+                    .map_or((0, 0, 0), |r| (r.evidence, r.members, r.stamp))
+            })
+            .unwrap_or(0)
+    }
+
+    /// How the measurement relates to a run (None: it does not join it),
+    /// and the rate of the link it would make.
+    fn link(
+        &self,
+        run: &Run<N, M>,
+        m: &Update<'_, N, M>,
+        hph: &OMatrix<f64, M, M>,
+    ) -> Option<(Link, Rate<M>)> {
+        let a = &run.anchor;
+        let (d, c) = difference(a, m, hph);
+        let interval_s = a.age_s;
+        let rate = if interval_s > 0.0 {
+            Rate {
+                rate: &d / interval_s,
+                covariance: &c / (interval_s * interval_s),
+                interval_s,
             }
+        } else {
+            Rate {
+                rate: d.clone(),
+                covariance: c.clone(),
+                interval_s: 0.0,
+            }
+        };
+        if self.passes(&d, c) {
+            return Some((Link::Agrees, rate));
+        }
+        match &run.rate {
+            // Same rate as the previous link: the prediction is off by a
+            // common b. The two links share the anchor's measurement, whose
+            // noise enters them with opposite signs.
+            Some(prev) if interval_s > 0.0 && prev.interval_s > 0.0 => {
+                let delta = &rate.rate - &prev.rate;
+                let cov = &rate.covariance
+                    + &prev.covariance
+                    + &a.r * (2.0 / (interval_s * prev.interval_s));
+                self.passes(&delta, cov).then_some((Link::Agrees, rate))
+            }
+            Some(_) => None,
+            None => Some((Link::Free, rate)),
         }
     }
 
-    /// The slot of the run this measurement agrees with (the one with the
-    /// most members, the most recent of those), if any.
-    fn best_agreeing(&self, m: &Refused<'_, N, M>) -> Option<usize> {
-        let hph = projected(m.h, m.prior_covariance);
-        let mut best: Option<(usize, (usize, u64))> = None;
-        for (i, run) in self.runs.iter().enumerate() {
-            let Some(run) = run else { continue };
-            let (d, c) = link(&run.anchor, m, &hph);
-            let agrees =
-                Cholesky::new(c).is_some_and(|chol| d.dot(&chol.solve(&d)) <= self.threshold);
-            let key = (run.members, run.stamp);
-            if agrees && best.is_none_or(|(_, k)| key > k) {
-                best = Some((i, key));
-            }
-        }
-        best.map(|(i, _)| i)
+    /// `vᵀ C⁻¹ v ≤ χ²_m(p)` (false when C is not positive definite).
+    fn passes(&self, v: &OVector<f64, M>, c: OMatrix<f64, M, M>) -> bool {
+        Cholesky::new(c).is_some_and(|chol| v.dot(&chol.solve(v)) <= self.threshold)
     }
 }
 
@@ -331,9 +469,9 @@ where
 /// The difference d = ν_k − e_anchor and its covariance
 /// C = R_k + H P⁻ Hᵀ + (R + H P⁺ Hᵀ)_anchor − H X − Xᵀ Hᵀ (symmetrised),
 /// `hph` = H P⁻ Hᵀ of the measurement.
-fn link<N: Dim, M: Dim>(
+fn difference<N: Dim, M: Dim>(
     anchor: &Anchor<N, M>,
-    m: &Refused<'_, N, M>,
+    m: &Update<'_, N, M>,
     hph: &OMatrix<f64, M, M>,
 ) -> (OVector<f64, M>, OMatrix<f64, M, M>)
 where
@@ -349,34 +487,38 @@ where
 }
 
 /// The anchor a refused measurement leaves: its residual against the
-/// updated state, R + H P⁺ Hᵀ, and X = P⁺ Hᵀ.
-fn anchor_of<N: Dim, M: Dim>(m: &Refused<'_, N, M>) -> Anchor<N, M>
+/// updated state, R, R + H P⁺ Hᵀ, and X = P⁺ Hᵀ.
+fn anchor_of<N: Dim, M: Dim>(m: &Update<'_, N, M>) -> Anchor<N, M>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
     let (md, nd) = m.h.shape_generic();
-    // e = ν − H K ν_applied
-    let mut delta = OMatrix::<f64, N, nalgebra::U1>::zeros_generic(nd, nalgebra::U1);
-    dense::gemm(&mut delta, 1.0, m.gain, m.applied_residual, 0.0);
+    // e = ν − H (x⁺ − x⁻)
     let mut residual = m.residual.clone();
-    dense::gemm(&mut residual, -1.0, m.h, &delta, 1.0);
+    dense::gemm(&mut residual, -1.0, m.h, m.state_change, 1.0);
     let mut cross = OMatrix::<f64, N, M>::zeros_generic(nd, md);
     dense::gemm_nt(&mut cross, 1.0, m.posterior_covariance, m.h, 0.0);
     let mut covariance = m.r.clone();
     dense::gemm(&mut covariance, 1.0, m.h, &cross, 1.0);
     Anchor {
         residual,
+        r: m.r.clone(),
         covariance: (&covariance + covariance.transpose()) * 0.5,
         cross,
+        age_s: 0.0,
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Const, Matrix1x2, Matrix2, Matrix2x1, Vector1};
+    use nalgebra::{Const, Matrix1x2, Matrix2, Matrix2x1, Vector1, Vector2};
 
     type Detector = AgreementDetector<Const<2>, Const<1>>;
+
+    const DT: f64 = 0.25;
+    const ZERO_CHANGE: Vector2<f64> = Vector2::new(0.0, 0.0);
+    const ZERO_GAIN: Matrix2x1<f64> = Matrix2x1::new(0.0, 0.0);
 
     fn config(run_length: usize) -> AgreementConfig {
         AgreementConfig {
@@ -385,7 +527,8 @@ mod tests {
         }
     }
 
-    /// Constant velocity x = (position, velocity), position measured.
+    /// Constant velocity x = (position, velocity), position measured every
+    /// DT with σ 0.1; no process noise.
     struct Track {
         p: Matrix2<f64>,
         h: Matrix1x2<f64>,
@@ -399,23 +542,22 @@ mod tests {
                 p: Matrix2::new(0.01, 0.0, 0.0, 0.0001),
                 h: Matrix1x2::new(1.0, 0.0),
                 r: nalgebra::Matrix1::new(0.01),
-                phi: Matrix2::new(1.0, 1.0, 0.0, 1.0),
+                phi: Matrix2::new(1.0, DT, 0.0, 1.0),
             }
         }
 
-        /// Propagate one step (no process noise), refuse a measurement with
-        /// innovation ν.
+        /// Propagate one step, refuse a measurement with innovation ν.
         fn refuse(&mut self, d: &mut Detector, nu: f64) -> Verdict {
             self.p = self.phi * self.p * self.phi.transpose();
-            d.propagate(&self.phi);
+            d.propagate(&self.phi, DT);
             let nu = Vector1::new(nu);
-            d.refused(&Refused {
+            d.refused(&Update {
                 residual: &nu,
-                applied_residual: &nu,
+                state_change: &ZERO_CHANGE,
                 r: &self.r,
                 h: &self.h,
                 prior_covariance: &self.p,
-                gain: &Matrix2x1::zeros(),
+                gain: &ZERO_GAIN,
                 posterior_covariance: &self.p,
             })
         }
@@ -425,8 +567,8 @@ mod tests {
     fn an_agreeing_run_recovers_at_its_length() {
         let mut t = Track::new();
         let mut d = Detector::new(config(4)).unwrap();
-        // The truth stepped by 30: every innovation is 30 ± noise (and the
-        // filter's own prediction moves with the state, so ν is constant).
+        // The truth stepped by 30: every innovation is 30 ± noise (the
+        // filter's own prediction moves with the state, so ν stays).
         let v: Vec<Verdict> = [30.05, 29.95, 30.1, 30.0]
             .into_iter()
             .map(|nu| t.refuse(&mut d, nu))
@@ -444,16 +586,22 @@ mod tests {
         assert_eq!(d.longest_run(), 0);
     }
 
-    /// Outliers of every size and sign agree with nothing: no run grows.
+    /// Outliers of every size and sign agree with nothing, neither in
+    /// offset nor in rate: a second one may join a first without evidence,
+    /// but no run reaches three.
     #[test]
     fn alternating_outliers_never_recover() {
         let mut t = Track::new();
         let mut d = Detector::new(config(3)).unwrap();
-        for k in 0..20 {
+        for k in 0..40 {
             let nu = if k % 2 == 0 { 1.0 } else { -1.0 } * (5.0 + 2.2 * k as f64);
-            assert_eq!(t.refuse(&mut d, nu), Verdict::Started, "{k}");
+            let v = t.refuse(&mut d, nu);
+            assert!(
+                matches!(v, Verdict::Started | Verdict::Joined { members: 2 }),
+                "{k}: {v:?}"
+            );
         }
-        assert_eq!(d.longest_run(), 1);
+        assert!(d.longest_run() <= 2);
     }
 
     /// Good measurements accepted between equal outliers: each acceptance
@@ -474,29 +622,64 @@ mod tests {
         let mut d = Detector::new(config(4)).unwrap();
         let stream = [30.0, -12.0, 30.05, 77.0, 29.9, 30.02];
         let v: Vec<Verdict> = stream.into_iter().map(|nu| t.refuse(&mut d, nu)).collect();
-        assert_eq!(v[1], Verdict::Started);
         assert_eq!(v[2], Verdict::Joined { members: 2 });
         assert_eq!(v[4], Verdict::Joined { members: 3 });
         assert_eq!(v[5], Verdict::Recover { members: 4 });
     }
 
+    /// A diverged filter: its velocity is off by 2 (per s) and it does not
+    /// know (σ_v 0.01), so every innovation grows by 0.5 a step and no pair
+    /// passes the first test. The rates agree: the run recovers with one
+    /// member more than with a healthy filter (the second joins without
+    /// evidence). Random outliers at the same sizes never do.
+    #[test]
+    fn a_diverged_filter_recovers_by_the_common_rate() {
+        let mut t = Track::new();
+        let mut d = Detector::new(config(4)).unwrap();
+        let v: Vec<Verdict> = (0..5)
+            .map(|k| t.refuse(&mut d, 3.0 + 0.5 * k as f64 + 0.01 * (k as f64).sin()))
+            .collect();
+        assert_eq!(
+            v,
+            [
+                Verdict::Started,
+                Verdict::Started, // and a branch of two, without evidence
+                Verdict::Joined { members: 3 },
+                Verdict::Joined { members: 4 },
+                Verdict::Recover { members: 5 }
+            ]
+        );
+        let mut t = Track::new();
+        let mut d = Detector::new(config(4)).unwrap();
+        for k in 0..30 {
+            let nu = 3.0 + 0.5 * k as f64 + [0.0, 7.0, -4.0, 11.0, -9.0][k % 5];
+            assert!(
+                !matches!(t.refuse(&mut d, nu), Verdict::Recover { .. }),
+                "{k}"
+            );
+        }
+    }
+
     /// The test scales with the filter's own uncertainty of the predicted
-    /// change: the same 0.5 disagreement between two measurements one step
-    /// apart is consistent when the velocity is uncertain (σ_v = 1) and not
-    /// when it is known (σ_v = 0.01); R alone (σ 0.1) would refuse both.
+    /// change: the same 0.5 disagreement between the first two measurements
+    /// one step apart is consistent when the velocity is uncertain (σ_v = 4,
+    /// 1 over the step) and not when it is known (σ_v = 0.04); R alone
+    /// (σ 0.1) would refuse both. (The second measurement that fails starts
+    /// its own run and a branch of two without evidence.)
     #[test]
     fn the_pairwise_test_uses_the_predicted_change_and_its_covariance() {
-        for (velocity_var, agrees) in [(1.0, true), (1e-4, false)] {
+        for (velocity_var, agrees) in [(16.0, true), (16e-4, false)] {
             let mut t = Track::new();
             t.p[(1, 1)] = velocity_var;
             let mut d = Detector::new(config(5)).unwrap();
             t.refuse(&mut d, 10.0);
             let v = t.refuse(&mut d, 10.5);
-            assert_eq!(
-                v == Verdict::Joined { members: 2 },
-                agrees,
-                "{velocity_var}"
-            );
+            let most = d.runs.iter().flatten().map(|r| r.evidence).max();
+            if agrees {
+                assert_eq!((v, most), (Verdict::Joined { members: 2 }, Some(2)));
+            } else {
+                assert_eq!((v, most, d.longest_run()), (Verdict::Started, Some(1), 2));
+            }
         }
     }
 
@@ -520,13 +703,13 @@ mod tests {
         a[(2, 2)] = (h * ph)[0];
         let mut d = Detector::new(config(5)).unwrap();
         let nu = Vector1::new(3.0);
-        d.refused(&Refused {
+        d.refused(&Update {
             residual: &nu,
-            applied_residual: &nu,
+            state_change: &ZERO_CHANGE,
             r: &r,
             h: &h,
             prior_covariance: &p_a,
-            gain: &Matrix2x1::zeros(),
+            gain: &ZERO_GAIN,
             posterior_covariance: &p_a,
         });
         let mut phi_aug = nalgebra::Matrix3::identity();
@@ -538,7 +721,7 @@ mod tests {
         let kv = Matrix2x1::new(0.2, 0.6);
         let rv = 0.05;
         a = phi_aug * a * phi_aug.transpose() + q_aug;
-        d.propagate(&phi);
+        d.propagate(&phi, 0.5);
         let mut kh = nalgebra::Matrix3::zeros();
         kh.fixed_view_mut::<2, 2>(0, 0).copy_from(&(kv * hv));
         let i_kh = nalgebra::Matrix3::identity() - kh;
@@ -546,20 +729,21 @@ mod tests {
         a = i_kh * a * i_kh.transpose() + k_aug * rv * k_aug.transpose();
         d.updated(&kv, &hv);
         a = phi_aug * a * phi_aug.transpose() + q_aug;
-        d.propagate(&phi);
+        d.propagate(&phi, 0.5);
         let p_k = a.fixed_view::<2, 2>(0, 0).into_owned();
         let nu_k = Vector1::new(3.2);
-        let m = Refused {
+        let m = Update {
             residual: &nu_k,
-            applied_residual: &nu_k,
+            state_change: &ZERO_CHANGE,
             r: &r,
             h: &h,
             prior_covariance: &p_k,
-            gain: &Matrix2x1::zeros(),
+            gain: &ZERO_GAIN,
             posterior_covariance: &p_k,
         };
         let anchor = &d.runs.iter().flatten().next().unwrap().anchor;
-        let (diff, c) = link(anchor, &m, &projected(&h, &p_k));
+        assert_eq!(anchor.age_s, 1.0);
+        let (diff, c) = difference(anchor, &m, &projected(&h, &p_k));
         let w = nalgebra::RowVector3::new(1.0, 0.0, -1.0);
         let oracle = (w * a * w.transpose())[0] + 2.0 * r[0];
         assert!((diff[0] - 0.2).abs() < 1e-12);
@@ -571,20 +755,19 @@ mod tests {
     #[test]
     fn limited_updates_leave_the_residual_against_the_updated_state() {
         // A limited update that moved the state by K ν_lim: the next
-        // measurement's innovation is smaller by H K ν_lim, and it still agrees.
+        // measurement's innovation is smaller by H K ν_lim, and it agrees.
         let h = Matrix1x2::new(1.0, 0.0);
         let r = nalgebra::Matrix1::new(0.01);
         let p = Matrix2::new(0.01, 0.0, 0.0, 1e-4);
         let gain = Matrix2x1::new(0.5, 0.0);
         let nu = Vector1::new(30.0);
-        let limited = Vector1::new(2.0);
-        let p_after =
-            (Matrix2::identity() - gain * h) * p * (Matrix2::identity() - gain * h).transpose()
-                + gain * r * gain.transpose();
+        let moved = gain * Vector1::new(2.0); // K ν_lim
+        let i_kh = Matrix2::identity() - gain * h;
+        let p_after = i_kh * p * i_kh.transpose() + gain * r * gain.transpose();
         let mut d = Detector::new(config(3)).unwrap();
-        let first = Refused {
+        let first = Update {
             residual: &nu,
-            applied_residual: &limited,
+            state_change: &moved,
             r: &r,
             h: &h,
             prior_covariance: &p,
@@ -594,15 +777,17 @@ mod tests {
         assert_eq!(d.refused(&first), Verdict::Started);
         // The state moved by 1.0 towards the measurement: ν = 29.
         let nu2 = Vector1::new(29.02);
-        let second = Refused {
+        let second = Update {
             residual: &nu2,
-            applied_residual: &nu2,
-            gain: &Matrix2x1::zeros(),
+            state_change: &ZERO_CHANGE,
+            gain: &ZERO_GAIN,
             prior_covariance: &p_after,
             posterior_covariance: &p_after,
             ..first
         };
-        assert_eq!(d.refused(&second), Verdict::Joined { members: 2 });
+        d.refused(&second);
+        let run = d.runs.iter().flatten().next().unwrap();
+        assert_eq!((run.members, run.evidence), (2, 2));
     }
 
     #[test]

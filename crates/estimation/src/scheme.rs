@@ -26,10 +26,9 @@ use nalgebra::{DefaultAllocator, Dim};
 use serde::{Deserialize, Serialize};
 
 use crate::adaptive::{AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain};
-use crate::adaptive::{Limiting, Rejection};
+use crate::adaptive::{Limiting, ReacquiringLimiting, Rejection};
 use crate::policy::{
     AcceptAll, Chi2Gate, Decision, Huber, InnovationView, MeasurementPolicy, RecoveringChi2Gate,
-    ScaledChi2Gate,
 };
 
 /// A robust-estimation scheme, by the name it has in configuration files,
@@ -59,12 +58,11 @@ pub enum Scheme {
     /// Spec 20 eq. 9, the developed algorithm: eq. 8 limiting with the
     /// eq. 3 innovation-feedback process noise, fed by normal innovations only.
     Developed,
-    /// The default robust scheme: a χ² gate on an S calibrated from the
-    /// accepted innovations ([`ScaledChi2Gate`]), rejecting what fails it.
-    /// Meant to run with a recovery from lock-out
-    /// ([`recovery`](crate::recovery)): the gate refuses outliers and
-    /// bursts outright, the recovery resets the state when the refused
-    /// measurements agree with each other for long enough.
+    /// The developed algorithm made safe on re-acquisition
+    /// ([`ReacquiringLimiting`]): eq. 8 limiting while the stream flows,
+    /// rejection after a gap until a measurement is accepted, with the
+    /// eq. 3 guarded innovation-feedback noise. Meant to run with a
+    /// recovery from lock-out ([`recovery`](crate::recovery)).
     Robust,
 }
 
@@ -95,13 +93,11 @@ pub struct SchemeParameters {
     pub anomaly_gamma: f64,
     /// Eq. 4's sliding window, innovations (≥ 1).
     pub adaptive_window: usize,
-    /// Accepted innovations over which `robust` calibrates S (≥ 2).
-    pub scale_window: usize,
 }
 
 impl Default for SchemeParameters {
     /// χ² 0.999, recovery after 20 rejections, Huber k = 1.345 (95 %
-    /// efficiency at the normal, Huber 1964), γ = 9 (spec 20), windows 20.
+    /// efficiency at the normal, Huber 1964), γ = 9 (spec 20), window 20.
     fn default() -> Self {
         Self {
             chi2_probability: 0.999,
@@ -109,7 +105,6 @@ impl Default for SchemeParameters {
             huber_k: 1.345,
             anomaly_gamma: 9.0,
             adaptive_window: 20,
-            scale_window: 20,
         }
     }
 }
@@ -178,16 +173,14 @@ impl Scheme {
                 gain: window(),
                 detector,
             }),
-            Scheme::Robust => {
-                SchemePolicy::Robust(ScaledChi2Gate::new(p.chi2_probability, p.scale_window))
-            }
+            Scheme::Robust => SchemePolicy::Robust(ReacquiringLimiting::new(detector)),
         }
     }
 
     /// What the scheme does to the process noise.
     pub const fn noise_rule(self) -> NoiseRule {
         match self {
-            Scheme::Developed => NoiseRule::Feedback { detector: true },
+            Scheme::Developed | Scheme::Robust => NoiseRule::Feedback { detector: true },
             _ => NoiseRule::Fixed,
         }
     }
@@ -238,7 +231,7 @@ where
     /// [`Scheme::LimitedAdaptiveGain`].
     LimitedAdaptiveGain(LimitedAdaptiveGain<M>),
     /// [`Scheme::Robust`].
-    Robust(ScaledChi2Gate),
+    Robust(ReacquiringLimiting),
 }
 
 impl<M: Dim> MeasurementPolicy<M> for SchemePolicy<M>
@@ -256,6 +249,13 @@ where
             SchemePolicy::AdaptiveGain(p) => p.decide(view),
             SchemePolicy::LimitedAdaptiveGain(p) => p.decide(view),
             SchemePolicy::Robust(p) => p.decide(view),
+        }
+    }
+
+    /// Only `robust` notes a gap (the others keep no state that a gap changes).
+    fn missing(&mut self) {
+        if let SchemePolicy::Robust(p) = self {
+            MeasurementPolicy::<M>::missing(p);
         }
     }
 }

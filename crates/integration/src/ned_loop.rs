@@ -112,6 +112,10 @@ pub struct FixRecord {
     pub innovation: Vector3<f64>,
     /// What the update did (None: withheld).
     pub outcome: Option<Outcome>,
+    /// What the velocity update did (None: withheld, no velocity in the
+    /// fix, or velocity updates off). [`Outcome::Reset`] also when the
+    /// position fix reset the filter and took the velocity with it.
+    pub velocity_outcome: Option<Outcome>,
     /// The instrument corrections after the epoch.
     pub instruments: InstrumentEstimate,
     /// Spec 10's δ(n) (NaN without the monitor or while singular).
@@ -249,7 +253,7 @@ fn fix_epoch(
     cfg: &LoopConfig,
     policies: &mut LoopPolicies<'_>,
 ) -> Result<FixRecord, EstimationError> {
-    let (mut nis, mut outcome) = (f64::NAN, None);
+    let (mut nis, mut outcome, mut velocity_outcome) = (f64::NAN, None, None);
     let mut innovation = Vector3::repeat(f64::NAN);
     let mut convergence = f64::NAN;
     if !g.withheld {
@@ -263,10 +267,21 @@ fn fix_epoch(
             && let (Some(v), Some(sv)) = (g.fix.velocity_ned, g.fix.velocity_sigma_neu)
         {
             let sv = sv.map(|x| x.max(cfg.min_velocity_sigma_mps));
-            filter.update_velocity_with(&Vec3::assume_in_frame(v), &sv, policies.velocity)?;
+            let v = Vec3::assume_in_frame(v);
+            // A position reset restarts the velocity from the same fix.
+            velocity_outcome = Some(if rec.outcome == Outcome::Reset {
+                filter.reset_velocity_to(&v, &sv)?;
+                Outcome::Reset
+            } else {
+                filter
+                    .update_velocity_with(&v, &sv, policies.velocity)?
+                    .outcome
+            });
         }
     } else {
         filter.position_fix_missing()?;
+        policies.position.missing();
+        policies.velocity.missing();
     }
     if cfg.convergence_monitor {
         convergence = filter.instrument_convergence().unwrap_or(f64::NAN);
@@ -285,6 +300,7 @@ fn fix_epoch(
         nis,
         innovation,
         outcome,
+        velocity_outcome,
         instruments: *filter.instruments(),
         convergence,
         sigma_gnss_m,

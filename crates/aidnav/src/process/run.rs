@@ -94,6 +94,9 @@ pub struct Epoch {
     pub innovation: Vector3<f64>,
     /// What the update did (None: withheld).
     pub outcome: Option<Outcome>,
+    /// What the velocity update did (None: no velocity update);
+    /// [`Outcome::Reset`] also when a position reset took the velocity with it.
+    pub velocity_outcome: Option<Outcome>,
     /// The instrument corrections after the epoch.
     pub instruments: aidnav_integration::ned::InstrumentEstimate,
     /// RTS-smoothed antenna position (runs with `RunPlan::smooth`).
@@ -153,6 +156,7 @@ impl Epoch {
             nis: rec.nis,
             innovation: rec.innovation,
             outcome: rec.outcome,
+            velocity_outcome: rec.velocity_outcome,
             instruments,
             smoothed_antenna: None,
             convergence: rec.convergence,
@@ -213,6 +217,11 @@ fn new_filter(
     }
     let lever = Vector3::from(cfg.gnss.lever_arm_m);
     let mut filter = NedFilter::new(model, state, &sig, Vec3::assume_in_frame(lever))?;
+    if !filter.set_recovery(cfg.gnss.recovery_config()) {
+        return Err(ProcessError::Data(
+            "gnss.recovery_fixes, recovery_probability or recovery_margin out of range".into(),
+        ));
+    }
     filter.set_gyro_bias(gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
     if smoothing(cfg, plan) {
