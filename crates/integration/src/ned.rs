@@ -581,7 +581,7 @@ impl NedFilter {
 
     /// A GNSS epoch without a position fix (an outage): for the adaptive
     /// noise the epoch's gain is zero, so the first fix after an outage
-    /// feeds nothing back.
+    /// feeds nothing back; the recovery's runs end (a run is consecutive).
     pub fn position_fix_missing(&mut self) -> Result<(), EstimationError> {
         if let Some(a) = self.adaptive.as_mut() {
             a.record_gain(&SMatrix::zeros());

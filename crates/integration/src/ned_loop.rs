@@ -154,7 +154,8 @@ pub struct LoopError {
     pub error: EstimationError,
 }
 
-/// The measurement policies of the position and the velocity updates.
+/// The measurement policies of the position and the velocity updates
+/// (told of every gap in their stream: [`MeasurementPolicy::missing`]).
 pub struct LoopPolicies<'a> {
     /// Position updates.
     pub position: &'a mut dyn MeasurementPolicy<U3>,
@@ -277,6 +278,9 @@ fn fix_epoch(
                     .update_velocity_with(&v, &sv, policies.velocity)?
                     .outcome
             });
+        } else {
+            // A gap in the velocity stream.
+            policies.velocity.missing();
         }
     } else {
         filter.position_fix_missing()?;

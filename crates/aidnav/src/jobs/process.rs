@@ -19,6 +19,8 @@ pub struct ProcessReport {
     pub tracking_rms_m: f64,
     /// Updates by outcome in the clean run.
     pub outcomes: Vec<(String, usize)>,
+    /// The recovery's resets in the clean run (see `gnss.recovery`).
+    pub recovery: RecoveryReport,
     /// RMS 3-D error of the RTS-smoothed antenna positions (with `output.smooth`).
     pub tracking_smoothed_rms_m: Option<f64>,
     /// Time after the first fix at which spec 10's rule (δ non-increasing
@@ -41,9 +43,14 @@ pub struct ProcessReport {
     pub k_eff_integrated_fraction: f64,
     /// (fraction, policy, RMS 3-D error over RTK-fixed epochs against the clean fixes).
     pub anomalies: Vec<(f64, crate::process::PolicyName, f64)>,
+    /// Resets of the recovery in each run of `anomalies` (same order).
+    pub anomaly_resets: Vec<usize>,
     /// (policy, RMS 3-D error over the RTK-fixed epochs with GNSS) with the
     /// 30 s outages and a burst after each; and the same without bursts.
     pub post_outage_bursts: Vec<(crate::process::PolicyName, f64, f64)>,
+    /// Resets of the recovery in the runs of `post_outage_bursts` (same
+    /// order): with bursts, without.
+    pub burst_resets: Vec<[usize; 2]>,
     /// Reader warnings.
     pub warnings: Vec<String>,
     /// Wall time \[s\]: reading, one filter pass, scoring.
@@ -53,6 +60,15 @@ pub struct ProcessReport {
 }
 
 pub use crate::process::BridgedScores;
+
+/// The recovery's resets of one run (`summary.json`'s `result.recovery`).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct RecoveryReport {
+    /// Resets.
+    pub resets: usize,
+    /// Each reset: its fix's time and GNSS index, and what it reset.
+    pub events: Vec<crate::process::ResetEvent>,
+}
 
 /// Run `aidnav process CONFIG.toml`: read the log named in the
 /// configuration (`data_dir` replaces its `data.dir`), filter it, write
@@ -122,6 +138,10 @@ impl ProcessReport {
             policy: result.policy,
             tracking_rms_m: result.tracking_rms_m,
             outcomes: result.outcomes,
+            recovery: RecoveryReport {
+                resets: result.resets.len(),
+                events: result.resets,
+            },
             tracking_smoothed_rms_m: result.tracking_smoothed_rms_m,
             instrument_convergence_s: result.instrument_convergence_s,
             outages: scores.outages,
@@ -132,6 +152,8 @@ impl ProcessReport {
             k_eff_integrated_fraction: result.k_eff_integrated_fraction,
             anomalies: scores.anomalies,
             post_outage_bursts: scores.post_outage_bursts,
+            anomaly_resets: scores.anomaly_resets,
+            burst_resets: scores.burst_resets,
             warnings: result.warnings.into_iter().chain(scores.warnings).collect(),
             timing_s,
             files,

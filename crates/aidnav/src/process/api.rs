@@ -7,7 +7,7 @@ use std::path::Path;
 use aidnav_frames::earth::Geodetic;
 
 use super::config::{PolicyName, ProcessConfig};
-use super::run::{Epoch, RunPlan, SolutionRow, run_filter_rows};
+use super::run::{Epoch, ResetEvent, RunPlan, SolutionRow, reset_events, run_filter_rows};
 use super::score::{convergence_times, tracking_rms};
 use super::scoring::{Scores, score_log};
 use super::{Inputs, ProcessError};
@@ -83,6 +83,8 @@ pub struct ProcessResult {
     pub first_fix_time_s: f64,
     /// Updates by outcome, in order of first appearance.
     pub outcomes: Vec<(String, usize)>,
+    /// The recovery's resets of the filter to a fix, in time order.
+    pub resets: Vec<ResetEvent>,
     /// RMS 3-D antenna error over RTK-fixed epochs \[m\].
     pub tracking_rms_m: f64,
     /// RMS 3-D error of the RTS-smoothed antenna positions (with `output.smooth`).
@@ -148,6 +150,7 @@ impl Process {
             gnss_epochs: inputs.gnss.len(),
             policy: cfg.gnss.policy,
             outcomes: outcomes(&epochs),
+            resets: reset_events(&epochs),
             tracking_rms_m: tracking_rms(&epochs),
             tracking_smoothed_rms_m: (!smoothed.is_empty()).then(|| tracking_rms(&smoothed)),
             instrument_convergence_s: if cfg.filter.convergence_monitor {
