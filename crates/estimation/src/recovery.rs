@@ -277,6 +277,20 @@ where
         self.runs = [None, None, None, None, None];
     }
 
+    /// States `first .. first + count` were reset to values independent of
+    /// the past (their rows and columns of P zeroed, a new block set, by
+    /// another stream's reset): their rows of every cross-covariance are
+    /// zero now, and the runs go on.
+    pub fn decorrelate(&mut self, first: usize, count: usize) {
+        for run in self.runs.iter_mut().flatten() {
+            let x = &mut run.anchor.cross;
+            let end = (first + count).min(x.nrows());
+            for i in first.min(end)..end {
+                x.row_mut(i).fill(0.0);
+            }
+        }
+    }
+
     /// The stream's measurement was accepted: the filter agrees with it
     /// again, every run ends.
     pub fn accepted(&mut self) {
@@ -788,6 +802,24 @@ mod tests {
         d.refused(&second);
         let run = d.runs.iter().flatten().next().unwrap();
         assert_eq!((run.members, run.evidence), (2, 2));
+    }
+
+    /// Another stream's reset of state 1 (velocity): the runs keep their
+    /// anchors, their cross-covariances lose row 1.
+    #[test]
+    fn decorrelate_zeroes_the_reset_rows_of_every_run() {
+        let mut t = Track::new();
+        t.p = Matrix2::new(0.02, 0.01, 0.01, 0.03);
+        let mut d = Detector::new(config(5)).unwrap();
+        t.refuse(&mut d, 1.0);
+        let before = d.runs.iter().flatten().next().unwrap().anchor.cross;
+        assert!(before[0] != 0.0 && before[1] != 0.0);
+        d.decorrelate(1, 1);
+        let run = d.runs.iter().flatten().next().unwrap();
+        assert_eq!((run.anchor.cross[0], run.anchor.cross[1]), (before[0], 0.0));
+        assert_eq!(run.members, 1);
+        // Out-of-range rows are ignored.
+        d.decorrelate(5, 3);
     }
 
     #[test]

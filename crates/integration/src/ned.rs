@@ -246,6 +246,14 @@ enum Stream {
 }
 
 impl Stream {
+    /// The other stream.
+    fn other(self) -> Self {
+        match self {
+            Stream::Position => Stream::Velocity,
+            Stream::Velocity => Stream::Position,
+        }
+    }
+
     /// First index of the error states it measures.
     fn block(self) -> usize {
         match self {
@@ -691,8 +699,9 @@ impl NedFilter {
     /// Reset the error states a stream measures to its measurement z (H, R):
     /// they take the whole residual `z − H x` (so `H x = z`), their rows and
     /// columns of P are zeroed and their block set to `(1 + margin) R`
-    /// (margin from the recovery; 0 without). Every detector forgets its
-    /// runs (their cross-covariances no longer hold). No feedback here.
+    /// (margin from the recovery; 0 without). The stream's detector forgets
+    /// its runs; the other's lose those rows of their cross-covariances. No
+    /// feedback here.
     fn reset_stream(
         &mut self,
         stream: Stream,
@@ -716,9 +725,11 @@ impl NedFilter {
         p.fixed_view_mut::<3, 3>(block, block).copy_from(&r_sym);
         self.kf.set_state(x)?;
         self.kf.set_covariance(p)?;
+        // The stream's own runs are over; the other stream's go on, their
+        // cross-covariances without the rows of the reset states.
         if let Some(rc) = self.recovery.as_mut() {
-            rc.position.clear();
-            rc.velocity.clear();
+            rc.detector(stream).clear();
+            rc.detector(stream.other()).decorrelate(block, 3);
         }
         Ok(())
     }
@@ -1113,9 +1124,9 @@ mod tests {
         assert!(filter.sigmas()[POSITION] < 0.05);
     }
 
-    /// Without motion in the test (only R and P, no predicted change) the
-    /// fixes of the moving car would disagree by 2.5 m each and never
-    /// recover; a shorter run recovers sooner: the count is exact.
+    /// The fixes of the moving car move 2.5 m between fixes: the test takes
+    /// that from the filter's prediction, and the count of fixes to the
+    /// reset is exactly the run length.
     #[test]
     fn the_run_length_is_the_number_of_fixes_to_recover() {
         for run in [2, 5, 9] {
@@ -1125,6 +1136,78 @@ mod tests {
             assert_eq!(first_reset, Some(30 + run - 1), "{run}: {outcomes:?}");
             assert_eq!(outcomes.iter().filter(|&&o| o == Outcome::Reset).count(), 1);
         }
+    }
+
+    /// A filter whose velocity is 1 m/s off while it believes it to 1 cm/s
+    /// (P): a χ² gate refuses every position and velocity fix from the
+    /// start, and the position fixes disagree with the filter's prediction
+    /// by 0.25 m a fix — the first agreement test fails, the common-rate one
+    /// holds. The velocity fixes agree at once and reset the velocity at the
+    /// 21st; the position run, its cross-covariances stripped of the
+    /// velocity rows, goes on and resets at the 22nd; then every fix is
+    /// accepted and the solution is on the fixes.
+    #[test]
+    fn a_diverged_filter_is_reset_by_its_velocity_and_position_runs() {
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.7,
+                longitude_rad: -1.8,
+                height_m: 1600.0,
+            },
+            velocity: Vec3::new(7.0, 7.0, 0.0),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_4),
+        };
+        let model = NedErrorModel::default();
+        let sig = prior(&model, [0.02, 0.01, 0.001, 0.001]);
+        let wrong = NedState {
+            velocity: start.velocity + Vec3::new(0.0, 1.0, 0.0),
+            ..start
+        };
+        let mut filter = NedFilter::new(model, wrong, &sig, Vec3::zeros()).unwrap();
+        assert!(filter.set_recovery(Some(recovery(RUN))));
+        let mut truth = NedMechanization::new(start);
+        let (mut gate, mut vgate) = (
+            aidnav_estimation::Chi2Gate { probability: 0.999 },
+            aidnav_estimation::Chi2Gate { probability: 0.999 },
+        );
+        let (mut position, mut velocity, mut errors) = (Vec::new(), Vec::new(), Vec::new());
+        for k in 0..60 * FIX_EVERY {
+            let imu = NedMechanization::stationary_increment(truth.state(), 0.01);
+            truth.update(&imu);
+            filter.propagate(&imu).unwrap();
+            if k % FIX_EVERY == FIX_EVERY - 1 {
+                let s = *truth.state();
+                let p = filter
+                    .update_position_with(&s.position, &Vector3::repeat(0.02), &mut gate)
+                    .unwrap();
+                let v = if p.outcome == Outcome::Reset {
+                    filter
+                        .reset_velocity_to(&s.velocity, &Vector3::repeat(0.05))
+                        .unwrap();
+                    Outcome::Reset
+                } else {
+                    filter
+                        .update_velocity_with(&s.velocity, &Vector3::repeat(0.05), &mut vgate)
+                        .unwrap()
+                        .outcome
+                };
+                position.push(p.outcome);
+                velocity.push(v);
+                errors.push(s.position.ned_to(&filter.solution().position).norm());
+            }
+        }
+        let refused = |o: &Outcome| *o == Outcome::Rejected;
+        assert!(velocity[..RUN - 1].iter().all(refused), "{velocity:?}");
+        assert_eq!(velocity[RUN - 1], Outcome::Reset);
+        assert!(position[..RUN].iter().all(refused), "{position:?}");
+        assert_eq!(position[RUN], Outcome::Reset, "{position:?}");
+        assert!(position[RUN + 1..].iter().all(|&o| o == Outcome::Accepted));
+        assert!(velocity[RUN + 1..].iter().all(|&o| o == Outcome::Accepted));
+        // 5 m off when the position resets (21 × 0.25 s at 1 m/s), on the
+        // fixes after it.
+        assert!(errors[RUN - 1] > 5.0, "{}", errors[RUN - 1]);
+        let worst = errors[RUN..].iter().fold(0.0_f64, |a, &b| a.max(b));
+        assert!(worst < 0.03, "{worst}");
     }
 
     /// The covariance after a reset: symmetric, positive semi-definite, the
