@@ -173,8 +173,8 @@ pub struct GnssConfig {
     /// (no protection).
     pub policy: PolicyName,
     /// Anomaly level γ of spec 20's detector (eq. 5: νᵀν > γ tr S) in
-    /// `rejection`, `limiting`, `limited_adaptive_gain`, `developed` and the
-    /// adaptive noise's guard. Default 9.
+    /// `rejection`, `limiting`, `limited_adaptive_gain`, `developed`,
+    /// `robust` and the adaptive noise's guard. Default 9.
     pub anomaly_gamma: f64,
     /// Innovations in eq. 4's sliding window (`adaptive_gain`,
     /// `limited_adaptive_gain`). Default 20 (5 s at 4 Hz).
@@ -182,7 +182,9 @@ pub struct GnssConfig {
     /// Never lock out: when `recovery_fixes` refused (rejected or limited)
     /// fixes in a run agree with each other — the change between them
     /// matches the change the filter predicts, within the χ²(3) quantile of
-    /// `recovery_probability` — the position (and, from the same fix, the
+    /// `recovery_probability`, or, when the filter has diverged and its
+    /// prediction is off, drifts from it at a common rate (then one fix
+    /// more is needed) — the position (and, from the same fix, the
     /// velocity) is reset to the latest of them, as PX4 EKF2 and ArduPilot
     /// EKF3 reset to GNSS after a timeout; a refused velocity stream resets
     /// the velocity alone. Each reset is an outcome `reset` in solution.csv
