@@ -78,6 +78,7 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<ExitCode> {
             .map_or(String::new(), |v| format!(", GNSS speed {v:.2} m/s")),
         r.standstill_updates
     );
+    print_resets(&r);
     let conv: Vec<String> = r
         .instrument_convergence_s
         .iter()
@@ -267,15 +268,54 @@ fn print_efficiency(r: &ProcessReport) {
     }
 }
 
-/// The anomaly tables: injected outliers, and bursts after outages.
+/// The recovery's resets of the clean run, on stderr (they are the
+/// filter overruling itself: worth seeing beside the warnings).
+fn print_resets(r: &ProcessReport) {
+    let first = r.recovery.events.first().map(|e| e.time_s);
+    // The first few: a filter that resets all the time says so in the count.
+    const SHOWN: usize = 6;
+    let mut times: Vec<String> = r
+        .recovery
+        .events
+        .iter()
+        .take(SHOWN)
+        .map(|e| {
+            let what = match (e.position, e.velocity) {
+                (true, true) => "position and velocity",
+                (true, false) => "position",
+                _ => "velocity",
+            };
+            format!(
+                "{} GPST, fix {} ({what})",
+                aidnav::io::text::date_time(e.time_s),
+                e.index
+            )
+        })
+        .collect();
+    if r.recovery.events.len() > SHOWN {
+        times.push("…".into());
+    }
+    match first {
+        None => eprintln!("recovery: no reset"),
+        Some(_) => eprintln!(
+            "recovery: {} reset(s) to an agreeing run of refused fixes: {}",
+            r.recovery.resets,
+            times.join(", ")
+        ),
+    }
+}
+
+/// The anomaly tables: injected outliers, and bursts after outages (with
+/// the recovery's resets of each run).
 fn print_anomalies(r: &ProcessReport) {
     if !r.anomalies.is_empty() {
         println!(
-            "injected outliers (5–50 m jumps, σ unchanged) — RMS 3-D error over the reference epochs [m]:"
+            "injected outliers (5–50 m jumps, σ unchanged) — RMS 3-D error over the reference epochs [m] (recovery resets):"
         );
-        for (f, p, rms) in &r.anomalies {
+        for (k, (f, p, rms)) in r.anomalies.iter().enumerate() {
+            let resets = r.anomaly_resets.get(k).copied().unwrap_or(0);
             println!(
-                "  {:>3.0} %  {:<22} {:>8}",
+                "  {:>3.0} %  {:<22} {:>8}   ({resets})",
                 f * 100.0,
                 p.name(),
                 score(*rms, 3)
@@ -284,11 +324,12 @@ fn print_anomalies(r: &ProcessReport) {
     }
     if !r.post_outage_bursts.is_empty() {
         println!(
-            "30 s outages, each followed by a burst (one 5–50 m jump on the first fixes back) — RMS 3-D error over the reference epochs with GNSS [m]:"
+            "30 s outages, each followed by a burst (one 5–50 m jump on the first fixes back) — RMS 3-D error over the reference epochs with GNSS [m] (recovery resets):"
         );
-        for (p, burst, clean) in &r.post_outage_bursts {
+        for (k, (p, burst, clean)) in r.post_outage_bursts.iter().enumerate() {
+            let [with, without] = r.burst_resets.get(k).copied().unwrap_or([0, 0]);
             println!(
-                "  {:<22} {:>8}   (same outages without bursts {})",
+                "  {:<22} {:>8} ({with})   (same outages without bursts {} ({without}))",
                 p.name(),
                 score(*burst, 3),
                 score(*clean, 3)

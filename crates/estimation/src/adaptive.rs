@@ -106,6 +106,80 @@ where
     }
 }
 
+/// Spec 20 eq. 8 limiting that rejects instead while the stream is being
+/// re-acquired: after a gap ([`MeasurementPolicy::missing`]) an anomalous
+/// measurement is rejected, until one is accepted; then anomalous ones are
+/// limited again.
+///
+/// Limiting bounds an outlier's pull to K times the gate radius √(γ tr S).
+/// While the stream flows the filter knows its state about as well as the
+/// measurement does, the radius is a few σ of the measurement and the pull
+/// small — and a filter that a skipped update has carried beyond the gate
+/// keeps being corrected instead of locking out. After a gap the filter
+/// has dead-reckoned: S is the dead-reckoning uncertainty, the radius
+/// metres and K near one, so limiting would drag the state by metres
+/// towards a bad measurement — and bursts come exactly then (spec 20: "when
+/// the signal comes back after an outage"). So a re-acquired stream must
+/// first pass the detector once. (A stream that never does is a lock-out:
+/// the caller's [`recovery`](crate::recovery) ends it.)
+///
+/// ```
+/// use aidnav_estimation::adaptive::{AnomalyDetector, ReacquiringLimiting};
+/// use aidnav_estimation::{KalmanFilter, MeasurementPolicy, Outcome, nalgebra::{Matrix1, U1, Vector1}};
+/// let mut policy = ReacquiringLimiting::new(AnomalyDetector { gamma: 9.0 });
+/// let (h, r) = (Matrix1::new(1.0), Matrix1::new(1.0));
+/// let mut kf = KalmanFilter::new(Vector1::new(0.0), Matrix1::new(1.0)).unwrap();
+/// let mut outcome = |kf: &mut KalmanFilter<_>, z: f64, p: &mut ReacquiringLimiting| {
+///     kf.update_with(&Vector1::new(z), &h, &r, p).unwrap().outcome
+/// };
+/// assert_eq!(outcome(&mut kf.clone(), 40.0, &mut policy), Outcome::Limited);
+/// MeasurementPolicy::<U1>::missing(&mut policy); // a gap
+/// assert_eq!(outcome(&mut kf.clone(), 40.0, &mut policy), Outcome::Rejected);
+/// assert_eq!(outcome(&mut kf, 0.5, &mut policy), Outcome::Accepted);
+/// assert_eq!(outcome(&mut kf, 40.0, &mut policy), Outcome::Limited);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ReacquiringLimiting {
+    /// The detector.
+    pub detector: AnomalyDetector,
+    reacquiring: bool,
+}
+
+impl ReacquiringLimiting {
+    /// Limiting by `detector`, the stream flowing.
+    pub fn new(detector: AnomalyDetector) -> Self {
+        Self {
+            detector,
+            reacquiring: false,
+        }
+    }
+
+    /// Whether the stream is being re-acquired (a gap, no acceptance since).
+    pub fn reacquiring(&self) -> bool {
+        self.reacquiring
+    }
+}
+
+impl<M: Dim> MeasurementPolicy<M> for ReacquiringLimiting
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M> {
+        match self.detector.limit(view) {
+            None => {
+                self.reacquiring = false;
+                Decision::Accept
+            }
+            Some(_) if self.reacquiring => Decision::Reject,
+            Some(limited) => Decision::ReplaceResidual(limited),
+        }
+    }
+
+    fn missing(&mut self) {
+        self.reacquiring = true;
+    }
+}
+
 /// How eq. 4 compares the diagonals of M̂ and H P⁻ Hᵀ for vector measurements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

@@ -57,6 +57,7 @@ pub mod linear;
 pub mod observer;
 pub mod optimise;
 pub mod policy;
+pub mod recovery;
 pub mod riccati;
 pub mod scheme;
 pub mod smoother;

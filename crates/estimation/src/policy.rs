@@ -82,6 +82,10 @@ pub enum Outcome {
     AdaptiveGain,
     /// Measurement absent at this epoch (no update attempted).
     Missing,
+    /// The measured states were reset to the measurement: it completed a
+    /// run of refused measurements that agree with each other (see
+    /// [`recovery`](crate::recovery)); the caller's reset replaced the update.
+    Reset,
 }
 
 impl Outcome {
@@ -94,6 +98,7 @@ impl Outcome {
             Outcome::Reweighted => "reweighted",
             Outcome::AdaptiveGain => "adaptive_gain",
             Outcome::Missing => "missing",
+            Outcome::Reset => "reset",
         }
     }
 }
@@ -105,6 +110,11 @@ where
 {
     /// Look at the innovation and decide.
     fn decide(&mut self, view: &InnovationView<'_, M>) -> Decision<M>;
+
+    /// The stream had no measurement at an epoch where it was expected (a
+    /// gap, an outage). Policies that behave differently on re-acquisition
+    /// note it; by default nothing happens.
+    fn missing(&mut self) {}
 }
 
 impl<M: Dim, F> MeasurementPolicy<M> for F

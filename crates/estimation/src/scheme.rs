@@ -26,7 +26,7 @@ use nalgebra::{DefaultAllocator, Dim};
 use serde::{Deserialize, Serialize};
 
 use crate::adaptive::{AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain};
-use crate::adaptive::{Limiting, Rejection};
+use crate::adaptive::{Limiting, ReacquiringLimiting, Rejection};
 use crate::policy::{
     AcceptAll, Chi2Gate, Decision, Huber, InnovationView, MeasurementPolicy, RecoveringChi2Gate,
 };
@@ -58,6 +58,12 @@ pub enum Scheme {
     /// Spec 20 eq. 9, the developed algorithm: eq. 8 limiting with the
     /// eq. 3 innovation-feedback process noise, fed by normal innovations only.
     Developed,
+    /// The developed algorithm made safe on re-acquisition
+    /// ([`ReacquiringLimiting`]): eq. 8 limiting while the stream flows,
+    /// rejection after a gap until a measurement is accepted, with the
+    /// eq. 3 guarded innovation-feedback noise. Meant to run with a
+    /// recovery from lock-out ([`recovery`](crate::recovery)).
+    Robust,
 }
 
 /// What a scheme does to the process noise.
@@ -105,7 +111,7 @@ impl Default for SchemeParameters {
 
 impl Scheme {
     /// Every scheme, in the order of the comparison tables.
-    pub const ALL: [Scheme; 9] = [
+    pub const ALL: [Scheme; 10] = [
         Scheme::Accept,
         Scheme::Chi2Gate,
         Scheme::RecoveringGate,
@@ -115,6 +121,7 @@ impl Scheme {
         Scheme::AdaptiveGain,
         Scheme::LimitedAdaptiveGain,
         Scheme::Developed,
+        Scheme::Robust,
     ];
 
     /// The name in configuration files and tables.
@@ -129,6 +136,7 @@ impl Scheme {
             Scheme::AdaptiveGain => "adaptive_gain",
             Scheme::LimitedAdaptiveGain => "limited_adaptive_gain",
             Scheme::Developed => "developed",
+            Scheme::Robust => "robust",
         }
     }
 
@@ -165,13 +173,14 @@ impl Scheme {
                 gain: window(),
                 detector,
             }),
+            Scheme::Robust => SchemePolicy::Robust(ReacquiringLimiting::new(detector)),
         }
     }
 
     /// What the scheme does to the process noise.
     pub const fn noise_rule(self) -> NoiseRule {
         match self {
-            Scheme::Developed => NoiseRule::Feedback { detector: true },
+            Scheme::Developed | Scheme::Robust => NoiseRule::Feedback { detector: true },
             _ => NoiseRule::Fixed,
         }
     }
@@ -221,6 +230,8 @@ where
     AdaptiveGain(AdaptiveGain<M>),
     /// [`Scheme::LimitedAdaptiveGain`].
     LimitedAdaptiveGain(LimitedAdaptiveGain<M>),
+    /// [`Scheme::Robust`].
+    Robust(ReacquiringLimiting),
 }
 
 impl<M: Dim> MeasurementPolicy<M> for SchemePolicy<M>
@@ -237,6 +248,14 @@ where
             SchemePolicy::Limiting(p) => p.decide(view),
             SchemePolicy::AdaptiveGain(p) => p.decide(view),
             SchemePolicy::LimitedAdaptiveGain(p) => p.decide(view),
+            SchemePolicy::Robust(p) => p.decide(view),
+        }
+    }
+
+    /// Only `robust` notes a gap (the others keep no state that a gap changes).
+    fn missing(&mut self) {
+        if let SchemePolicy::Robust(p) = self {
+            MeasurementPolicy::<M>::missing(p);
         }
     }
 }

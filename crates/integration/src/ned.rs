@@ -10,13 +10,14 @@ use aidnav_estimation::{
     MeasurementPolicy, Outcome, UpdateRecord,
     adaptive::{AnomalyDetector, InnovationFeedbackNoise},
     nalgebra::{Const, U3},
+    recovery::{AgreementConfig, AgreementDetector, Update, Verdict},
     rts_smooth,
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_models::ned_ins::{
-    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, STATES,
-    VELOCITY, Vector21,
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, Matrix3x21, NedErrorModel, POSITION,
+    STATES, VELOCITY, Vector21,
 };
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
@@ -173,6 +174,93 @@ pub struct NedFilter {
     monitor: Option<ConvergenceMonitor>,
     fed_back: Vector21,
     adaptive: Option<InnovationFeedbackNoise<Const<STATES>, U3>>,
+    recovery: Option<Box<Recovery>>,
+}
+
+/// The reset recovery of the GNSS updates: when a run of refused (rejected
+/// or limited) fixes agree with each other, the filter stops believing
+/// itself and resets the measured states to the latest fix.
+///
+/// The agreement is the engine's ([`aidnav_estimation::recovery`]): two
+/// refused fixes agree when the change the filter predicts for the antenna
+/// between them (its own mechanization, so a moving vehicle is handled)
+/// matches the change of the fixes, within a χ² bound on the covariance of
+/// that difference. `run_length` agreeing fixes in a run make a reset.
+/// The reset (as PX4 EKF2's `resetHorizontalPositionTo` and ArduPilot
+/// EKF3's `ResetPosition`, which reset after a timeout): the position
+/// (velocity) error states take the whole innovation of the fix, so the
+/// solution passes through it; their rows and columns of P are zeroed (no
+/// correlation with any other state, nor with each other) and their block
+/// set to `(1 + margin) R`. P stays symmetric and positive semi-definite:
+/// it is block diagonal with a principal block of the old P and a positive
+/// definite block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecoveryConfig {
+    /// The agreement test: run length (≥ 2) and χ² probability (in (0, 1)).
+    pub agreement: AgreementConfig,
+    /// Margin of the reset covariance: a reset block is `(1 + margin) R`
+    /// (≥ 0).
+    pub margin: f64,
+}
+
+/// One detector per GNSS stream.
+#[derive(Debug, Clone)]
+struct Recovery {
+    config: RecoveryConfig,
+    position: AgreementDetector<Const<STATES>, U3>,
+    velocity: AgreementDetector<Const<STATES>, U3>,
+}
+
+impl Recovery {
+    /// Every detector sees another update (gain K, matrix H), but `except`.
+    fn updated<M: nalgebra::Dim>(
+        &mut self,
+        gain: &nalgebra::OMatrix<f64, Const<STATES>, M>,
+        h: &nalgebra::OMatrix<f64, M, Const<STATES>>,
+        except: Option<Stream>,
+    ) where
+        nalgebra::DefaultAllocator: aidnav_estimation::FilterAllocator<Const<STATES>, M>
+            + nalgebra::allocator::Allocator<M, U3>,
+    {
+        if except != Some(Stream::Position) {
+            self.position.updated(gain, h);
+        }
+        if except != Some(Stream::Velocity) {
+            self.velocity.updated(gain, h);
+        }
+    }
+
+    fn detector(&mut self, stream: Stream) -> &mut AgreementDetector<Const<STATES>, U3> {
+        match stream {
+            Stream::Position => &mut self.position,
+            Stream::Velocity => &mut self.velocity,
+        }
+    }
+}
+
+/// A GNSS measurement stream of the filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stream {
+    Position,
+    Velocity,
+}
+
+impl Stream {
+    /// The other stream.
+    fn other(self) -> Self {
+        match self {
+            Stream::Position => Stream::Velocity,
+            Stream::Velocity => Stream::Position,
+        }
+    }
+
+    /// First index of the error states it measures.
+    fn block(self) -> usize {
+        match self {
+            Stream::Position => POSITION,
+            Stream::Velocity => VELOCITY,
+        }
+    }
 }
 
 /// Spec 10's Cramér–Rao convergence measure on the instrument states:
@@ -216,7 +304,39 @@ impl NedFilter {
             monitor: None,
             fed_back: Vector21::zeros(),
             adaptive: None,
+            recovery: None,
         })
+    }
+
+    /// Turn on the reset recovery of the GNSS updates (see
+    /// [`RecoveryConfig`]); None turns it off. Returns false (and leaves it
+    /// off) when the configuration is invalid: a run shorter than 2, a
+    /// probability outside (0, 1) or a negative or non-finite margin.
+    pub fn set_recovery(&mut self, config: Option<RecoveryConfig>) -> bool {
+        self.recovery = None;
+        let Some(config) = config else {
+            return true;
+        };
+        if !(config.margin.is_finite() && config.margin >= 0.0) {
+            return false;
+        }
+        let (Some(position), Some(velocity)) = (
+            AgreementDetector::new(config.agreement),
+            AgreementDetector::new(config.agreement),
+        ) else {
+            return false;
+        };
+        self.recovery = Some(Box::new(Recovery {
+            config,
+            position,
+            velocity,
+        }));
+        true
+    }
+
+    /// The recovery's configuration (None: off).
+    pub fn recovery(&self) -> Option<RecoveryConfig> {
+        self.recovery.as_ref().map(|r| r.config)
     }
 
     /// The INS's own navigation state (uncorrected in open loop).
@@ -334,6 +454,10 @@ impl NedFilter {
         self.kf.predict(&phi, &q)?;
         if let Some(m) = self.monitor.as_mut() {
             m.fisher.propagate(&phi)?;
+        }
+        if let Some(r) = self.recovery.as_mut() {
+            r.position.propagate(&phi, dt);
+            r.velocity.propagate(&phi, dt);
         }
         let (p, state) = (*self.kf.covariance(), *self.ins.state());
         if let Some(r) = self.record.as_mut() {
@@ -471,7 +595,7 @@ impl NedFilter {
         nalgebra::DefaultAllocator: aidnav_estimation::FilterAllocator<Const<STATES>, M>,
     {
         if let Some(m) = self.monitor.as_mut()
-            && outcome != Outcome::Rejected
+            && !matches!(outcome, Outcome::Rejected | Outcome::Reset)
         {
             m.fisher.add_measurement(h, r)?;
         }
@@ -499,10 +623,15 @@ impl NedFilter {
 
     /// A GNSS epoch without a position fix (an outage): for the adaptive
     /// noise the epoch's gain is zero, so the first fix after an outage
-    /// feeds nothing back.
+    /// feeds nothing back; the recovery's runs end (a run is consecutive).
     pub fn position_fix_missing(&mut self) -> Result<(), EstimationError> {
         if let Some(a) = self.adaptive.as_mut() {
             a.record_gain(&SMatrix::zeros());
+        }
+        // A gap ends every run of refused fixes: a run is consecutive.
+        if let Some(r) = self.recovery.as_mut() {
+            r.position.clear();
+            r.velocity.clear();
         }
         Ok(())
     }
@@ -539,13 +668,137 @@ impl NedFilter {
             let q = a.process_noise(&innovation.residual, &innovation.s);
             self.kf.set_covariance(self.kf.covariance() + q)?;
         }
-        let rec = self.kf.update_with(&z, &h, &r, policy)?;
+        let rec = self.update_stream(Stream::Position, &z, &h, &r, policy)?;
         if let Some(a) = self.adaptive.as_mut() {
-            a.record_gain(&rec.gain);
+            // K_{k−1} of eq. 3 is the gain of the previous *update*: a
+            // rejected fix made none and leaves it (recording its zero gain
+            // would switch the feedback off at the next fix, P would
+            // shrink, and one rejection would lead to the next). After a
+            // reset the next fix feeds nothing back.
+            match rec.outcome {
+                Outcome::Rejected => {}
+                Outcome::Reset => a.record_gain(&SMatrix::zeros()),
+                _ => a.record_gain(&rec.gain),
+            }
         }
         self.add_information(&h, &r, rec.outcome)?;
         self.feedback()?;
         Ok(rec)
+    }
+
+    /// A GNSS update of one stream under a policy, followed by the
+    /// recovery (see [`RecoveryConfig`]): a refused (rejected or limited)
+    /// fix goes to the stream's agreement detector, and when it completes an
+    /// agreeing run the stream's states are reset to it (outcome
+    /// [`Outcome::Reset`]); an accepted one ends the stream's runs. Every
+    /// other detector sees the update.
+    fn update_stream<P: MeasurementPolicy<U3> + ?Sized>(
+        &mut self,
+        stream: Stream,
+        z: &Vector3<f64>,
+        h: &Matrix3x21,
+        r: &Matrix3<f64>,
+        policy: &mut P,
+    ) -> Result<GnssUpdate, EstimationError> {
+        if self.recovery.is_none() {
+            return self.kf.update_with(z, h, r, policy);
+        }
+        let (x_prior, p_prior) = (*self.kf.state(), *self.kf.covariance());
+        let mut rec = self.kf.update_with(z, h, r, policy)?;
+        let Some(recovery) = self.recovery.as_mut() else {
+            return Ok(rec);
+        };
+        recovery.updated(&rec.gain, h, Some(stream));
+        if !matches!(rec.outcome, Outcome::Rejected | Outcome::Limited) {
+            recovery.detector(stream).accepted();
+            return Ok(rec);
+        }
+        let state_change = self.kf.state() - x_prior;
+        let verdict = recovery.detector(stream).refused(&Update {
+            residual: &rec.residual,
+            state_change: &state_change,
+            r,
+            h,
+            prior_covariance: &p_prior,
+            gain: &rec.gain,
+            posterior_covariance: self.kf.covariance(),
+        });
+        if let Verdict::Recover { .. } = verdict {
+            self.reset_stream(stream, z, h, r)?;
+            rec.outcome = Outcome::Reset;
+        }
+        Ok(rec)
+    }
+
+    /// Reset the error states a stream measures to its measurement z (H, R):
+    /// they take the whole residual `z − H x` (so `H x = z`), their rows and
+    /// columns of P are zeroed and their block set to `(1 + margin) R`
+    /// (margin from the recovery; 0 without). The stream's detector forgets
+    /// its runs; the other's lose those rows of their cross-covariances. No
+    /// feedback here.
+    fn reset_stream(
+        &mut self,
+        stream: Stream,
+        z: &Vector3<f64>,
+        h: &Matrix3x21,
+        r: &Matrix3<f64>,
+    ) -> Result<(), EstimationError> {
+        let margin = self.recovery.as_ref().map_or(0.0, |rc| rc.config.margin);
+        let block = stream.block();
+        let mut x = *self.kf.state();
+        let residual = z - h * x;
+        for i in 0..3 {
+            x[block + i] += residual[i];
+        }
+        let mut p = *self.kf.covariance();
+        for i in block..block + 3 {
+            p.row_mut(i).fill(0.0);
+            p.column_mut(i).fill(0.0);
+        }
+        let r_sym = (r + r.transpose()) * (0.5 * (1.0 + margin));
+        p.fixed_view_mut::<3, 3>(block, block).copy_from(&r_sym);
+        self.kf.set_state(x)?;
+        self.kf.set_covariance(p)?;
+        // The stream's own runs are over; the other stream's go on, their
+        // cross-covariances without the rows of the reset states.
+        if let Some(rc) = self.recovery.as_mut() {
+            rc.detector(stream).clear();
+            rc.detector(stream.other()).decorrelate(block, 3);
+        }
+        Ok(())
+    }
+
+    /// Reset the velocity to a GNSS antenna velocity fix (NED) with σ
+    /// (north, east, down): the velocity error states take the whole
+    /// innovation, their P rows and columns are zeroed and their block set
+    /// to `(1 + margin) R` (see [`RecoveryConfig`]); fed back as any update.
+    /// The epoch loop calls it after a position fix ended in
+    /// [`Outcome::Reset`], so position and velocity restart together.
+    pub fn reset_velocity_to(
+        &mut self,
+        velocity_ned: &Vec3<Ned>,
+        sigma_ned: &Vector3<f64>,
+    ) -> Result<(), EstimationError> {
+        let (z, h, r) = self.velocity_measurement(velocity_ned, sigma_ned);
+        self.flush_covariance()?;
+        self.reset_stream(Stream::Velocity, &z, &h, &r)?;
+        self.feedback()
+    }
+
+    /// z = v_antenna(INS) − v_fix, H and R of a velocity fix.
+    fn velocity_measurement(
+        &self,
+        velocity_ned: &Vec3<Ned>,
+        sigma_ned: &Vector3<f64>,
+    ) -> (Vector3<f64>, Matrix3x21, Matrix3<f64>) {
+        let s = *self.ins.state();
+        let c = s.attitude.matrix();
+        let v_ant = s.velocity + c * self.rate.cross(&self.lever_arm);
+        let z = (v_ant - *velocity_ned).raw();
+        let h =
+            NedErrorModel::velocity_measurement((c * self.rate.cross(&self.lever_arm)).as_raw());
+        let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
+        (z, h, r)
     }
 
     /// GNSS antenna position fix, accepted.
@@ -564,15 +817,9 @@ impl NedFilter {
         sigma_ned: &Vector3<f64>,
         policy: &mut P,
     ) -> Result<GnssUpdate, EstimationError> {
-        let s = *self.ins.state();
-        let c = s.attitude.matrix();
-        let v_ant = s.velocity + c * self.rate.cross(&self.lever_arm);
-        let z = (v_ant - *velocity_ned).raw();
-        let h =
-            NedErrorModel::velocity_measurement((c * self.rate.cross(&self.lever_arm)).as_raw());
-        let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
+        let (z, h, r) = self.velocity_measurement(velocity_ned, sigma_ned);
         self.flush_covariance()?;
-        let rec = self.kf.update_with(&z, &h, &r, policy)?;
+        let rec = self.update_stream(Stream::Velocity, &z, &h, &r, policy)?;
         self.add_information(&h, &r, rec.outcome)?;
         self.feedback()?;
         Ok(rec)
@@ -588,7 +835,10 @@ impl NedFilter {
         let z = nalgebra::Vector2::new(body.y(), body.z());
         let h = NedErrorModel::non_holonomic_measurement(c.as_raw(), s.velocity.as_raw());
         let r = nalgebra::Matrix2::identity() * (sigma_mps * sigma_mps);
-        self.kf.update(&z, &h, &r)?;
+        let rec = self.kf.update(&z, &h, &r)?;
+        if let Some(recovery) = self.recovery.as_mut() {
+            recovery.updated(&rec.gain, &h, None);
+        }
         self.add_information(&h, &r, Outcome::Accepted)?;
         self.feedback()
     }
@@ -875,6 +1125,275 @@ mod tests {
         adaptive.update_position(&start.position, &sigma).unwrap();
         plain.update_position(&start.position, &sigma).unwrap();
         assert_eq!(adaptive.kf.covariance(), plain.kf.covariance());
+    }
+
+    /// Fixes every this many IMU samples (100 Hz → 4 Hz).
+    const FIX_EVERY: usize = 25;
+
+    /// A car at 10 m/s heading north-east (the INS of the filter *is* the
+    /// truth: both mechanize the same ideal increments), antenna 1 m ahead
+    /// of the IMU; fixes σ 2 cm at the true antenna, shifted by `step` from
+    /// fix `step_at` on. Returns the filter, the outcome of every fix and the
+    /// distance of the solution's antenna from each fix (as given) after it.
+    fn drive_with_step(
+        recovery: Option<RecoveryConfig>,
+        fixes: usize,
+        step_at: usize,
+        step: Vec3<Ned>,
+    ) -> (NedFilter, Vec<Outcome>, Vec<f64>) {
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.7,
+                longitude_rad: -1.8,
+                height_m: 1600.0,
+            },
+            velocity: Vec3::new(7.0, 7.0, 0.0),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_4),
+        };
+        let model = NedErrorModel::default();
+        let sig = prior(&model, [0.02, 0.01, 0.001, 0.001]);
+        let lever = Vec3::new(1.0, 0.0, 0.0);
+        let mut filter = NedFilter::new(model, start, &sig, lever).unwrap();
+        assert!(filter.set_recovery(recovery));
+        let mut truth = NedMechanization::new(start);
+        let mut gate = aidnav_estimation::Chi2Gate { probability: 0.999 };
+        let sigma = Vector3::repeat(0.02);
+        let (mut outcomes, mut distances) = (Vec::new(), Vec::new());
+        for k in 0..fixes * FIX_EVERY {
+            let imu = NedMechanization::stationary_increment(truth.state(), 0.01);
+            truth.update(&imu);
+            filter.propagate(&imu).unwrap();
+            if k % FIX_EVERY == FIX_EVERY - 1 {
+                let s = truth.state();
+                let antenna = s.position.offset_by(&(s.attitude * lever));
+                let n = k / FIX_EVERY;
+                // ±1 cm of deterministic noise.
+                let noise = Vec3::new(
+                    0.01 * (n as f64 * 1.3).sin(),
+                    0.01 * (n as f64 * 2.1).cos(),
+                    0.0,
+                );
+                let fix = if n >= step_at {
+                    antenna.offset_by(&(step + noise))
+                } else {
+                    antenna.offset_by(&noise)
+                };
+                let rec = filter
+                    .update_position_with(&fix, &sigma, &mut gate)
+                    .unwrap();
+                outcomes.push(rec.outcome);
+                distances.push(fix.ned_to(&filter.antenna().0).norm());
+            }
+        }
+        (filter, outcomes, distances)
+    }
+
+    /// Fixes agreeing in a run this long make a reset (the default of
+    /// `aidnav process`: one more than the longest short burst of spec 20).
+    const RUN: usize = 21;
+
+    fn recovery(run_length: usize) -> RecoveryConfig {
+        RecoveryConfig {
+            agreement: AgreementConfig {
+                run_length,
+                probability: 0.999,
+            },
+            margin: 1.0,
+        }
+    }
+
+    /// Every fix from fix 40 on 50 m east of the truth (the reference
+    /// changed): a χ² gate never believes it and locks out for good; with
+    /// the recovery the 21st refused fix resets the filter onto the new
+    /// reference, whose fixes are then accepted — on a car moving at
+    /// 10 m/s, whose fixes move 2.5 m between fixes, which the agreement test
+    /// takes from the filter's own prediction.
+    #[test]
+    fn a_step_the_gate_never_believes_is_recovered_within_the_run_length() {
+        let step = Vec3::new(0.0, 50.0, 0.0);
+        let (_, locked, far) = drive_with_step(None, 100, 40, step);
+        assert!(
+            locked[..40].iter().all(|&o| o == Outcome::Accepted),
+            "{locked:?}"
+        );
+        assert!(
+            locked[40..].iter().all(|&o| o == Outcome::Rejected),
+            "{locked:?}"
+        );
+        assert!(far[99] > 49.0, "{}", far[99]);
+
+        let (filter, outcomes, distances) = drive_with_step(Some(recovery(RUN)), 100, 40, step);
+        assert!(outcomes[..40].iter().all(|&o| o == Outcome::Accepted));
+        let after = &outcomes[40..];
+        assert!(
+            after[..RUN - 1].iter().all(|&o| o == Outcome::Rejected),
+            "{after:?}"
+        );
+        assert_eq!(after[RUN - 1], Outcome::Reset, "{after:?}");
+        assert!(
+            after[RUN..].iter().all(|&o| o == Outcome::Accepted),
+            "{after:?}"
+        );
+        // The reset puts the antenna on the fix (to the first-order
+        // geodetic offsets, 0.3 mm over 50 m); the next fixes track it.
+        assert!(
+            distances[40 + RUN - 1] < 1e-3,
+            "{}",
+            distances[40 + RUN - 1]
+        );
+        let worst = distances[40 + RUN..].iter().fold(0.0_f64, |a, &b| a.max(b));
+        assert!(worst < 0.05, "{worst}");
+        assert!(filter.sigmas()[POSITION] < 0.05);
+    }
+
+    /// The fixes of the moving car move 2.5 m between fixes: the test takes
+    /// that from the filter's prediction, and the count of fixes to the
+    /// reset is exactly the run length.
+    #[test]
+    fn the_run_length_is_the_number_of_fixes_to_recover() {
+        for run in [2, 5, 9] {
+            let (_, outcomes, _) =
+                drive_with_step(Some(recovery(run)), 60, 30, Vec3::new(20.0, 0.0, -5.0));
+            let first_reset = outcomes.iter().position(|&o| o == Outcome::Reset);
+            assert_eq!(first_reset, Some(30 + run - 1), "{run}: {outcomes:?}");
+            assert_eq!(outcomes.iter().filter(|&&o| o == Outcome::Reset).count(), 1);
+        }
+    }
+
+    /// A filter whose velocity is 1 m/s off while it believes it to 1 cm/s
+    /// (P): a χ² gate refuses every position and velocity fix from the
+    /// start, and the position fixes disagree with the filter's prediction
+    /// by 0.25 m a fix — the first agreement test fails, the common-rate one
+    /// holds. The velocity fixes agree at once and reset the velocity at the
+    /// 21st; the position run, its cross-covariances stripped of the
+    /// velocity rows, goes on and resets at the 22nd; then every fix is
+    /// accepted and the solution is on the fixes.
+    #[test]
+    fn a_diverged_filter_is_reset_by_its_velocity_and_position_runs() {
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.7,
+                longitude_rad: -1.8,
+                height_m: 1600.0,
+            },
+            velocity: Vec3::new(7.0, 7.0, 0.0),
+            attitude: Rotation::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_4),
+        };
+        let model = NedErrorModel::default();
+        let sig = prior(&model, [0.02, 0.01, 0.001, 0.001]);
+        let wrong = NedState {
+            velocity: start.velocity + Vec3::new(0.0, 1.0, 0.0),
+            ..start
+        };
+        let mut filter = NedFilter::new(model, wrong, &sig, Vec3::zeros()).unwrap();
+        assert!(filter.set_recovery(Some(recovery(RUN))));
+        let mut truth = NedMechanization::new(start);
+        let (mut gate, mut vgate) = (
+            aidnav_estimation::Chi2Gate { probability: 0.999 },
+            aidnav_estimation::Chi2Gate { probability: 0.999 },
+        );
+        let (mut position, mut velocity, mut errors) = (Vec::new(), Vec::new(), Vec::new());
+        for k in 0..60 * FIX_EVERY {
+            let imu = NedMechanization::stationary_increment(truth.state(), 0.01);
+            truth.update(&imu);
+            filter.propagate(&imu).unwrap();
+            if k % FIX_EVERY == FIX_EVERY - 1 {
+                let s = *truth.state();
+                let p = filter
+                    .update_position_with(&s.position, &Vector3::repeat(0.02), &mut gate)
+                    .unwrap();
+                let v = if p.outcome == Outcome::Reset {
+                    filter
+                        .reset_velocity_to(&s.velocity, &Vector3::repeat(0.05))
+                        .unwrap();
+                    Outcome::Reset
+                } else {
+                    filter
+                        .update_velocity_with(&s.velocity, &Vector3::repeat(0.05), &mut vgate)
+                        .unwrap()
+                        .outcome
+                };
+                position.push(p.outcome);
+                velocity.push(v);
+                errors.push(s.position.ned_to(&filter.solution().position).norm());
+            }
+        }
+        let refused = |o: &Outcome| *o == Outcome::Rejected;
+        assert!(velocity[..RUN - 1].iter().all(refused), "{velocity:?}");
+        assert_eq!(velocity[RUN - 1], Outcome::Reset);
+        assert!(position[..RUN].iter().all(refused), "{position:?}");
+        assert_eq!(position[RUN], Outcome::Reset, "{position:?}");
+        assert!(position[RUN + 1..].iter().all(|&o| o == Outcome::Accepted));
+        assert!(velocity[RUN + 1..].iter().all(|&o| o == Outcome::Accepted));
+        // 5 m off when the position resets (21 × 0.25 s at 1 m/s), on the
+        // fixes after it.
+        assert!(errors[RUN - 1] > 5.0, "{}", errors[RUN - 1]);
+        let worst = errors[RUN..].iter().fold(0.0_f64, |a, &b| a.max(b));
+        assert!(worst < 0.03, "{worst}");
+    }
+
+    /// The covariance after a reset: symmetric, positive semi-definite, the
+    /// reset block (1 + margin) R, no correlation of the reset states with
+    /// any other state; the other states' block untouched. The state moves
+    /// so that H x = z.
+    #[test]
+    fn a_reset_decorrelates_the_states_and_keeps_p_symmetric_psd() {
+        let (mut filter, _, _) = drive_with_step(None, 20, 100, Vec3::zeros());
+        assert!(filter.set_recovery(Some(RecoveryConfig {
+            margin: 0.5,
+            ..recovery(RUN)
+        })));
+        let before = *filter.kf.covariance();
+        // Correlated beforehand: position with attitude and velocity.
+        assert!(before[(POSITION, VELOCITY)].abs() > 1e-9);
+        assert!(before[(POSITION, ATTITUDE + 2)].abs() > 1e-12);
+        let (antenna, _) = filter.antenna();
+        let fix = antenna.offset_by(&Vec3::new(3.0, -4.0, 1.0));
+        let sigma = Vector3::new(0.3, 0.4, 0.5);
+        let z = fix.ned_to(&antenna).raw();
+        let h = NedErrorModel::position_measurement(
+            &(filter.state().attitude.matrix() * filter.lever_arm).raw(),
+        );
+        let r = Matrix3::from_diagonal(&sigma.map(|v| v * v));
+        filter.flush_covariance().unwrap();
+        filter.reset_stream(Stream::Position, &z, &h, &r).unwrap();
+        let x = *filter.kf.state();
+        assert!((h * x - z).norm() < 1e-12);
+        let p = *filter.kf.covariance();
+        assert_eq!(p, p.transpose());
+        let eig = p.symmetric_eigenvalues();
+        assert!(eig.min() >= -1e-15 * eig.max(), "{}", eig.min());
+        for i in POSITION..POSITION + 3 {
+            for j in 0..STATES {
+                let expected = if (POSITION..POSITION + 3).contains(&j) {
+                    1.5 * r[(i - POSITION, j - POSITION)]
+                } else {
+                    0.0
+                };
+                assert_eq!(p[(i, j)], expected, "({i}, {j})");
+            }
+        }
+        for i in VELOCITY..STATES {
+            for j in VELOCITY..STATES {
+                assert_eq!(p[(i, j)], before[(i, j)]);
+            }
+        }
+        // Fed back, the antenna is on the fix (to the first-order geodetic
+        // offsets).
+        filter.feedback().unwrap();
+        let off = fix.ned_to(&filter.antenna().0).norm();
+        assert!(off < 1e-4, "{off}");
+        // The velocity reset does the same to its block, and keeps the
+        // position block it does not measure.
+        let v_fix = filter.antenna().1 + Vec3::new(0.5, 0.0, 0.0);
+        filter
+            .reset_velocity_to(&v_fix, &Vector3::repeat(0.1))
+            .unwrap();
+        let p = *filter.kf.covariance();
+        assert!((p[(POSITION, POSITION)] - 1.5 * 0.09).abs() < 1e-15);
+        assert!((p[(VELOCITY, VELOCITY)] - 1.5 * 0.01).abs() < 1e-15);
+        assert_eq!(p[(POSITION, VELOCITY)], 0.0);
+        assert!((filter.antenna().1 - v_fix).norm() < 1e-9);
     }
 
     #[test]

@@ -30,6 +30,8 @@ pub struct ProcessReport {
     /// RMS 3-D error of the RTS-smoothed antenna positions over the
     /// reference epochs (null: not smoothed, or no reference).
     pub tracking_smoothed_rms_m: Option<Option<f64>>,
+    /// The recovery's resets in the clean run (see `gnss.recovery`).
+    pub recovery: RecoveryReport,
     /// Time after the first fix at which spec 10's rule (δ non-increasing
     /// 15 s, then ≤ threshold) declares the instruments converged, for
     /// δ_thr = 3 % and 1 % (None: never).
@@ -66,6 +68,11 @@ pub struct ProcessReport {
     /// 30 s outages and a burst after each; and the same without bursts
     /// (null: no reference or the run failed).
     pub post_outage_bursts: Vec<(crate::process::PolicyName, Option<f64>, Option<f64>)>,
+    /// Resets of the recovery in each run of `anomalies` (same order).
+    pub anomaly_resets: Vec<usize>,
+    /// Resets of the recovery in the runs of `post_outage_bursts` (same
+    /// order): with bursts, without.
+    pub burst_resets: Vec<[usize; 2]>,
     /// Every warning of the run, its scoring and its outputs: `kind`
     /// (`input`, `divergence`, `rejection_run`, `levelling_while_moving`,
     /// `implausible_units`, `scoring_run`, `output`), `message`, and the
@@ -92,6 +99,15 @@ impl ProcessReport {
     pub fn strict_failures(&self) -> impl Iterator<Item = &Warning> {
         self.warnings.iter().filter(|w| w.kind.fails_strict())
     }
+}
+
+/// The recovery's resets of one run (`summary.json`'s `result.recovery`).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct RecoveryReport {
+    /// Resets.
+    pub resets: usize,
+    /// Each reset: its fix's time and GNSS index, and what it reset.
+    pub events: Vec<crate::process::ResetEvent>,
 }
 
 /// Run `aidnav process CONFIG.toml`: read the log named in the
@@ -192,6 +208,10 @@ impl ProcessReport {
             outcomes: result.outcomes,
             start: result.start,
             standstill_updates: result.standstill_updates,
+            recovery: RecoveryReport {
+                resets: result.resets.len(),
+                events: result.resets,
+            },
             tracking_smoothed_rms_m: result.tracking_smoothed_rms_m,
             instrument_convergence_s: result.instrument_convergence_s,
             outages: scores.outages,
@@ -209,6 +229,8 @@ impl ProcessReport {
             anomalies: scores.anomalies,
             post_outage_bursts: scores.post_outage_bursts,
             tuning: None,
+            anomaly_resets: scores.anomaly_resets,
+            burst_resets: scores.burst_resets,
             warnings: result.warnings.into_iter().chain(scores.warnings).collect(),
             timing_s,
             files,

@@ -8,7 +8,7 @@ use aidnav_frames::earth::Geodetic;
 
 use super::config::{PolicyName, ProcessConfig};
 use super::consistency::{NisConsistency, nis_consistency};
-use super::run::{Epoch, RunPlan, SolutionRow, run_filter_rows};
+use super::run::{Epoch, ResetEvent, RunPlan, SolutionRow, reset_events, run_filter_rows};
 use super::score::{convergence_times, reference_epochs, tracking_rms};
 use super::scoring::{Scores, score_log};
 use super::tune::{TuneResult, tune};
@@ -89,6 +89,8 @@ pub struct ProcessResult {
     pub first_fix_time_s: f64,
     /// Updates by outcome, in order of first appearance.
     pub outcomes: Vec<(String, usize)>,
+    /// The recovery's resets of the filter to a fix, in time order.
+    pub resets: Vec<ResetEvent>,
     /// Epochs whose fix is a reference (`score.reference_quality`).
     pub reference_epochs: usize,
     /// RMS 3-D antenna error over the reference epochs \[m\] (None: no
@@ -248,6 +250,7 @@ impl Process {
             gnss_epochs: inputs.gnss.len(),
             policy: cfg.gnss.policy,
             outcomes: outcomes(&epochs),
+            resets: reset_events(&epochs),
             reference_epochs: reference_epochs(&epochs, reference),
             tracking_rms_m: tracking_rms(&epochs, reference),
             tracking_smoothed_rms_m: (!smoothed.is_empty())

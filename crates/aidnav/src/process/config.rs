@@ -282,17 +282,30 @@ pub struct GnssConfig {
     pub quality_sigma_scale: QualitySigmaScale,
     /// Measurement policy of the GNSS updates (main run and outage scores):
     /// `accept`, `chi2_gate`, `recovering_gate`, `huber`, `rejection` or
-    /// `limiting` (spec 20's detector with rejection or limiting). Default `accept`
-    /// (as KF-GINS). Choose `huber` when the stream may hold outliers: on the
-    /// recorded drive it costs about 1 cm on clean data and keeps 5–50 m
-    /// outliers on 30 % of the epochs to 8 cm (the anomaly table). Also
+    /// `limiting` (spec 20's detector with rejection or limiting),
     /// `adaptive_gain` (spec 20 eq. 4), `limited_adaptive_gain` (eq. 4 + 5 +
-    /// 8) and `developed` (eq. 9: limiting with the eq. 3 adaptive noise,
-    /// guarded by the detector).
+    /// 8), `developed` (eq. 9: limiting with the eq. 3 adaptive noise,
+    /// guarded by the detector) or `robust`.
+    ///
+    /// Default `robust`: spec 20's developed update (eq. 5 detector, eq. 8
+    /// limiting, eq. 3 innovation-feedback noise guarded by the detector)
+    /// that *rejects* instead of limiting while a stream is re-acquired
+    /// after a gap, until one fix passes the detector; with the `recovery`
+    /// below. Why: a receiver's stream may carry outliers at any time and
+    /// bursts when it comes back after an outage. While the stream flows,
+    /// limiting bounds an outlier's pull to the gain times the gate radius
+    /// (centimetres with RTK) and keeps correcting a filter that a skipped
+    /// fix let drift past the gate — on the recorded drive the filter is
+    /// optimistic (clean fixes have a mean NIS of 8, not 3), and every
+    /// policy that rejects there locks out in manoeuvres. After a gap the
+    /// gate radius is the dead-reckoning uncertainty (metres), so limiting
+    /// would drag the solution towards a burst: there it rejects. The
+    /// recovery ends any lock-out by design. `accept` is KF-GINS's choice
+    /// (no protection).
     pub policy: PolicyName,
     /// Anomaly level γ of spec 20's detector (eq. 5: νᵀν > γ tr S) in
-    /// `rejection`, `limiting`, `limited_adaptive_gain`, `developed` and the
-    /// adaptive noise's guard. Default 9.
+    /// `rejection`, `limiting`, `limited_adaptive_gain`, `developed`,
+    /// `robust` and the adaptive noise's guard. Default 9.
     pub anomaly_gamma: f64,
     /// Innovations in eq. 4's sliding window (`adaptive_gain`,
     /// `limited_adaptive_gain`). Default 20 (5 s at 4 Hz).
@@ -301,6 +314,33 @@ pub struct GnssConfig {
     /// the floors) × this: the receiver's σ may be optimistic or
     /// pessimistic as a whole (`aidnav tune` fits it). Default 1.
     pub sigma_scale: f64,
+    /// Never lock out: when `recovery_fixes` refused (rejected or limited)
+    /// fixes in a run agree with each other — the change between them
+    /// matches the change the filter predicts, within the χ²(3) quantile of
+    /// `recovery_probability`, or, when the filter has diverged and its
+    /// prediction is off, drifts from it at a common rate (then one fix
+    /// more is needed) — the position (and, from the same fix, the
+    /// velocity) is reset to the latest of them, as PX4 EKF2 and ArduPilot
+    /// EKF3 reset to GNSS after a timeout; a refused velocity stream resets
+    /// the velocity alone. Each reset is an outcome `reset` in solution.csv
+    /// and is listed in summary.json. Applies to every policy that refuses
+    /// fixes (`chi2_gate`, `recovering_gate`, `rejection`, `limiting`,
+    /// `limited_adaptive_gain`, `developed`, `robust`). Default true.
+    pub recovery: bool,
+    /// Refused fixes that must agree in a run before a reset (≥ 2).
+    /// Default 21: one more than the longest short burst of spec 20 (2–20
+    /// epochs), so a short burst is ridden out and never reset to; 5.25 s
+    /// at 4 Hz (PX4 EKF2 resets after 7 s without a fused fix, ArduPilot
+    /// EKF3 after its 10 s GPS retry time).
+    pub recovery_fixes: usize,
+    /// Probability of the χ²(3) quantile of the pairwise agreement test, in
+    /// (0, 1). Default 0.999 (a genuine 21-fix run breaks with probability
+    /// about 2 %).
+    pub recovery_probability: f64,
+    /// The covariance of a reset position (velocity) is `(1 +
+    /// recovery_margin) R` of the fix (≥ 0). Default 1: the variance
+    /// doubled, since the fix the filter resets to is one it had refused.
+    pub recovery_margin: f64,
 }
 
 /// Vehicle constraints.
@@ -412,8 +452,8 @@ impl Platform {
 }
 
 /// Standstill detection: a window of IMU samples whose every axis varies
-/// less than the thresholds, while the speed (the latest GNSS fix's within
-/// a second, else the filter's own) is below `max_speed_mps`. It chooses
+/// less than the thresholds, while the GNSS speed (a fix within the last
+/// second; none in an outage) is below `max_speed_mps`. It chooses
 /// levelling at rest over an alignment in motion and drives the
 /// zero-velocity updates.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -487,10 +527,14 @@ impl Default for GnssConfig {
             min_position_sigma_m: 0.01,
             min_velocity_sigma_mps: 0.02,
             quality_sigma_scale: QualitySigmaScale::default(),
-            policy: PolicyName::Accept,
+            policy: PolicyName::Robust,
             anomaly_gamma: 9.0,
             adaptive_window: 20,
             sigma_scale: 1.0,
+            recovery: true,
+            recovery_fixes: 21,
+            recovery_probability: 0.999,
+            recovery_margin: 1.0,
         }
     }
 }
@@ -900,6 +944,20 @@ impl GnssConfig {
             anomaly_gamma: self.anomaly_gamma,
             adaptive_window: self.adaptive_window,
         }
+    }
+}
+
+impl GnssConfig {
+    /// The filter's reset recovery (None when `recovery` is off).
+    pub fn recovery_config(&self) -> Option<aidnav_integration::ned::RecoveryConfig> {
+        self.recovery
+            .then_some(aidnav_integration::ned::RecoveryConfig {
+                agreement: aidnav_estimation::recovery::AgreementConfig {
+                    run_length: self.recovery_fixes,
+                    probability: self.recovery_probability,
+                },
+                margin: self.recovery_margin,
+            })
     }
 }
 

@@ -194,7 +194,8 @@ pub fn write_summary(
 }
 
 /// Write `solution.csv`: per GNSS epoch the antenna position, NED velocity,
-/// attitude, σ, NIS, δ(n), K_eff, innovation and update outcome; merged in
+/// attitude, σ, NIS, δ(n), K_eff, innovation and update outcome (4: the
+/// recovery reset the filter to the fix); merged in
 /// time order with the rows `between` the epochs (NaN where a column needs
 /// a fix, outcome 0).
 pub fn write_solution(
@@ -232,6 +233,7 @@ pub fn write_solution(
             Some(Outcome::Accepted) => 1.0,
             Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
             Some(Outcome::Rejected) => 3.0,
+            Some(Outcome::Reset) => 4.0,
             _ => 0.0,
         });
         row
@@ -275,7 +277,7 @@ pub fn write_solution(
             "innovation_n [m]",
             "innovation_e [m]",
             "innovation_d [m]",
-            "outcome (1 accepted, 2 limited, 3 rejected, 0 no fix)",
+            "outcome (1 accepted, 2 limited, 3 rejected, 4 reset to the fix, 0 no fix)",
         ],
         rows,
     )

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use super::config::{BRIDGE_PREDICTORS, PolicyName};
 use super::consistency::{OutageConsistency, outage_consistency};
-use super::run::{Epoch, RunPlan, run_filter};
+use super::run::{Epoch, RunPlan, reset_events, run_filter};
 use super::score::{
     EfficiencyScore, OutageScore, bridged_epochs, efficiency_in_windows, inject_outliers,
     is_reference, outage_windows, post_outage_bursts, score_windows, tracking_rms,
@@ -68,6 +68,11 @@ pub struct Scores {
     /// 30 s outages and a burst after each; and the same without bursts
     /// (None: no reference, NaN: the run failed).
     pub post_outage_bursts: Vec<(PolicyName, Option<f64>, Option<f64>)>,
+    /// Resets of the recovery in each run of `anomalies` (same order).
+    pub anomaly_resets: Vec<usize>,
+    /// Resets of the recovery in the runs of `post_outage_bursts` (same
+    /// order): with bursts, without.
+    pub burst_resets: Vec<[usize; 2]>,
     /// The coasting filter's drift per outage length.
     pub drift: Vec<DriftSeries>,
     /// Runs that failed (their score is NaN), and why (kind `scoring_run`).
@@ -94,8 +99,18 @@ pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, Process
             Some(f64::NAN)
         })
     };
-    scores.anomalies = anomaly_scores(cfg, inputs, &scored_or_nan);
-    scores.post_outage_bursts = burst_scores(cfg, inputs, &scored_or_nan);
+    let anomalies = anomaly_scores(cfg, inputs, &scored_or_nan);
+    scores.anomaly_resets = anomalies.iter().map(|a| a.3).collect();
+    scores.anomalies = anomalies
+        .into_iter()
+        .map(|(f, p, rms, _)| (f, p, rms))
+        .collect();
+    let bursts = burst_scores(cfg, inputs, &scored_or_nan);
+    scores.burst_resets = bursts.iter().map(|b| [b.1.1, b.2.1]).collect();
+    scores.post_outage_bursts = bursts
+        .into_iter()
+        .map(|(p, burst, clean)| (p, burst.0, clean.0))
+        .collect();
     scores.warnings = failures
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -213,12 +228,15 @@ fn outage_scores(
     Ok(())
 }
 
-/// Injected outliers under every policy: (fraction, policy, RMS).
+/// A run's RMS and its recovery resets (NaN and 0 when it failed).
+type RmsResets = (Option<f64>, usize);
+
+/// Injected outliers under every policy: (fraction, policy, RMS, resets).
 fn anomaly_scores(
     cfg: &ProcessConfig,
     inputs: &Inputs,
     scored_or_nan: &ScoredOrNan<'_>,
-) -> Vec<(f64, PolicyName, Option<f64>)> {
+) -> Vec<(f64, PolicyName, Option<f64>, usize)> {
     let policies = PolicyName::ALL;
     let mut cases: Vec<(f64, PolicyName)> = policies.iter().map(|&p| (0.0, p)).collect();
     for &f in &cfg.score.outlier_fractions {
@@ -236,20 +254,33 @@ fn anomaly_scores(
                 ),
                 ..RunPlan::default()
             };
-            let run = run_filter(cfg, inputs, &plan, p)
-                .map(|epochs| tracking_rms(&epochs, &cfg.score.reference_quality));
+            let (run, resets) = rms_and_resets(run_filter(cfg, inputs, &plan, p), |e| {
+                tracking_rms(e, &cfg.score.reference_quality)
+            });
             let what = format!("{:.0} % outliers, {}", 100.0 * f, p.name());
-            (f, p, scored_or_nan(what, run))
+            (f, p, scored_or_nan(what, run), resets)
         })
         .collect()
 }
 
-/// 30 s outages with a burst after each, and without, under every policy.
+/// A run's score by `score` and its count of recovery resets (0 when it failed).
+fn rms_and_resets(
+    run: Result<Vec<Epoch>, ProcessError>,
+    score: impl Fn(&[Epoch]) -> Option<f64>,
+) -> (Result<Option<f64>, ProcessError>, usize) {
+    match run {
+        Ok(epochs) => (Ok(score(&epochs)), reset_events(&epochs).len()),
+        Err(e) => (Err(e), 0),
+    }
+}
+
+/// 30 s outages with a burst after each, and without, under every policy:
+/// (policy, (RMS, resets) with bursts, without).
 fn burst_scores(
     cfg: &ProcessConfig,
     inputs: &Inputs,
     scored_or_nan: &ScoredOrNan<'_>,
-) -> Vec<(PolicyName, Option<f64>, Option<f64>)> {
+) -> Vec<(PolicyName, RmsResets, RmsResets)> {
     // (Written so that a NaN length scores nothing, as `> 0` is false.)
     let scheduled = cfg.score.post_outage_burst_s > 0.0;
     if !scheduled {
@@ -274,9 +305,13 @@ fn burst_scores(
                     outliers,
                     ..RunPlan::default()
                 };
-                let run = run_filter(cfg, inputs, &plan, p)
-                    .map(|e| tracking_rms_with_gnss(&e, &cfg.score.reference_quality));
-                scored_or_nan(format!("30 s outages {what}, {}", p.name()), run)
+                let (run, resets) = rms_and_resets(run_filter(cfg, inputs, &plan, p), |e| {
+                    tracking_rms_with_gnss(e, &cfg.score.reference_quality)
+                });
+                (
+                    scored_or_nan(format!("30 s outages {what}, {}", p.name()), run),
+                    resets,
+                )
             };
             (
                 p,

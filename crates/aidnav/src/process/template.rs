@@ -168,7 +168,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("standstill.window_s", "window of the IMU statistics [s]"),
     (
         "standstill.max_speed_mps",
-        "largest speed of a standstill (GNSS within 1 s, else the filter's) [m/s]",
+        "largest GNSS speed of a standstill (a fix within 1 s; none in an outage) [m/s]",
     ),
     (
         "standstill.max_accel_std_mps2",

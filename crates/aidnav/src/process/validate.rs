@@ -261,6 +261,17 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
     in_range("anomaly_gamma", cfg.gnss.anomaly_gamma, 1.0, 1e4).map_err(|e| e.within("gnss"))?;
     count_in_range("adaptive_window", cfg.gnss.adaptive_window, 1, 10_000)
         .map_err(|e| e.within("gnss"))?;
+    count_in_range("recovery_fixes", cfg.gnss.recovery_fixes, 2, 100_000)
+        .map_err(|e| e.within("gnss"))?;
+    in_range(
+        "recovery_probability",
+        cfg.gnss.recovery_probability,
+        1e-9,
+        1.0 - 1e-12,
+    )
+    .map_err(|e| e.within("gnss"))?;
+    in_range("recovery_margin", cfg.gnss.recovery_margin, 0.0, 1e6)
+        .map_err(|e| e.within("gnss"))?;
     count_in_range(
         "adaptive_noise_window",
         cfg.filter.adaptive_noise_window,
