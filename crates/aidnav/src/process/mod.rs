@@ -248,7 +248,7 @@ const TURN_RATIO_RANGE: std::ops::RangeInclusive<f64> = 0.2..=5.0;
 /// mounting): over consecutive fixes above 1 m/s, the yaw change the gyro
 /// integrates about the mean specific-force axis (vertical when the
 /// vehicle does not accelerate much) against the change of the GNSS
-/// course; the least-squares ratio must lie in [`TURN_RATIO_RANGE`]. An
+/// course; the least-squares ratio must lie in 0.2 … 5 (`TURN_RATIO_RANGE`). An
 /// error gives the evidence (intervals, total turns, ratio) and the likely
 /// unit mistake; a log with too little turning is not judged. Returns the
 /// ratio when it was judged.
