@@ -113,7 +113,23 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ),
     (
         "gnss.policy",
-        "accept | chi2_gate | recovering_gate | huber | rejection | limiting | adaptive_gain | limited_adaptive_gain | developed",
+        "robust | accept | chi2_gate | recovering_gate | huber | rejection | limiting | adaptive_gain | limited_adaptive_gain | developed",
+    ),
+    (
+        "gnss.recovery",
+        "never lock out: reset position and velocity to an agreeing run of refused fixes",
+    ),
+    (
+        "gnss.recovery_fixes",
+        "refused fixes that must agree before a reset",
+    ),
+    (
+        "gnss.recovery_probability",
+        "χ²(3) probability of the pairwise agreement test",
+    ),
+    (
+        "gnss.recovery_margin",
+        "a reset state's covariance is (1 + margin) R of the fix",
     ),
     (
         "gnss.anomaly_gamma",
