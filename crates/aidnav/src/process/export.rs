@@ -205,21 +205,15 @@ pub fn write_solution(
 ) -> Result<Vec<String>, IoError> {
     let navigation = |row: &SolutionRow| {
         let (r, p, y) = row.attitude.euler_angles();
-        let mut v = vec![
-            row.time_s,
-            row.antenna.latitude_rad.to_degrees(),
-            row.antenna.longitude_rad.to_degrees(),
-            row.antenna.height_m,
-            row.imu.latitude_rad.to_degrees(),
-            row.imu.longitude_rad.to_degrees(),
-            row.imu.height_m,
+        let mut v = time_and_positions(row.time_s, &row.antenna, &row.imu);
+        v.extend([
             row.velocity.x(),
             row.velocity.y(),
             row.velocity.z(),
             r.to_degrees(),
             p.to_degrees(),
             y.to_degrees(),
-        ];
+        ]);
         v.extend(row.sigma.iter());
         v.extend(row.sigma_velocity.iter());
         v.extend(row.sigma_attitude.iter().map(|a| a.to_degrees()));
@@ -246,16 +240,10 @@ pub fn write_solution(
         row
     });
     let rows = merge_in_time(epoch_rows, other_rows, |row| row[0]);
-    write_table_noting_infinities(
-        path,
-        &[
-            "time [s GPST since 1970]",
-            "antenna latitude [deg]",
-            "antenna longitude [deg]",
-            "antenna height [m]",
-            "imu latitude [deg]",
-            "imu longitude [deg]",
-            "imu height [m]",
+    let header: Vec<&str> = POSITION_COLUMNS
+        .iter()
+        .copied()
+        .chain([
             "vn [m/s]",
             "ve [m/s]",
             "vd [m/s]",
@@ -278,9 +266,9 @@ pub fn write_solution(
             "innovation_e [m]",
             "innovation_d [m]",
             "outcome (1 accepted, 2 limited, 3 rejected, 4 reset to the fix, 0 no fix)",
-        ],
-        rows,
-    )
+        ])
+        .collect();
+    write_table_noting_infinities(path, &header, rows)
 }
 
 /// Write `navresult.txt` in KF-GINS's layout: the GNSS epochs and the rows
@@ -323,27 +311,35 @@ pub fn write_navresult(
 pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<Vec<String>, IoError> {
     write_table_noting_infinities(
         path,
-        &[
-            "time [s GPST since 1970]",
-            "antenna latitude [deg]",
-            "antenna longitude [deg]",
-            "antenna height [m]",
-            "imu latitude [deg]",
-            "imu longitude [deg]",
-            "imu height [m]",
-        ],
-        smoothed.iter().map(|e| {
-            vec![
-                e.time_s(),
-                e.antenna.latitude_rad.to_degrees(),
-                e.antenna.longitude_rad.to_degrees(),
-                e.antenna.height_m,
-                e.imu_position.latitude_rad.to_degrees(),
-                e.imu_position.longitude_rad.to_degrees(),
-                e.imu_position.height_m,
-            ]
-        }),
+        &POSITION_COLUMNS,
+        smoothed
+            .iter()
+            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position)),
     )
+}
+
+/// The first columns of `solution.csv` and `smoothed.csv`.
+const POSITION_COLUMNS: [&str; 7] = [
+    "time [s GPST since 1970]",
+    "antenna latitude [deg]",
+    "antenna longitude [deg]",
+    "antenna height [m]",
+    "imu latitude [deg]",
+    "imu longitude [deg]",
+    "imu height [m]",
+];
+
+/// The values of [`POSITION_COLUMNS`].
+fn time_and_positions(time_s: f64, antenna: &Geodetic, imu: &Geodetic) -> Vec<f64> {
+    vec![
+        time_s,
+        antenna.latitude_rad.to_degrees(),
+        antenna.longitude_rad.to_degrees(),
+        antenna.height_m,
+        imu.latitude_rad.to_degrees(),
+        imu.longitude_rad.to_degrees(),
+        imu.height_m,
+    ]
 }
 
 /// Write `instruments.csv`: the instrument corrections after every epoch.
