@@ -118,8 +118,8 @@ enum Command {
     /// also allan.svg, allan.csv, tuned_noise.toml) and runs with the
     /// fitted values.
     Process(ProcessArgs),
-    /// Tune the IMU noise terms and the GNSS σ scale of a log's
-    /// configuration.
+    /// Tune the IMU noise terms, the GNSS σ scale and the non-holonomic σ
+    /// of a log's configuration.
     ///
     /// Takes `aidnav process`'s configuration. Step 1: the longest
     /// standstill of the log (the `[standstill]` thresholds of the platform
@@ -129,15 +129,23 @@ enum Command {
     /// on the −½ slope at τ ≥ `imu.smoothing_s`, bias instability at the
     /// minimum / 0.664 (an upper bound when the curve still falls at the
     /// longest cluster time). Step 2: from those values or the configured
-    /// ones, whichever have the higher likelihood, factors on ARW, VRW, the two bias
-    /// instabilities and the GNSS σ scale maximise the log-likelihood of
-    /// the GNSS innovations, −½ Σ (ln det S + νᵀ S⁻¹ ν), each evaluation
-    /// one filter pass (Nelder–Mead, at most `tune.max_evaluations` or
-    /// --max-evaluations passes). Prints the Allan table, the fitted values
-    /// and the likelihood gain; writes allan.svg, allan.csv,
-    /// tuned_noise.toml (an [imu.noise] table to paste, gnss.sigma_scale as
-    /// a comment) and summary.json. `[imu.noise] auto = true` makes
-    /// `aidnav process` run this first and use the fitted values.
+    /// ones, whichever have the higher likelihood, factors on ARW, VRW, the
+    /// two bias instabilities, the GNSS σ scale and (with the non-holonomic
+    /// constraint) its σ maximise a log-likelihood, each evaluation one
+    /// filter pass (Nelder–Mead, at most `tune.max_evaluations` or
+    /// --max-evaluations passes). `tune.objective = "coasting"` (default):
+    /// the predictive likelihood of every fix in a pass that withholds
+    /// windows of `tune.outage_s` (default: the longest of
+    /// `score.outages_s`) every `tune.outage_s + tune.gap_s` — the updates'
+    /// innovations, and each withheld fix against the coasting filter's
+    /// position and covariance; it fits a covariance that is honest over an
+    /// outage. `"innovations"`: the GNSS innovations of a pass with every
+    /// fix, −½ Σ (ln det S + νᵀ S⁻¹ ν) (one step ahead only). Prints the
+    /// Allan table, the fitted values and the likelihood gain; writes
+    /// allan.svg, allan.csv, tuned_noise.toml (an [imu.noise] table to
+    /// paste, gnss.sigma_scale and constraints.non_holonomic_sigma_mps as
+    /// comments) and summary.json. `[imu.noise] auto = true` makes `aidnav
+    /// process` run this first and use the fitted values.
     Tune(TuneArgs),
 }
 

@@ -118,8 +118,9 @@ pub(crate) fn print_allan(t: &TuneResult) {
 /// The fitted values and the likelihood gain.
 pub(crate) fn print_fit(t: &TuneResult) {
     println!(
-        "maximum likelihood over the GNSS innovations (accept policy, every fix, {} epochs), from the {} values:",
-        t.updates, t.search_start
+        "maximum {}, from the {} values:",
+        t.objective_text(),
+        t.search_start
     );
     println!(
         "  {:<22} {:>12} {:>26} {:>12} {:>18}",
@@ -139,7 +140,9 @@ pub(crate) fn print_fit(t: &TuneResult) {
             format!("{:.4} ({from})", a[i]),
             f[i],
             format!("×{:.3}", t.factors.get(i).copied().unwrap_or(f64::NAN)),
-            if t.at_bound.contains(name) {
+            if i >= t.searched {
+                "  (not searched: no non-holonomic constraint)"
+            } else if t.at_bound.contains(name) {
                 "  (at the search's edge)"
             } else {
                 ""

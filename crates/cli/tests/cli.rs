@@ -1042,7 +1042,16 @@ fn tune_fits_the_walk_and_its_table_pastes_into_the_configuration() {
     let arw = t["allan"]["arw_deg_per_sqrt_h"].as_f64().unwrap();
     assert!((0.25..0.35).contains(&arw), "ARW {arw}");
     assert_eq!(t["allan"]["axes"].as_array().unwrap().len(), 6);
-    assert_eq!(t["updates"], 515);
+    // The coasting objective: 4 windows of 15 s (the walk's longest scored
+    // outage) withheld; every fix after the first is an update or withheld.
+    assert_eq!(t["objective"], "coasting");
+    assert_eq!(t["windows"].as_array().unwrap().len(), 4);
+    assert_eq!(
+        t["updates"].as_u64().unwrap() + t["withheld"].as_u64().unwrap(),
+        515
+    );
+    assert_eq!(t["withheld"], 240);
+    assert!(stdout.contains("4 windows of 15 s withheld"), "{stdout}");
     assert_eq!(t["passes"], 14);
     let (conf, fitted) = (
         t["log_likelihood_configured"].as_f64().unwrap(),

@@ -237,12 +237,7 @@ impl Process {
             .iter()
             .map(|w| Warning::new(WarningKind::Input, w.clone()))
             .collect();
-        warnings.extend(
-            begin
-                .warnings
-                .iter()
-                .map(|w| Warning::new(WarningKind::Start, w.clone())),
-        );
+        warnings.extend(begin.warnings.iter().cloned());
         warnings.extend(divergence_warnings(&epochs, t0));
         warnings.extend(rejection_run_warnings(&epochs, t0));
         Ok(ProcessResult {

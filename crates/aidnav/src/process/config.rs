@@ -780,6 +780,53 @@ pub struct TuneConfig {
     /// Stop when the log-likelihood over the simplex spans less than this
     /// and every factor is settled to 5 %. Default 0.05.
     pub tolerance: f64,
+    /// What the search maximises: `coasting` (default) or `innovations`;
+    /// see [`TuneObjective`].
+    pub objective: TuneObjective,
+    /// Length of the windows the `coasting` objective withholds \[s\].
+    /// Default: the longest of `score.outages_s` (tune for the outages
+    /// that are scored).
+    pub outage_s: Option<f64>,
+    /// GNSS between two withheld windows \[s\]. Default `score.gap_s`.
+    pub gap_s: Option<f64>,
+}
+
+/// The likelihood the noise search maximises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TuneObjective {
+    /// The GNSS innovations of a pass with every fix: the one-step
+    /// predictions at the GNSS rate. Fits the noise that makes tracking
+    /// consistent; on the recorded logs it coasts worse than the
+    /// configured noise.
+    Innovations,
+    /// The predictive likelihood of every fix in a pass that withholds
+    /// windows of `tune.outage_s` every `tune.outage_s + tune.gap_s`
+    /// (from `score.lead_s` plus half a period on, so they fall between
+    /// the score's windows of the same length): the updates' innovations
+    /// between the windows and, inside them, each withheld fix's position
+    /// against the coasting filter's antenna position and covariance. Fits
+    /// the noise whose covariance is honest over an outage as well as at
+    /// the GNSS rate.
+    Coasting,
+}
+
+impl ProcessConfig {
+    /// `tune.outage_s`, or the longest of `score.outages_s` (None: neither).
+    pub fn tune_outage_s(&self) -> Option<f64> {
+        self.tune.outage_s.or_else(|| {
+            self.score
+                .outages_s
+                .iter()
+                .copied()
+                .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))))
+        })
+    }
+
+    /// `tune.gap_s`, or `score.gap_s`.
+    pub fn tune_gap_s(&self) -> f64 {
+        self.tune.gap_s.unwrap_or(self.score.gap_s)
+    }
 }
 
 impl Default for TuneConfig {
@@ -790,6 +837,9 @@ impl Default for TuneConfig {
             max_factor: 100.0,
             initial_factor: 2.0,
             tolerance: 0.05,
+            objective: TuneObjective::Coasting,
+            outage_s: None,
+            gap_s: None,
         }
     }
 }
@@ -924,6 +974,8 @@ impl ProcessConfig {
                 .max_gyro_std_deg_s
                 .unwrap_or(p.standstill_gyro_std_deg_s),
         );
+        c.tune.outage_s = self.tune_outage_s();
+        c.tune.gap_s = Some(self.tune_gap_s());
         c
     }
 }

@@ -340,6 +340,15 @@ fn inflate_by_quality(fixes: &mut [AidingFix], scale: &QualitySigmaScale, sigma_
     }
 }
 
+/// σ (north, east, up) of a fix's position as a position update takes it:
+/// × its quality's factor, at least `gnss.min_position_sigma_m`, ×
+/// `gnss.sigma_scale` (as the run scales the fixes and the loop floors them).
+pub fn fix_position_sigma(cfg: &ProcessConfig, fix: &GnssFix) -> Vector3<f64> {
+    let k = cfg.gnss.quality_sigma_scale.factor(fix.quality);
+    fix.position_sigma_neu
+        .map(|v| (v * k).max(cfg.gnss.min_position_sigma_m) * cfg.gnss.sigma_scale)
+}
+
 /// Whether a run under `plan` keeps the forward pass for the smoother.
 fn smoothing(cfg: &ProcessConfig, plan: &RunPlan) -> bool {
     plan.smooth && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed

@@ -302,6 +302,18 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "stop when the log-likelihood over the simplex spans less than this",
     ),
     (
+        "tune.objective",
+        "coasting (every fix's predictive likelihood, windows withheld) | innovations (one step, every fix)",
+    ),
+    (
+        "tune.outage_s",
+        "windows the coasting objective withholds [s] (default: the longest of score.outages_s)",
+    ),
+    (
+        "tune.gap_s",
+        "GNSS between two withheld windows [s] (default: score.gap_s)",
+    ),
+    (
         "output.smooth",
         "also the RTS-smoothed solution and its scores",
     ),

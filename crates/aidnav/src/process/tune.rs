@@ -25,22 +25,33 @@
 //!    where the Allan deviation says nothing) or the configured values,
 //!    whichever have the higher likelihood (a noise measured at rest can be
 //!    far below what a moving platform needs), log-scale factors on
-//!    ARW, VRW, the gyro and accelerometer bias instabilities and the GNSS σ
-//!    scale maximise the innovation log-likelihood
-//!    `Σ −½ (m ln 2π + ln det S + νᵀ S⁻¹ ν)` of the GNSS updates (position
-//!    and velocity, every fix, the accept policy, no adaptive noise) over
-//!    one filter pass per evaluation (smoothed inputs, as `process` filters
-//!    them; no smoother, no scoring). Nelder–Mead in the box
-//!    [1/`max_factor`, `max_factor`] around the start
+//!    ARW, VRW, the gyro and accelerometer bias instabilities, the GNSS σ
+//!    scale and — with the non-holonomic constraint — its σ
+//!    ([`PARAMETERS`]) maximise a log-likelihood over one filter pass per
+//!    evaluation (smoothed inputs, as `process` filters them; the accept
+//!    policy, no adaptive noise, no smoother, no scoring). Nelder–Mead in
+//!    the box [1/`max_factor`, `max_factor`] around the start
 //!    ([`aidnav_estimation::optimise`]), at most `tune.max_evaluations`
 //!    passes; the initial simplex and shrinks run in parallel (rayon), and
 //!    the result does not depend on the thread count.
 //!
-//! The likelihood judges the filter's one-step predictions at the GNSS
-//! rate, so it fits the noise that makes those predictions consistent — not
-//! necessarily the noise that coasts best through an outage; compare with
-//! the outage scores of `aidnav process` (on the recorded drive and walk the
-//! fitted noise tracks better and coasts worse: see the README).
+//! The likelihood ([`log_likelihood`], `tune.objective`):
+//!
+//! - `coasting` (default): the pass withholds the windows of
+//!   [`tuning_windows`]; the likelihood is that of every fix as the filter
+//!   predicted it — the updates' innovations
+//!   `−½ (m ln 2π + ln det S + νᵀ S⁻¹ ν)` between the windows, and inside
+//!   them each withheld fix's position against the coasting filter's
+//!   antenna position with covariance `P_antenna + R_fix`. A filter whose
+//!   covariance grows too slowly over an outage (or too fast) loses
+//!   likelihood there, so the fit is the noise whose covariance is honest
+//!   over the outages the log is scored on as well as at the GNSS rate.
+//! - `innovations`: every fix is an update; the one-step predictions at the
+//!   GNSS rate alone. On the recorded drive and walk the noise it fits
+//!   tracks better and coasts worse (see the README).
+//!
+//! The tuning windows and the scored windows lie in the same log: scores of
+//! a configuration tuned on its own log are in-sample.
 
 use std::time::Instant;
 
@@ -51,11 +62,12 @@ use aidnav_estimation::optimise::{NelderMeadOptions, nelder_mead};
 use aidnav_ins::standstill::{StandstillThresholds, still_stretches};
 use aidnav_io::rtklib::{GnssFix, ImuSample};
 use aidnav_models::ned_ins::{ImuNoise, PerAxis};
+use nalgebra::{Cholesky, Matrix3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::config::{AdaptiveNoise, PolicyName, ProcessConfig};
-use super::run::{RunPlan, run_filter};
+use super::config::{AdaptiveNoise, PolicyName, ProcessConfig, TuneObjective};
+use super::run::{RunPlan, fix_position_sigma, run_filter};
 use super::{Inputs, ProcessError};
 
 /// Standard gravity, the unit of `accel_bias_mg` (as
@@ -63,13 +75,28 @@ use super::{Inputs, ProcessError};
 const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
 
 /// The fitted parameters, in the order of the search's coordinates.
-pub const PARAMETERS: [&str; 5] = [
+/// The last, `constraints.non_holonomic_sigma_mps`, only when the
+/// configuration applies the non-holonomic constraint (it is part of the
+/// model the likelihood judges: a car's lateral and vertical velocity are
+/// not exactly zero).
+pub const PARAMETERS: [&str; 6] = [
     "arw_deg_per_sqrt_h",
     "vrw_mps_per_sqrt_h",
     "gyro_bias_deg_per_h",
     "accel_bias_mg",
     "gnss_sigma_scale",
+    "non_holonomic_sigma_mps",
 ];
+
+/// How many of [`PARAMETERS`] a tuning of `cfg` searches: the last only
+/// with the non-holonomic constraint.
+pub fn searched_parameters(cfg: &ProcessConfig) -> usize {
+    if cfg.non_holonomic() {
+        PARAMETERS.len()
+    } else {
+        PARAMETERS.len() - 1
+    }
+}
 
 /// The six IMU axes of the Allan deviation, body frame.
 pub const AXES: [&str; 6] = [
@@ -349,20 +376,38 @@ pub fn imu_allan(
     })
 }
 
-/// The noise terms and the GNSS σ scale of a filter.
+/// The noise terms, the GNSS σ scale and the non-holonomic σ of a filter.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct NoiseValues {
     /// The `[imu.noise]` terms.
     pub noise: ImuNoise,
     /// `gnss.sigma_scale`.
     pub gnss_sigma_scale: f64,
+    /// `constraints.non_holonomic_sigma_mps`.
+    pub non_holonomic_sigma_mps: f64,
 }
 
 impl NoiseValues {
-    /// The five fitted values in the order of [`PARAMETERS`].
-    pub fn parameters(&self) -> [f64; 5] {
+    /// The values of `cfg`.
+    pub fn of(cfg: &ProcessConfig) -> Self {
+        Self {
+            noise: cfg.imu.noise.values,
+            gnss_sigma_scale: cfg.gnss.sigma_scale,
+            non_holonomic_sigma_mps: cfg.constraints.non_holonomic_sigma_mps,
+        }
+    }
+
+    /// The six values in the order of [`PARAMETERS`].
+    pub fn parameters(&self) -> [f64; 6] {
         let [a, b, c, d] = noise_scalars(&self.noise);
-        [a, b, c, d, self.gnss_sigma_scale]
+        [
+            a,
+            b,
+            c,
+            d,
+            self.gnss_sigma_scale,
+            self.non_holonomic_sigma_mps,
+        ]
     }
 
     /// These values × `factors` (order of [`PARAMETERS`]).
@@ -371,6 +416,7 @@ impl NoiseValues {
         Self {
             noise: scale_noise(&self.noise, [k(0), k(1), k(2), k(3)]),
             gnss_sigma_scale: self.gnss_sigma_scale * k(4),
+            non_holonomic_sigma_mps: self.non_holonomic_sigma_mps * k(5),
         }
     }
 
@@ -378,38 +424,104 @@ impl NoiseValues {
     pub fn apply_to(&self, cfg: &mut ProcessConfig) {
         cfg.imu.noise.values = self.noise;
         cfg.gnss.sigma_scale = self.gnss_sigma_scale;
+        cfg.constraints.non_holonomic_sigma_mps = self.non_holonomic_sigma_mps;
     }
 }
 
-/// The log-likelihood of a filter pass's GNSS updates.
+/// The log-likelihood of a filter pass's GNSS fixes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Likelihood {
-    /// Σ over the updates of ln p(ν) (position and velocity).
+    /// Σ over the terms of ln p: the updates' innovations (position and
+    /// velocity) and the withheld fixes' positions.
     pub total: f64,
     /// GNSS epochs with an update.
     pub updates: usize,
+    /// Withheld fixes whose position was predicted.
+    pub withheld: usize,
 }
 
-/// The log-likelihood of the GNSS innovations of one filter pass over
-/// `inputs` (ready to filter: smoothed as configured) under `cfg` with
-/// every fix, the accept policy and no adaptive noise.
-pub fn log_likelihood(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Likelihood, ProcessError> {
+/// The windows the `coasting` objective withholds: `tune.outage_s` long
+/// (default: the longest scored outage), one every `tune.outage_s +
+/// tune.gap_s` (default `score.gap_s`), from `score.lead_s` plus half a
+/// period after the first IMU sample (between the score's windows of the
+/// same length), ending before the last fix. Empty for `innovations`.
+pub fn tuning_windows(cfg: &ProcessConfig, inputs: &Inputs) -> Vec<(f64, f64)> {
+    let (Some(first), Some(last)) = (inputs.imu.first(), inputs.gnss.last()) else {
+        return Vec::new();
+    };
+    if cfg.tune.objective == TuneObjective::Innovations {
+        return Vec::new();
+    }
+    let Some(length) = cfg.tune_outage_s() else {
+        return Vec::new();
+    };
+    let period = length + cfg.tune_gap_s();
+    let start = first.time_s + cfg.score.lead_s + 0.5 * period;
+    (0..)
+        .map(|k| start + k as f64 * period)
+        .map(|a| (a, a + length))
+        .take_while(|&(_, b)| b < last.time_s)
+        .collect()
+}
+
+/// ln N(e; 0, C) of a 3-vector, by Cholesky (None: C not positive
+/// definite or the result not finite).
+fn gaussian_log_density(e: &Vector3<f64>, c: &Matrix3<f64>) -> Option<f64> {
+    let chol = Cholesky::new(*c)?;
+    let log_det: f64 = 2.0 * chol.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
+    let v = -0.5 * (3.0 * (2.0 * std::f64::consts::PI).ln() + log_det + e.dot(&chol.solve(e)));
+    v.is_finite().then_some(v)
+}
+
+/// The log-likelihood of one filter pass over `inputs` (ready to filter:
+/// smoothed as configured) under `cfg` with the accept policy and no
+/// adaptive noise, withholding `windows` (none: every fix is an update):
+/// the GNSS innovations of the updates, and the position of every withheld
+/// fix against the coasting filter's antenna position, with covariance
+/// the filter's antenna covariance plus the fix's own (its σ as the update
+/// would have taken it: quality factor, floor, `gnss.sigma_scale`).
+pub fn log_likelihood(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    windows: &[(f64, f64)],
+) -> Result<Likelihood, ProcessError> {
     let mut cfg = cfg.clone();
     cfg.filter.adaptive_noise = AdaptiveNoise::Off;
-    let epochs = run_filter(&cfg, inputs, &RunPlan::default(), PolicyName::Accept)?;
-    let mut total = 0.0;
-    let mut updates = 0;
-    for e in epochs.iter().filter(|e| e.outcome.is_some()) {
-        if !e.log_likelihood.is_finite() {
-            return Err(ProcessError::Data(format!(
-                "the log-likelihood of the update at {} is not finite",
-                aidnav_io::text::date_time(e.fix.time_s)
-            )));
+    let plan = RunPlan {
+        windows: windows.to_vec(),
+        ..RunPlan::default()
+    };
+    let epochs = run_filter(&cfg, inputs, &plan, PolicyName::Accept)?;
+    let not_finite = |t: f64| {
+        ProcessError::Data(format!(
+            "the log-likelihood of the fix at {} is not finite",
+            aidnav_io::text::date_time(t)
+        ))
+    };
+    let (mut total, mut updates, mut withheld) = (0.0, 0, 0);
+    for e in &epochs {
+        if e.outcome.is_some() {
+            if !e.log_likelihood.is_finite() {
+                return Err(not_finite(e.fix.time_s));
+            }
+            total += e.log_likelihood;
+            updates += 1;
+        } else if windows.iter().any(|&(a, b)| (a..b).contains(&e.fix.time_s)) {
+            let sigma = fix_position_sigma(&cfg, &e.fix);
+            if !sigma.iter().all(|v| v.is_finite()) {
+                continue;
+            }
+            let error = e.fix.position.ned_to(&e.antenna).raw();
+            let c = e.position_covariance + Matrix3::from_diagonal(&sigma.map(|v| v * v));
+            total += gaussian_log_density(&error, &c).ok_or_else(|| not_finite(e.fix.time_s))?;
+            withheld += 1;
         }
-        total += e.log_likelihood;
-        updates += 1;
     }
-    Ok(Likelihood { total, updates })
+    Ok(Likelihood {
+        total,
+        updates,
+        withheld,
+    })
 }
 
 /// What a tuning found.
@@ -445,8 +557,18 @@ pub struct TuneResult {
     pub log_likelihood_allan: Option<f64>,
     /// … with the fitted values.
     pub log_likelihood_fitted: f64,
-    /// GNSS epochs with an update (the likelihood's terms).
+    /// What the search maximised.
+    pub objective: TuneObjective,
+    /// The windows withheld by the `coasting` objective (GPST s).
+    pub windows: Vec<(f64, f64)>,
+    /// The parameters searched: the first this many of [`PARAMETERS`]
+    /// (the others keep their configured values).
+    pub searched: usize,
+    /// GNSS epochs with an update (the likelihood's innovation terms).
     pub updates: usize,
+    /// Withheld fixes predicted by the coasting filter (the likelihood's
+    /// other terms; 0 for `innovations`).
+    pub withheld: usize,
     /// Filter passes of the search.
     pub evaluations: usize,
     /// Filter passes in all: the search's, the configured and the Allan
@@ -463,6 +585,25 @@ pub struct TuneResult {
 }
 
 impl TuneResult {
+    /// What the likelihood is of, in words (for printouts and files).
+    pub fn objective_text(&self) -> String {
+        match self.objective {
+            TuneObjective::Innovations => format!(
+                "log-likelihood of the GNSS innovations (accept policy, every fix, {} updates)",
+                self.updates
+            ),
+            TuneObjective::Coasting => {
+                let length = self.windows.first().map_or(0.0, |(a, b)| b - a);
+                format!(
+                    "predictive log-likelihood of every fix with {} windows of {length:.0} s withheld ({} updates one step ahead, {} withheld fixes from the coasting filter)",
+                    self.windows.len(),
+                    self.updates,
+                    self.withheld
+                )
+            }
+        }
+    }
+
     /// Log-likelihood gained over the configured values.
     pub fn gain(&self) -> f64 {
         self.log_likelihood_fitted - self.log_likelihood_configured
@@ -535,10 +676,7 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
     let clock = Instant::now();
     let mut notes = Vec::new();
     let (stretch, allan) = allan_of_log(cfg, unsmoothed, &mut notes);
-    let configured = NoiseValues {
-        noise: cfg.imu.noise.values,
-        gnss_sigma_scale: cfg.gnss.sigma_scale,
-    };
+    let configured = NoiseValues::of(cfg);
     let conf = noise_scalars(&configured.noise);
     let from_allan: [(Option<f64>, &'static str); 4] = match &allan {
         Some(a) => [
@@ -579,20 +717,28 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
     }
     let allan_values = NoiseValues {
         noise: set_noise_scalars(&configured.noise, from_allan.map(|(v, _)| v)),
-        gnss_sigma_scale: configured.gnss_sigma_scale,
+        ..configured
     };
     let mut allan_sources: Vec<&'static str> = from_allan.iter().map(|(_, s)| *s).collect();
-    allan_sources.push("configured");
+    allan_sources.extend(["configured", "configured"]);
     let allan_s = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
     let inputs = unsmoothed.smoothed(cfg.imu.smoothing_s);
     let mut base = cfg.clone();
     base.imu.noise.auto = false;
+    let windows = tuning_windows(cfg, &inputs);
+    if cfg.tune.objective == TuneObjective::Coasting && windows.is_empty() {
+        return Err(ProcessError::Data(format!(
+            "the log is too short for tune.objective = \"coasting\": no window of tune.outage_s = {} s fits after score.lead_s = {} s plus half a period (shorten them, or use \"innovations\")",
+            cfg.tune_outage_s().unwrap_or(f64::NAN),
+            cfg.score.lead_s
+        )));
+    }
     let at = |values: &NoiseValues| {
         let mut c = base.clone();
         values.apply_to(&mut c);
-        log_likelihood(&c, &inputs)
+        log_likelihood(&c, &inputs, &windows)
     };
     // The configured and the Allan values' likelihoods, side by side; the
     // search starts from the better (a failed pass: the other).
@@ -615,9 +761,9 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
         (Err(_), Some(_)) => (allan_values, "allan"),
         _ => (configured, "configured"),
     };
-    let updates = match (&configured_ll, allan_ll) {
-        (Ok(c), _) => c.updates,
-        (Err(_), Some(a)) => a.updates,
+    let (updates, withheld) = match (&configured_ll, allan_ll) {
+        (Ok(c), _) => (c.updates, c.withheld),
+        (Err(_), Some(a)) => (a.updates, a.withheld),
         (Err(e), None) => {
             return Err(ProcessError::Data(format!(
                 "the filter fails with the configured noise, the likelihood search cannot start: {e}"
@@ -625,10 +771,11 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
         }
     };
     let half_width = t.max_factor.ln();
+    let dim = searched_parameters(cfg);
     let options = NelderMeadOptions {
-        initial_step: vec![t.initial_factor.ln(); PARAMETERS.len()],
-        lower: vec![-half_width; PARAMETERS.len()],
-        upper: vec![half_width; PARAMETERS.len()],
+        initial_step: vec![t.initial_factor.ln(); dim],
+        lower: vec![-half_width; dim],
+        upper: vec![half_width; dim],
         max_evaluations: t.max_evaluations,
         f_tolerance: t.tolerance,
         x_tolerance: FACTOR_TOLERANCE.ln(),
@@ -644,13 +791,13 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
             })
             .collect()
     };
-    let minimum = nelder_mead(batch, &[0.0; PARAMETERS.len()], &options).map_err(|e| {
+    let minimum = nelder_mead(batch, &vec![0.0; dim], &options).map_err(|e| {
         ProcessError::Data(format!(
             "the likelihood search could not start: {e} (the filter fails with the start noise)"
         ))
     })?;
     let fitted = start.scaled(&minimum.x.iter().map(|v| v.exp()).collect::<Vec<_>>());
-    let at_bound: Vec<&'static str> = PARAMETERS
+    let at_bound: Vec<&'static str> = PARAMETERS[..dim]
         .iter()
         .zip(&minimum.x)
         .filter(|(_, v)| v.abs() >= half_width - 1e-9)
@@ -682,6 +829,10 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
         fitted,
         factors: (0..PARAMETERS.len()).map(|i| f[i] / c[i]).collect(),
         at_bound,
+        objective: cfg.tune.objective,
+        windows,
+        searched: dim,
+        withheld,
         log_likelihood_configured: configured_ll.map_or(f64::NEG_INFINITY, |l| l.total),
         log_likelihood_allan: allan_ll.map(|l| l.total),
         log_likelihood_fitted: -minimum.value,
@@ -701,12 +852,12 @@ pub fn tune(cfg: &ProcessConfig, unsmoothed: &Inputs) -> Result<TuneResult, Proc
 pub fn tuned_noise_toml(result: &TuneResult, config_name: &str) -> String {
     let mut out = format!(
         "# aidnav tune {config_name} (aidnav {}): the noise that maximises the\n\
-         # innovation log-likelihood of the log's GNSS updates, {:.1} → {:.1} (gain {:.1} over {} epochs).\n",
+         # {}, {:.1} → {:.1} (gain {:.1}).\n",
         crate::VERSION,
+        result.objective_text(),
         result.log_likelihood_configured,
         result.log_likelihood_fitted,
         result.gain(),
-        result.updates
     );
     match &result.allan {
         Some(a) => out.push_str(&format!(
@@ -715,7 +866,7 @@ pub fn tuned_noise_toml(result: &TuneResult, config_name: &str) -> String {
         )),
         None => out.push_str("# Start: the configured values (no standstill long enough for an Allan deviation).\n"),
     }
-    out.push_str("# Paste over [imu.noise]; the GNSS σ scale goes into [gnss].\n\n[imu.noise]\n");
+    out.push_str("# Paste over [imu.noise]; the GNSS σ scale goes into [gnss], the non-holonomic σ into [constraints].\n\n[imu.noise]\n");
     // Four significant digits of the fitted scalars (the likelihood is
     // flat to well below that); the other keys as configured. Plain
     // numbers serialize; an empty table would show in the test.
@@ -728,16 +879,24 @@ pub fn tuned_noise_toml(result: &TuneResult, config_name: &str) -> String {
         "\n# [gnss]\n# sigma_scale = {}\n",
         round_sig(result.fitted.gnss_sigma_scale, 4)
     ));
+    if result.searched == PARAMETERS.len() {
+        out.push_str(&format!(
+            "\n# [constraints]\n# non_holonomic_sigma_mps = {}\n",
+            round_sig(result.fitted.non_holonomic_sigma_mps, 4)
+        ));
+    }
     out
 }
 
-/// `x` to `digits` significant digits (for files people read).
+/// `x` to `digits` significant digits (for files people read): through
+/// decimal text, so that the value prints as its digits (21.49, not
+/// 21.489999999999995).
 fn round_sig(x: f64, digits: i32) -> f64 {
     if x == 0.0 || !x.is_finite() {
         return x;
     }
-    let scale = 10f64.powi(digits - 1 - x.abs().log10().floor() as i32);
-    (x * scale).round() / scale
+    let precision = usize::try_from(digits.max(1) - 1).unwrap_or(0);
+    format!("{x:.precision$e}").parse().unwrap_or(x)
 }
 
 #[cfg(test)]
@@ -763,6 +922,9 @@ mod tests {
         let mut cfg: ProcessConfig =
             toml::from_str("[data]\ndir = \".\"\nimu = \"none\"\ngnss = \"none\"\n").unwrap();
         cfg.initial.attitude_deg = Some([0.0; 3]);
+        // Most tests judge the one-step search (the logs are shorter than
+        // the default score lead); the coasting tests set their windows.
+        cfg.tune.objective = TuneObjective::Innovations;
         let place = Geodetic {
             latitude_rad: 0.7,
             longitude_rad: -1.8,
@@ -852,9 +1014,13 @@ mod tests {
             .max(r.log_likelihood_allan.unwrap());
         assert!(r.log_likelihood_fitted >= best_start);
         assert!(r.gain() > 100.0, "{}", r.gain());
-        assert_eq!(r.updates, 239); // every fix after the first
-        assert!(r.passes <= 80 + 2 + PARAMETERS.len());
-        assert_eq!(r.factors.len(), 5);
+        assert_eq!((r.updates, r.withheld), (239, 0)); // every fix after the first
+        assert!(r.windows.is_empty());
+        // No non-holonomic constraint: five parameters searched.
+        assert_eq!(r.searched, 5);
+        assert!(r.passes <= 80 + 2 + 5);
+        assert_eq!(r.factors.len(), PARAMETERS.len());
+        assert_eq!(r.factors[5], 1.0);
         // The fitted file: an [imu.noise] table that reads back.
         let text = tuned_noise_toml(&r, "synthetic.toml");
         let table: toml::Table = toml::from_str(&text).unwrap();
@@ -865,6 +1031,96 @@ mod tests {
             assert!((b / f - 1.0).abs() < 1e-3, "{b} vs {f}");
         }
         assert!(text.contains("# sigma_scale = "));
+    }
+
+    /// ln N(e; 0, C) against the closed form of a diagonal covariance:
+    /// −½ (3 ln 2π + Σ ln cᵢ + Σ eᵢ² / cᵢ); none when C is singular.
+    #[test]
+    fn the_gaussian_log_density_is_the_closed_form() {
+        let e = Vector3::new(1.0, -2.0, 0.5);
+        let c: Vector3<f64> = Vector3::new(2.0, 0.5, 4.0);
+        let expected = -0.5
+            * (3.0 * (2.0 * std::f64::consts::PI).ln()
+                + c.iter().map(|v: &f64| v.ln()).sum::<f64>()
+                + e.component_div(&c).dot(&e));
+        let got = gaussian_log_density(&e, &Matrix3::from_diagonal(&c)).unwrap();
+        assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
+        // Rotating the frame changes nothing (full covariance path).
+        let r = nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 1.1);
+        let rotated =
+            gaussian_log_density(&(r * e), &(r * Matrix3::from_diagonal(&c) * r.transpose()))
+                .unwrap();
+        assert!((rotated - expected).abs() < 1e-9);
+        assert_eq!(gaussian_log_density(&e, &Matrix3::zeros()), None);
+    }
+
+    /// The coasting windows: `tune.outage_s` (default the longest scored
+    /// outage) every outage + gap (default `score.gap_s`), from the lead
+    /// plus half a period, all before the last fix; none for the
+    /// innovation objective.
+    #[test]
+    fn the_coasting_windows_fall_between_the_scored_ones() {
+        let (mut cfg, inputs) = synthetic_log(100.0, 6);
+        cfg.tune.objective = TuneObjective::Coasting;
+        cfg.score.outages_s = vec![5.0, 10.0];
+        cfg.score.lead_s = 20.0;
+        cfg.score.gap_s = 10.0;
+        // Period 20 s from 20 + 10 s: [30, 40), [50, 60), [70, 80); the
+        // next, [90, 100), would end at the last fix (99.75 s).
+        assert_eq!(
+            tuning_windows(&cfg, &inputs),
+            vec![(30.0, 40.0), (50.0, 60.0), (70.0, 80.0)]
+        );
+        cfg.tune.outage_s = Some(4.0);
+        cfg.tune.gap_s = Some(16.0);
+        assert_eq!(tuning_windows(&cfg, &inputs)[0], (30.0, 34.0));
+        cfg.tune.objective = TuneObjective::Innovations;
+        assert!(tuning_windows(&cfg, &inputs).is_empty());
+        // A log too short for one window: an error that says so.
+        let (mut short, inputs) = synthetic_log(30.0, 6);
+        short.tune.objective = TuneObjective::Coasting;
+        short.tune.max_evaluations = 6;
+        let e = tune(&short, &inputs).unwrap_err().to_string();
+        assert!(e.contains("too short for tune.objective"), "{e}");
+    }
+
+    /// The coasting objective judges the withheld fixes by the coasting
+    /// filter's covariance: an accelerometer noise 10× below the truth
+    /// makes the coasting σ too small and the likelihood lower, and the
+    /// search from there (no Allan deviation) comes back to within a
+    /// factor 2 of the true VRW. The pass counts its terms: every fix in
+    /// a window withheld, every other fix after the first an update.
+    #[test]
+    fn the_coasting_likelihood_prefers_the_true_noise() {
+        let (mut cfg, inputs) = synthetic_log(120.0, 7);
+        cfg.tune.objective = TuneObjective::Coasting;
+        cfg.tune.min_static_s = 1e4; // no Allan deviation: start from the configuration
+        cfg.tune.max_evaluations = 120;
+        cfg.score.outages_s = vec![10.0];
+        cfg.score.lead_s = 10.0;
+        cfg.score.gap_s = 10.0;
+        cfg.gnss.sigma_scale = GNSS_TRUE_SCALE;
+        cfg.imu.noise.values.arw_deg_per_sqrt_h = PerAxis::all(ARW);
+        cfg.imu.noise.values.vrw_mps_per_sqrt_h = PerAxis::all(VRW);
+        let windows = tuning_windows(&cfg, &inputs);
+        assert_eq!(windows.len(), 5); // [20, 30) … [100, 110)
+        let truth = log_likelihood(&cfg, &inputs, &windows).unwrap();
+        assert_eq!(truth.withheld, 5 * 40);
+        assert_eq!(truth.updates, 479 - 5 * 40);
+        let mut low = cfg.clone();
+        low.imu.noise.values.vrw_mps_per_sqrt_h = PerAxis::all(VRW / 10.0);
+        let overconfident = log_likelihood(&low, &inputs, &windows).unwrap();
+        assert!(
+            overconfident.total < truth.total - 10.0,
+            "{} vs {}",
+            overconfident.total,
+            truth.total
+        );
+        let r = tune(&low, &inputs).unwrap();
+        assert_eq!(r.objective, TuneObjective::Coasting);
+        assert_eq!(r.withheld, 200);
+        let vrw = noise_scalars(&r.fitted.noise)[1];
+        assert!(vrw > VRW / 2.0 && vrw < VRW * 2.0, "VRW {vrw}");
     }
 
     /// Serial and parallel evaluations give the same search.
@@ -1002,5 +1258,7 @@ mod tests {
         assert_eq!(round_sig(1.234567, 4), 1.235);
         assert_eq!(round_sig(0.000123456, 3), 0.000123);
         assert_eq!(round_sig(0.0, 3), 0.0);
+        assert_eq!(round_sig(21.48934, 4), 21.49);
+        assert_eq!(round_sig(-41.0996, 4).to_string(), "-41.1");
     }
 }

@@ -184,6 +184,12 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
     bounded("tune", "max_factor", t.max_factor, 1.01, 1e6)?;
     bounded("tune", "initial_factor", t.initial_factor, 1.01, 100.0)?;
     bounded("tune", "tolerance", t.tolerance, 1e-9, 1e6)?;
+    if let Some(v) = t.outage_s {
+        bounded("tune", "outage_s", v, 1.0, 1e5)?;
+    }
+    if let Some(v) = t.gap_s {
+        bounded("tune", "gap_s", v, 1.0, 1e5)?;
+    }
     if let Some(sg) = cfg.efficiency.sigma_gnss_m {
         bounded("efficiency", "sigma_gnss_m", sg, 1e-9, 1e4)?;
     }
