@@ -10,7 +10,9 @@
 //! - [`policy`]: measurement policies as values — accept, χ² gate, Huber, and
 //!   any closure — that see the innovation and decide; the update returns the
 //!   innovation, its covariance and the gain ([`UpdateRecord`]).
-//! - the adaptive / anomaly-tolerant policies of spec 20 ([`adaptive`]).
+//! - the adaptive / anomaly-tolerant policies of spec 20 ([`adaptive`]), and the
+//!   classical robust pre-filters seed 004 lists: running median, Tukey 53H
+//!   ([`prefilter`]).
 //! - sequential scalar update for diagonal R ([`KalmanFilter::update_sequential`]).
 //! - information form and the Fisher / Cramér–Rao recursion ([`InformationFilter`],
 //!   [`FisherInformation`]).
@@ -57,6 +59,7 @@ pub mod linear;
 pub mod observer;
 pub mod optimise;
 pub mod policy;
+pub mod prefilter;
 pub mod recovery;
 pub mod riccati;
 pub mod scheme;

@@ -21,7 +21,17 @@
 //!   during anomalies predicted from the last stable epochs;
 //! - `developed_eq4`: eq. 9 as printed, with eq. 4's gain in place of the
 //!   filter's ([`aidnav_estimation::adaptive::LimitedAdaptiveGain`]);
-//! - `chi2_gate`, `huber`: modern baselines on the known-statistics filter.
+//! - `chi2_gate`, `huber`: modern baselines on the known-statistics filter;
+//! - `median_kf`, `tukey53h_kf`: the classical baselines the paper lists
+//!   ("медианный фильтр, процедура Тьюки 53Х"): the known-statistics filter
+//!   fed the causal running median of the last `median_window` fixes, or
+//!   their causal Tukey 53H smooth ([`aidnav_estimation::prefilter`]).
+//!
+//! Beside the mixed fault list of the scenario, a per-type table
+//! ([`TypeScores`], `per_type`) runs every estimator on one anomaly type at
+//! a time — single outliers, short bursts, long bursts, 10 % and 30 %
+//! random rates, bursts after outages — with the same truth draws (run k's
+//! stream) for every type, each type beside what the paper says of it.
 //!
 //! "Known statistics" means what a 3-state filter can know of the truth
 //! ([`PlatformChannel::known_process_noise`],
@@ -36,6 +46,7 @@
 //! rejecting vs limiting.
 
 use aidnav_estimation::adaptive::{AnomalyDetector, InnovationFeedbackNoise};
+use aidnav_estimation::prefilter::{RunningMedian, Tukey53H};
 use aidnav_estimation::{
     EstimationError, KalmanFilter, NoiseRule, Scheme, SchemeParameters, SchemePolicy,
 };
@@ -44,7 +55,7 @@ use aidnav_models::{PlatformChannel, PlatformTruth};
 use nalgebra::{Matrix1, Matrix3, Vector1, Vector3};
 use serde::{Deserialize, Serialize};
 
-use aidnav_sim::faults::{FaultSpec, SigmaRange, plan};
+use aidnav_sim::faults::{FaultSpec, Outage, SigmaRange, plan};
 use aidnav_sim::monte_carlo::MonteCarlo;
 use aidnav_sim::rng::{channel_rng, standard_normal};
 
@@ -59,6 +70,19 @@ struct Row {
     clean_data: bool,
     /// Believes the scenario's wrong Q and R.
     wrong_statistics: bool,
+    /// What the fixes pass through before the filter.
+    prefilter: Prefilter,
+}
+
+/// A classical pre-filter of the fixes (the paper's list of methods).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Prefilter {
+    /// The fixes as they are.
+    None,
+    /// Causal running median of the last `median_window` fixes.
+    Median,
+    /// Causal Tukey 53H.
+    Tukey53H,
 }
 
 /// A row running `scheme` as the registry defines it.
@@ -69,6 +93,7 @@ const fn row(name: &'static str, scheme: Scheme) -> Row {
         noise: scheme.noise_rule(),
         clean_data: false,
         wrong_statistics: false,
+        prefilter: Prefilter::None,
     }
 }
 
@@ -80,7 +105,7 @@ const GUARDED_FEEDBACK: NoiseRule = NoiseRule::Feedback { detector: true };
 
 /// The estimators, in table order: the single source of their names,
 /// schemes, data and statistics.
-const ROWS: [Row; 12] = [
+const ROWS: [Row; 14] = [
     Row {
         clean_data: true,
         ..row("kf_known_clean", Scheme::Accept)
@@ -115,6 +140,14 @@ const ROWS: [Row; 12] = [
     },
     row("chi2_gate", Scheme::Chi2Gate),
     row("huber", Scheme::Huber),
+    Row {
+        prefilter: Prefilter::Median,
+        ..row("median_kf", Scheme::Accept)
+    },
+    Row {
+        prefilter: Prefilter::Tukey53H,
+        ..row("tukey53h_kf", Scheme::Accept)
+    },
 ];
 
 /// Names of the estimators, in table order.
@@ -168,8 +201,109 @@ pub struct AnomaliesScenario {
     pub chi2_probability: f64,
     /// Huber threshold k on √NIS. Default 1.345.
     pub huber_k: f64,
+    /// Fixes in `median_kf`'s running median, 1 … 1001. Default 5 (a
+    /// spike of up to two fixes is removed).
+    pub median_window: usize,
     /// The single-outlier and burst runs drawn like the paper's Figs. 3–6.
     pub illustration: Illustration,
+    /// The per-type table.
+    pub per_type: PerTypeScenario,
+}
+
+/// The per-type table: every estimator on one anomaly type at a time.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PerTypeScenario {
+    /// Monte Carlo runs per type, 0 … 100 000 (0: no table). Default 25
+    /// (the six types cost 150 runs beside the main table's 200).
+    pub runs: usize,
+    /// Magnitude of every anomaly, in σ of the fixes. Default 5–30.
+    pub magnitude: SigmaRange,
+    /// Single outliers per run. Default 20.
+    pub single_outliers: usize,
+    /// Short bursts (2–20 epochs) per run. Default 4.
+    pub short_bursts: usize,
+    /// Long bursts (50–300 epochs) per run. Default 1.
+    pub long_bursts: usize,
+    /// Outages per run in the after-outage type, evenly spaced. Default 4.
+    pub outages: usize,
+    /// Length of each outage \[epochs\]. Default 100.
+    pub outage_length: usize,
+    /// Burst right after each outage \[epochs\]. Default 20.
+    pub burst_after_outage: usize,
+}
+
+impl Default for PerTypeScenario {
+    fn default() -> Self {
+        Self {
+            runs: 25,
+            magnitude: SigmaRange {
+                min: 5.0,
+                max: 30.0,
+            },
+            single_outliers: 20,
+            short_bursts: 4,
+            long_bursts: 1,
+            outages: 4,
+            outage_length: 100,
+            burst_after_outage: 20,
+        }
+    }
+}
+
+/// The anomaly types of the per-type table, in its order.
+pub const ANOMALY_TYPES: [&str; 6] = [
+    "single_outliers",
+    "short_bursts",
+    "long_bursts",
+    "random_10_percent",
+    "random_30_percent",
+    "bursts_after_outages",
+];
+
+impl PerTypeScenario {
+    /// The faults and outages of type `t` (index into [`ANOMALY_TYPES`])
+    /// over `epochs` epochs.
+    fn faults(&self, t: usize, epochs: usize) -> (Vec<FaultSpec>, Vec<Outage>) {
+        let m = self.magnitude;
+        let bursts = |count, min_length, max_length| FaultSpec::Bursts {
+            count,
+            min_length,
+            max_length,
+            magnitude: m,
+        };
+        let rate = |rate| FaultSpec::RandomRate { rate, magnitude: m };
+        match t {
+            0 => (
+                vec![FaultSpec::SingleOutliers {
+                    count: self.single_outliers,
+                    magnitude: m,
+                }],
+                Vec::new(),
+            ),
+            1 => (vec![bursts(self.short_bursts, 2, 20)], Vec::new()),
+            2 => (vec![bursts(self.long_bursts, 50, 300)], Vec::new()),
+            3 => (vec![rate(0.1)], Vec::new()),
+            4 => (vec![rate(0.3)], Vec::new()),
+            _ => {
+                // Evenly spaced: outage i centred at (i + 1) / (n + 1) of the run.
+                let n = self.outages;
+                let outages = (0..n)
+                    .map(|i| Outage {
+                        start: ((i + 1) * epochs / (n + 1)).saturating_sub(self.outage_length / 2),
+                        length: self.outage_length,
+                    })
+                    .collect();
+                (
+                    vec![FaultSpec::AfterOutage {
+                        length: self.burst_after_outage,
+                        magnitude: m,
+                    }],
+                    outages,
+                )
+            }
+        }
+    }
 }
 
 /// The paper's illustrations (Figs. 3–6): one run with a single outlier and
@@ -241,7 +375,9 @@ impl Default for AnomaliesScenario {
             gain_window: 10,
             chi2_probability: 0.999,
             huber_k: 1.345,
+            median_window: 5,
             illustration: Illustration::default(),
+            per_type: PerTypeScenario::default(),
         }
     }
 }
@@ -269,6 +405,32 @@ impl Validate for AnomaliesScenario {
         count_in_range("gain_window", self.gain_window, 1, 10_000)?;
         probability("chi2_probability", self.chi2_probability)?;
         in_range("huber_k", self.huber_k, 0.1, 100.0)?;
+        count_in_range("median_window", self.median_window, 1, 1001)?;
+        let pt = &self.per_type;
+        count_in_range("per_type.runs", pt.runs, 0, 100_000)?;
+        for (key, count) in [
+            ("per_type.single_outliers", pt.single_outliers),
+            ("per_type.short_bursts", pt.short_bursts),
+            ("per_type.long_bursts", pt.long_bursts),
+            ("per_type.outages", pt.outages),
+        ] {
+            count_in_range(key, count, 0, 10_000)?;
+        }
+        count_in_range("per_type.outage_length", pt.outage_length, 1, self.epochs)?;
+        count_in_range(
+            "per_type.burst_after_outage",
+            pt.burst_after_outage,
+            1,
+            self.epochs,
+        )?;
+        // The magnitude goes through the fault specs' own checks.
+        crate::validate_faults(
+            "per_type.magnitude",
+            &[FaultSpec::RandomRate {
+                rate: 0.1,
+                magnitude: pt.magnitude,
+            }],
+        )?;
         let il = &self.illustration;
         count_in_range("illustration.epochs", il.epochs, 10, 1_000_000)?;
         count_in_range("illustration.at_epoch", il.at_epoch, 0, il.epochs - 1)?;
@@ -333,10 +495,83 @@ pub struct AnomaliesResult {
     /// The burst illustration run (Figs. 5–6).
     #[serde(skip)]
     pub burst: ExampleRun,
+    /// One row per anomaly type ([`ANOMALY_TYPES`]; empty with
+    /// `per_type.runs = 0`).
+    pub per_type: Vec<TypeScores>,
 }
 
-/// Streams: truth noise and fix noise (0), faults (1).
+/// Every estimator on one anomaly type.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TypeScores {
+    /// The type (see [`ANOMALY_TYPES`]).
+    pub anomaly_type: String,
+    /// What the paper says of it.
+    pub paper: String,
+    /// Monte Carlo runs.
+    pub runs: usize,
+    /// Mean fraction of anomalous epochs.
+    pub anomaly_fraction: f64,
+    /// Mean fraction of epochs lost to outages (scored too: the estimators
+    /// predict through them).
+    pub lost_fraction: f64,
+    /// RMS of the δV estimate per estimator \[m/s\] (order of [`ESTIMATORS`]).
+    pub rms_mps: Vec<EstimatorRms>,
+}
+
+/// One estimator's RMS in a [`TypeScores`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EstimatorRms {
+    /// Key (see [`ESTIMATORS`]).
+    pub name: String,
+    /// RMS of the δV estimation error over all runs and epochs \[m/s\].
+    pub rms_mps: f64,
+    /// 1 − RMS / RMS(kf_plain).
+    pub improvement_vs_kf: f64,
+}
+
+/// Streams: truth noise and fix noise (0), faults (1), the per-type
+/// table's faults (2 + type).
 const CHANNEL_FAULTS: u64 = 1;
+/// First stream of the per-type table's faults.
+const CHANNEL_PER_TYPE: u64 = 2;
+
+/// A pre-filter's state.
+#[derive(Debug, Clone)]
+enum PrefilterState {
+    None,
+    Median(RunningMedian),
+    Tukey(Tukey53H),
+}
+
+impl PrefilterState {
+    fn new(kind: Prefilter, median_window: usize) -> Self {
+        match kind {
+            Prefilter::None => Self::None,
+            Prefilter::Median => Self::Median(
+                RunningMedian::new(median_window)
+                    .unwrap_or_else(|| unreachable!("median_window ≥ 1 is validated")),
+            ),
+            Prefilter::Tukey53H => Self::Tukey(Tukey53H::new()),
+        }
+    }
+
+    /// The fix the filter sees (None: a gap, which restarts the window).
+    fn pass(&mut self, z: Option<f64>) -> Option<f64> {
+        match (self, z) {
+            (Self::None, z) => z,
+            (Self::Median(m), Some(z)) => Some(m.filter(z)),
+            (Self::Tukey(t), Some(z)) => Some(t.filter(z)),
+            (Self::Median(m), None) => {
+                m.clear();
+                None
+            }
+            (Self::Tukey(t), None) => {
+                t.clear();
+                None
+            }
+        }
+    }
+}
 
 /// The state of one estimator through a run.
 struct Estimator {
@@ -347,6 +582,8 @@ struct Estimator {
     adaptive: bool,
     /// The scheme's measurement policy (its eq. 4 window, if any, lives here).
     policy: SchemePolicy<nalgebra::U1>,
+    /// What the fixes pass through first.
+    prefilter: PrefilterState,
 }
 
 #[derive(Clone, Copy)]
@@ -377,11 +614,14 @@ impl Estimator {
             .unwrap_or_else(|| unreachable!("stable_window ≥ 1 is validated")),
             adaptive: row.noise != NoiseRule::Fixed,
             policy: row.scheme.policy(&parameters),
+            prefilter: PrefilterState::new(row.prefilter, sc.median_window),
         })
     }
 
-    /// One epoch: predict, then update with `z` when present.
+    /// One epoch: predict, then update with `z` when present (after the
+    /// pre-filter).
     fn step(&mut self, s: &Setup, z: Option<f64>, first: bool) -> Result<(), EstimationError> {
+        let z = self.prefilter.pass(z);
         if !first {
             if self.adaptive {
                 self.kf.predict_state(&s.phi)?;
@@ -410,6 +650,7 @@ impl Estimator {
 struct RunOut {
     sq: Vec<f64>,
     anomalous_epochs: usize,
+    lost_epochs: usize,
     example: Option<ExampleRun>,
 }
 
@@ -474,10 +715,12 @@ fn one_run(
         let x = truth.x;
         let clean = x[0] + sigma * standard_normal(rng);
         let faulty = clean + faults.error[e];
+        let lost = faults.lost[e];
         for (i, (es, row)) in est.iter_mut().zip(&ROWS).enumerate() {
             let z = if row.clean_data { clean } else { faulty };
             let s = if row.wrong_statistics { wrong } else { setup };
-            es.step(s, Some(z), e == 0).map_err(|err| err.at_epoch(e))?;
+            es.step(s, (!lost).then_some(z), e == 0)
+                .map_err(|err| err.at_epoch(e))?;
             sq[i] += (es.kf.state()[0] - x[0]).powi(2);
             if keep {
                 example.estimates[i].push(es.kf.state()[0]);
@@ -493,6 +736,7 @@ fn one_run(
     Ok(RunOut {
         sq,
         anomalous_epochs: faults.error.iter().filter(|v| **v != 0.0).count(),
+        lost_epochs: faults.lost.iter().filter(|l| **l).count(),
         example: keep.then_some(example),
     })
 }
@@ -568,7 +812,59 @@ pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, E
         example,
         outlier: illustrate(sc, &[fixed(1)], il.epochs)?,
         burst: illustrate(sc, &[fixed(il.burst_length)], il.epochs)?,
+        per_type: per_type(sc, mc)?,
     })
+}
+
+/// The per-type table: for each of [`ANOMALY_TYPES`], `per_type.runs` runs
+/// of every estimator; run k draws stream k of the seed for the truth (the
+/// same truth for every type and as run k of the main table) and stream
+/// `CHANNEL_PER_TYPE + type` of run k for the faults.
+fn per_type(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<Vec<TypeScores>, EstimationError> {
+    let pt = &sc.per_type;
+    if pt.runs == 0 {
+        return Ok(Vec::new());
+    }
+    let (setup, wrong) = setups(sc);
+    let sigma = sc.platform.gnss_velocity_sigma_mps;
+    let kf = index_of("kf_plain");
+    let mut table = Vec::with_capacity(ANOMALY_TYPES.len());
+    for (t, name) in ANOMALY_TYPES.iter().enumerate() {
+        let campaign = MonteCarlo {
+            runs: pt.runs,
+            label: format!("anomalies, {name}"),
+            ..mc.clone()
+        };
+        let (specs, outages) = pt.faults(t, sc.epochs);
+        let per_run = campaign.try_run(|k, rng| -> Result<RunOut, EstimationError> {
+            let mut fault_rng = channel_rng(sc.seed, k as u64, CHANNEL_PER_TYPE + t as u64);
+            let faults = plan(&specs, &outages, sc.epochs, sigma, &mut fault_rng);
+            one_run(sc, (&setup, &wrong), &faults, sc.epochs, rng, false)
+        })?;
+        let total = (per_run.len() * sc.epochs) as f64;
+        let rms: Vec<f64> = (0..ESTIMATORS.len())
+            .map(|i| (per_run.iter().map(|r| r.sq[i]).sum::<f64>() / total).sqrt())
+            .collect();
+        let fraction =
+            |f: fn(&RunOut) -> usize| per_run.iter().map(f).sum::<usize>() as f64 / total;
+        table.push(TypeScores {
+            anomaly_type: (*name).to_string(),
+            paper: crate::published::ANOMALY_TYPE_STATEMENTS[t].to_string(),
+            runs: pt.runs,
+            anomaly_fraction: fraction(|r| r.anomalous_epochs),
+            lost_fraction: fraction(|r| r.lost_epochs),
+            rms_mps: ESTIMATORS
+                .iter()
+                .zip(&rms)
+                .map(|(n, &v)| EstimatorRms {
+                    name: (*n).to_string(),
+                    rms_mps: v,
+                    improvement_vs_kf: 1.0 - v / rms[kf],
+                })
+                .collect(),
+        });
+    }
+    Ok(table)
 }
 
 /// The truth at epoch 0: δV, tilt and drift drawn from their priors, b(0)
@@ -600,6 +896,101 @@ pub fn percentile(sorted: &[f64], p: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The per-type table: six types in order, each with the anomalous
+    /// and lost fractions its faults make, and what the paper says of them
+    /// where it holds on the measured numbers.
+    #[test]
+    fn the_per_type_table_runs_one_type_at_a_time() {
+        let sc = AnomaliesScenario {
+            runs: 2,
+            epochs: 3000,
+            per_type: PerTypeScenario {
+                runs: 6,
+                ..PerTypeScenario::default()
+            },
+            ..Default::default()
+        };
+        let r = run(&sc, &MonteCarlo::new(sc.runs, sc.seed).quiet()).unwrap();
+        let names: Vec<&str> = r.per_type.iter().map(|t| t.anomaly_type.as_str()).collect();
+        assert_eq!(names, ANOMALY_TYPES);
+        let t = |name: &str| r.per_type.iter().find(|t| t.anomaly_type == name).unwrap();
+        let rms = |name: &str, est: &str| {
+            t(name)
+                .rms_mps
+                .iter()
+                .find(|e| e.name == est)
+                .unwrap()
+                .rms_mps
+        };
+        // 20 single outliers in 3000 epochs (two may fall together).
+        let single = t("single_outliers").anomaly_fraction;
+        assert!(
+            single > 18.0 / 3000.0 && single <= 20.0 / 3000.0,
+            "{single}"
+        );
+        for (name, rate) in [("random_10_percent", 0.1), ("random_30_percent", 0.3)] {
+            let f = t(name).anomaly_fraction;
+            assert!((f - rate).abs() < 0.02, "{name} {f}");
+        }
+        // Four outages of 100 epochs, and a 20-epoch burst after each.
+        let after = t("bursts_after_outages");
+        assert!((after.lost_fraction - 400.0 / 3000.0).abs() < 1e-12);
+        assert!((after.anomaly_fraction - 80.0 / 3000.0).abs() < 1e-12);
+        assert!(r.per_type.iter().take(5).all(|t| t.lost_fraction == 0.0));
+        // The paper: limiting beats rejection on long sequences of
+        // anomalies, and after an outage.
+        assert!(rms("long_bursts", "developed") < rms("long_bursts", "kf_reject"));
+        assert!(
+            rms("bursts_after_outages", "developed") < rms("bursts_after_outages", "kf_reject")
+        );
+        // The running median removes isolated outliers before the filter.
+        assert!(rms("single_outliers", "median_kf") < rms("single_outliers", "kf_plain"));
+        assert!(rms("random_10_percent", "median_kf") < rms("random_10_percent", "kf_plain"));
+        // Improvements are against kf_plain.
+        let kf = rms("random_30_percent", "kf_plain");
+        let e = t("random_30_percent")
+            .rms_mps
+            .iter()
+            .find(|e| e.name == "developed")
+            .unwrap();
+        assert!((e.improvement_vs_kf - (1.0 - e.rms_mps / kf)).abs() < 1e-15);
+        // `per_type.runs = 0`: no table.
+        let none = AnomaliesScenario {
+            per_type: PerTypeScenario {
+                runs: 0,
+                ..PerTypeScenario::default()
+            },
+            ..sc
+        };
+        assert!(
+            run(&none, &MonteCarlo::new(none.runs, none.seed).quiet())
+                .unwrap()
+                .per_type
+                .is_empty()
+        );
+    }
+
+    /// The scenario's new keys are range-checked by name.
+    #[test]
+    fn per_type_keys_are_validated() {
+        let sc = AnomaliesScenario {
+            median_window: 0,
+            ..Default::default()
+        };
+        assert!(sc.validate().unwrap_err().key == "median_window");
+        let mut sc = AnomaliesScenario::default();
+        sc.per_type.outage_length = sc.epochs + 1;
+        assert!(sc.validate().unwrap_err().key == "per_type.outage_length");
+        let mut sc = AnomaliesScenario::default();
+        sc.per_type.magnitude.max = f64::INFINITY;
+        assert!(
+            sc.validate()
+                .unwrap_err()
+                .key
+                .starts_with("per_type.magnitude")
+        );
+    }
 
     #[test]
     fn reduced_run_orders_the_estimators() {

@@ -94,6 +94,26 @@ pub const ANOMALIES_ADAPTIVE_VS_KF_PERCENT: Range = Range::new(
     ANOMALIES_DEVELOPED_VS_KF_PERCENT.hi - ANOMALIES_DEVELOPED_VS_ADAPTIVE_PERCENT.hi,
 );
 
+/// What the paper says of each anomaly type of the per-type table (order
+/// of `anomalies::ANOMALY_TYPES`), translated; the abstract
+/// (`004_80c35bdad714be83.txt`) gives no number per type. Sources: its
+/// introduction ("10-30% результатов измерений оказываются аномальными …
+/// одиночные аномальные выбросы, короткие пачки выбросов и пачки аномальных
+/// измерений большой длительности"), the section on the modified algorithm
+/// (rejection "при появлении целой последовательности аномальных измерений
+/// точность оценивания существенно снижается"; limiting raises it; "при
+/// восстановлении работоспособности системы СНС появление сигналов часто
+/// сопровождается возникновением аномальных выбросов … ошибки резко
+/// возрастают") and the conclusion after Figs. 3–8 (8–10 % / 5 %).
+pub const ANOMALY_TYPE_STATEMENTS: [&str; 6] = [
+    "Figs. 3-4: a single outlier; zeroing the gain keeps it out of the estimate",
+    "Figs. 5-6: a burst; rejection then runs on predictions only and loses accuracy, limiting raises it",
+    "a long sequence of anomalies: rejection's accuracy drops substantially (predictions only); limiting raises it",
+    "10-30 % of fixes anomalous; developed 8-10 % better than KF, 5 % better than adaptive",
+    "10-30 % of fixes anomalous; developed 8-10 % better than KF, 5 % better than adaptive",
+    "when GNSS comes back, outliers often come with it and estimation errors rise sharply",
+];
+
 // --- Spec 20: outages ----------------------------------------------------
 
 /// Short outage, a-priori model: improvement of the INS velocity-error

@@ -72,7 +72,8 @@ pub fn consistency(
 
 /// Run the spec-20 anomalies experiment and write `anomalies_example.csv`,
 /// `anomalies_example.svg`, the paper-like Figs. 3–8 (`fig03_…svg` to
-/// `fig08_…svg`) and `summary.json` into `out`.
+/// `fig08_…svg`), the per-type table `anomaly_types.csv` and `summary.json`
+/// into `out`.
 pub fn anomalies(
     scenario: &AnomaliesScenario,
     out: &Path,
@@ -126,8 +127,36 @@ pub fn anomalies(
     summary.insert("rms", rms);
     summary.insert("scores", &result.scores);
     summary.insert("anomaly_fraction", result.anomaly_fraction);
+    summary.insert("per_type", &result.per_type);
+    if !result.per_type.is_empty() {
+        aidnav_io::writers::write_atomic(
+            &out.join("anomaly_types.csv"),
+            anomaly_types_csv(&result.per_type).as_bytes(),
+        )?;
+    }
     summary.write(out)?;
     Ok(result)
+}
+
+/// `anomaly_types.csv`: one row per anomaly type, its anomalous and lost
+/// fractions and every estimator's RMS (the type names hold no comma).
+fn anomaly_types_csv(table: &[aidnav_reproduce::anomalies::TypeScores]) -> String {
+    let mut text = String::from("anomaly_type,anomaly_fraction,lost_fraction");
+    for e in ESTIMATORS {
+        text.push_str(&format!(",{e} [m/s]"));
+    }
+    text.push('\n');
+    for t in table {
+        text.push_str(&format!(
+            "{},{},{}",
+            t.anomaly_type, t.anomaly_fraction, t.lost_fraction
+        ));
+        for e in &t.rms_mps {
+            text.push_str(&format!(",{}", e.rms_mps));
+        }
+        text.push('\n');
+    }
+    text
 }
 
 /// Run the spec-20 outages experiment and write `outage_example.csv`,

@@ -428,6 +428,21 @@ mod validation_tests {
         assert_eq!(OutagesScenario::default().validate(), Ok(()));
     }
 
+    /// `examples/outages_regularity_only.toml` (the README's "regularity
+    /// alone" row) is the default scenario without the GMDH horizon.
+    #[test]
+    fn the_regularity_only_example_differs_from_the_default_only_in_the_horizon() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/outages_regularity_only.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let sc = parse_toml::<OutagesScenario>(&text, &path).unwrap();
+        assert_eq!(sc.validate(), Ok(()));
+        assert_eq!(sc.bridge.gmdh.horizon_s, None);
+        let mut default = OutagesScenario::default();
+        default.bridge.gmdh.horizon_s = None;
+        assert_eq!(sc, default);
+    }
+
     #[test]
     fn an_underflowing_gnss_sigma_is_refused_at_load() {
         let e = load_error("runs = 2\n[platform]\ngnss_velocity_sigma_mps = 1e-170\n");
