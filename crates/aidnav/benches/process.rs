@@ -2,7 +2,8 @@
 //! 2 197 GNSS epochs), by stage: reading (+ mounting and smoothing), the NED
 //! mechanization alone, the whole filter pass (mechanization, covariance,
 //! GNSS, non-holonomic and standstill updates) and the same pass without the
-//! standstill updates, and writing the solution CSV.
+//! standstill updates, the pass under the configured policy without and
+//! with the RTS smoother, and writing the solution CSV.
 //! Divide 54 858 by the time for IMU epochs per second.
 //!
 //! `cargo bench -p aidnav --bench process` (reads data/ of the
@@ -72,6 +73,24 @@ fn process(c: &mut Criterion) {
             )
         })
     });
+    // The same pass under the configured policy without and with the RTS
+    // smoother (`output.smooth`): their difference is the smoother's cost,
+    // forward recording and backward pass together.
+    for (name, smooth) in [("filter_robust", false), ("filter_robust_smoothed", true)] {
+        let plan = RunPlan {
+            smooth,
+            ..RunPlan::default()
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                black_box(
+                    run_filter(&cfg, &inputs, &plan, cfg.gnss.policy)
+                        .unwrap()
+                        .len(),
+                )
+            })
+        });
+    }
     let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
     let dir = tempfile::tempdir().unwrap();
     g.bench_function("write_solution", |b| {

@@ -18,7 +18,9 @@
 //!   [`FisherInformation`]).
 //! - information-form update for many sparse observations on a dense
 //!   covariance, with blocked factorisations ([`SubspaceUpdate`], [`blocked`]).
-//! - Rauch–Tung–Striebel smoother over a stored forward pass ([`rts_smooth`]).
+//! - Rauch–Tung–Striebel smoother over a stored forward pass ([`rts_smooth`]),
+//!   or recorded as the filter runs and evaluated at marked epochs only
+//!   ([`RtsRecorder`]).
 //! - NIS / NEES with χ² bounds ([`consistency`]).
 //! - steady-state covariance from the discrete algebraic Riccati equation
 //!   ([`steady_state_covariance`]).
@@ -81,7 +83,7 @@ pub use policy::{
 };
 pub use riccati::{SteadyState, steady_state_covariance};
 pub use scheme::{NoiseRule, Scheme, SchemeParameters, SchemePolicy};
-pub use smoother::{ForwardEpoch, SmoothedEpoch, rts_smooth};
+pub use smoother::{ForwardEpoch, RtsRecorder, SmoothedEpoch, rts_smooth};
 pub use subspace::{SparseInformation, SubspaceUpdate};
 
 /// The linear-algebra crate the engine is written in, re-exported so users

@@ -7,10 +7,19 @@
 //! `C_k = P_k Φ_{k+1}ᵀ (P⁻_{k+1})⁻¹` (by Cholesky solve of P⁻_{k+1}),
 //! `xˢ_k = x_k + C_k (xˢ_{k+1} − x⁻_{k+1})`,
 //! `Pˢ_k = P_k + C_k (Pˢ_{k+1} − P⁻_{k+1}) C_kᵀ`.
+//!
+//! [`rts_smooth`] keeps every epoch (three N×N matrices each).
+//! [`RtsRecorder`] computes the same smoothed estimates at the epochs the
+//! caller marks, from a store that grows only with the marks: it is fed the
+//! forward pass as it happens and composes the backward pass's affine maps
+//! between marks (see its documentation for the algebra).
 
-use nalgebra::{Cholesky, DefaultAllocator, Dim, OMatrix, OVector, allocator::Allocator};
+use nalgebra::{
+    Cholesky, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, allocator::Allocator,
+};
 
 use crate::check;
+use crate::dense::{gemm, gemm_nt};
 use crate::error::{EstimationError, Matrix, Result, Step};
 
 /// One epoch of a stored forward pass.
@@ -90,4 +99,553 @@ where
     }
     out.reverse();
     Ok(out)
+}
+
+/// The backward map from one node's smoothed estimate to an earlier mark's:
+/// `xˢ_m = A xˢ_j + b`, `Pˢ_m = D + A Pˢ_j Aᵀ` (the identity map while
+/// `identity`: nothing composed yet).
+#[derive(Debug, Clone)]
+struct BackwardMap<const N: usize> {
+    a: SMatrix<f64, N, N>,
+    b: SVector<f64, N>,
+    d: SMatrix<f64, N, N>,
+    identity: bool,
+    /// Epoch index of the mark the map leads to.
+    mark_epoch: usize,
+}
+
+impl<const N: usize> BackwardMap<N> {
+    fn identity(mark_epoch: usize) -> Self {
+        Self {
+            a: SMatrix::identity(),
+            b: SVector::zeros(),
+            d: SMatrix::zeros(),
+            identity: true,
+            mark_epoch,
+        }
+    }
+
+    /// Compose with one RTS step `xˢ_j = C xˢ_k + β`, `Pˢ_j = Δ + C Pˢ_k Cᵀ`:
+    /// `A ← A C`, `b ← b + A β`, `D ← D + A Δ Aᵀ`.
+    fn then(&mut self, step: &RtsStep<N>) {
+        if self.identity {
+            self.a = step.c;
+            self.b = step.beta;
+            self.d = step.delta;
+            self.identity = false;
+            return;
+        }
+        self.b += self.a * step.beta;
+        let mut t = SMatrix::<f64, N, N>::zeros();
+        gemm(&mut t, 1.0, &self.a, &step.delta, 0.0);
+        add_symmetric_product(&mut self.d, &t, &self.a);
+        gemm(&mut t, 1.0, &self.a, &step.c, 0.0);
+        self.a = t;
+    }
+
+    /// Apply to a later smoothed estimate.
+    fn apply(
+        &self,
+        x: &SVector<f64, N>,
+        p: &SMatrix<f64, N, N>,
+    ) -> (SVector<f64, N>, SMatrix<f64, N, N>) {
+        if self.identity {
+            return (*x, *p);
+        }
+        let mut ps = self.d;
+        let mut t = SMatrix::<f64, N, N>::zeros();
+        gemm(&mut t, 1.0, &self.a, p, 0.0);
+        add_symmetric_product(&mut ps, &t, &self.a);
+        (self.a * x + self.b, ps)
+    }
+}
+
+/// One RTS step from node j to the next node k:
+/// `C = P_j Φᵀ (P⁻_k)⁻¹`, `β = x_j − C x⁻_k`, `Δ = P_j − C P⁻_k Cᵀ`.
+#[derive(Debug, Clone)]
+struct RtsStep<const N: usize> {
+    c: SMatrix<f64, N, N>,
+    beta: SVector<f64, N>,
+    delta: SMatrix<f64, N, N>,
+}
+
+impl<const N: usize> RtsStep<N> {
+    /// From node j's filtered (x_j, P_j), the transition Φ from j to k and
+    /// k's prediction (x⁻_k, P⁻_k); `epoch` is k (for the error).
+    fn new(
+        x_j: &SVector<f64, N>,
+        p_j: &SMatrix<f64, N, N>,
+        phi: &SMatrix<f64, N, N>,
+        x_predicted: &SVector<f64, N>,
+        p_predicted: &SMatrix<f64, N, N>,
+        epoch: usize,
+    ) -> Result<Self> {
+        // A frozen state (variance exactly zero, its row and column zero, Φ
+        // diagonal there) is set aside by a unit diagonal, as in
+        // [`rts_smooth`]: its gain is zero.
+        let mut pp = *p_predicted;
+        for i in 0..N {
+            if pp[(i, i)] == 0.0 {
+                pp[(i, i)] = 1.0;
+            }
+        }
+        let chol = Cholesky::new(pp).ok_or(
+            EstimationError::NotPositiveDefinite {
+                step: Step::Smooth,
+                matrix: Matrix::PPredicted,
+            }
+            .at_epoch(epoch),
+        )?;
+        // Z = P_j Φᵀ, the cross-covariance of x_j and x_k, and
+        // P⁻_k = L Lᵀ: C = Z L⁻ᵀ L⁻¹ by two triangular solves from the
+        // right (W = Z L⁻ᵀ, then C = W L⁻¹), and C P⁻_k Cᵀ = W Wᵀ.
+        let l = chol.l_dirty();
+        let mut w = SMatrix::<f64, N, N>::zeros();
+        gemm_nt(&mut w, 1.0, p_j, phi, 0.0);
+        solve_right_lower_transposed(l, &mut w);
+        let mut delta = *p_j;
+        add_symmetric_product(&mut delta, &(-w), &w);
+        let mut c = w;
+        solve_right_lower(l, &mut c);
+        Ok(Self {
+            beta: x_j - c * x_predicted,
+            c,
+            delta,
+        })
+    }
+}
+
+/// `W ← W L⁻ᵀ` (solve `W Lᵀ = Z` in place, L lower triangular with a
+/// non-zero diagonal; only its lower triangle is read), column by column:
+/// `W_j = (Z_j − Σ_{k<j} L_jk W_k) / L_jj`. Whole columns at a time, so the
+/// inner loops run over contiguous memory.
+fn solve_right_lower_transposed<const N: usize>(
+    l: &SMatrix<f64, N, N>,
+    w: &mut SMatrix<f64, N, N>,
+) {
+    let s = w.as_mut_slice();
+    for j in 0..N {
+        let (done, rest) = s.split_at_mut(j * N);
+        let wj = &mut rest[..N];
+        for k in 0..j {
+            let f = l[(j, k)];
+            for (a, b) in wj.iter_mut().zip(&done[k * N..(k + 1) * N]) {
+                *a -= f * b;
+            }
+        }
+        let d = l[(j, j)];
+        for a in wj.iter_mut() {
+            *a /= d;
+        }
+    }
+}
+
+/// `C ← C L⁻¹` (solve `C L = W` in place, L lower triangular with a
+/// non-zero diagonal; only its lower triangle is read), from the last
+/// column: `C_j = (W_j − Σ_{k>j} L_kj C_k) / L_jj`.
+fn solve_right_lower<const N: usize>(l: &SMatrix<f64, N, N>, c: &mut SMatrix<f64, N, N>) {
+    let s = c.as_mut_slice();
+    for j in (0..N).rev() {
+        let (head, done) = s.split_at_mut((j + 1) * N);
+        let cj = &mut head[j * N..];
+        for k in j + 1..N {
+            let f = l[(k, j)];
+            let ck = &done[(k - j - 1) * N..(k - j) * N];
+            for (a, b) in cj.iter_mut().zip(ck) {
+                *a -= f * b;
+            }
+        }
+        let d = l[(j, j)];
+        for a in cj.iter_mut() {
+            *a /= d;
+        }
+    }
+}
+
+/// `S ← S + X Yᵀ` for a product known to be symmetric (S symmetric on
+/// entry): the lower triangle is computed, the upper one mirrored from it,
+/// so S leaves exactly symmetric at half the cost of the full product.
+fn add_symmetric_product<const N: usize>(
+    s: &mut SMatrix<f64, N, N>,
+    x: &SMatrix<f64, N, N>,
+    y: &SMatrix<f64, N, N>,
+) {
+    for c in 0..N {
+        for k in 0..N {
+            let f = y[(c, k)];
+            let xk = &x.as_slice()[k * N + c..(k + 1) * N];
+            let sc = &mut s.as_mut_slice()[c * N + c..(c + 1) * N];
+            for (a, b) in sc.iter_mut().zip(xk) {
+                *a += f * b;
+            }
+        }
+    }
+    for c in 0..N {
+        for r in c + 1..N {
+            s[(c, r)] = s[(r, c)];
+        }
+    }
+}
+
+/// Marked epochs per allocation of the store (one allocation per this many
+/// marks, none per epoch; pages not yet written are not resident).
+const MARKS_PER_CHUNK: usize = 256;
+
+/// Floats stored per mark for N states: A (N×N), b (N), the lower triangle
+/// of D (N(N+1)/2) and the mark's epoch index.
+const fn floats_per_mark(n: usize) -> usize {
+    n * n + n + n * (n + 1) / 2 + 1
+}
+
+/// The Rauch–Tung–Striebel smoother of [`rts_smooth`], recorded as the
+/// forward pass runs and evaluated only at the epochs the caller marks.
+///
+/// The forward pass is a sequence of epochs k, each opened by a prediction
+/// ([`predict`](Self::predict): Φ_k, x⁻_k, P⁻_k) and closed by the next one,
+/// its filtered (x_k, P_k) given by [`filtered`](Self::filtered) when an
+/// update changed them. Two facts make the store small:
+///
+/// - An epoch without an update (x_k = x⁻_k, P_k = P⁻_k) and without a mark
+///   drops out exactly: with `C_k = P_k Φ_{k+1}ᵀ (P⁻_{k+1})⁻¹` and
+///   `P_{k+1} = P⁻_{k+1}`, `C_k C_{k+1} = P_k (Φ_{k+2} Φ_{k+1})ᵀ (P⁻_{k+2})⁻¹`,
+///   and the two covariance steps combine the same way. Between *nodes*
+///   (updated, marked or last epochs) only the product of the transitions
+///   is kept.
+/// - Each RTS step is affine in the later smoothed estimate:
+///   `xˢ_j = C xˢ_k + β`, `Pˢ_j = Δ + C Pˢ_k Cᵀ` with `β = x_j − C x⁻_k`,
+///   `Δ = P_j − C P⁻_k Cᵀ`. The steps between two marks compose, as the
+///   forward pass goes, into one map (A, b, D); only that is stored, one per
+///   mark: [`BYTES_PER_MARK`](Self::BYTES_PER_MARK), whatever the number of
+///   epochs or updates between marks.
+///
+/// The backward pass ([`smooth_with`](Self::smooth_with)) then applies the
+/// stored maps from the last epoch back to the first mark. Equal to
+/// [`rts_smooth`] at the marked epochs up to rounding (a test checks 1e-9).
+/// A step that finds P⁻ not positive definite stops the recording; the
+/// error is returned by the backward pass, not by the forward pass.
+///
+/// ```
+/// use aidnav_estimation::RtsRecorder;
+/// use aidnav_estimation::nalgebra::{Matrix1, Vector1};
+///
+/// // A random walk (q = 1) measured directly (r = 1) at every epoch.
+/// let (mut x, mut p) = (Vector1::new(0.0), Matrix1::new(10.0));
+/// let mut rec = RtsRecorder::<1>::new(&x, &p, 100);
+/// for (k, z) in [1.0, 2.0, 1.5, 2.5].into_iter().enumerate() {
+///     if k > 0 {
+///         p += Matrix1::new(1.0);
+///         rec.predict(&Matrix1::identity(), &x, &p);
+///     }
+///     let gain = p[0] / (p[0] + 1.0);
+///     let x_predicted = x;
+///     x[0] += gain * (z - x[0]);
+///     p[0] *= 1.0 - gain;
+///     rec.filtered(&x_predicted, &x, &p);
+///     rec.mark();
+/// }
+/// let smoothed = rec.smooth().unwrap();
+/// assert_eq!(smoothed.len(), 4);
+/// assert_eq!(smoothed[3].x, x); // the last epoch: smoothed = filtered
+/// assert!(smoothed[0].p[0] < 1.0);
+/// ```
+#[derive(Debug, Clone)]
+pub struct RtsRecorder<const N: usize> {
+    /// Index of the open (latest) epoch.
+    epoch: usize,
+    x_predicted: SVector<f64, N>,
+    p_predicted: SMatrix<f64, N, N>,
+    /// Valid when `updated` (else equal to the prediction).
+    x_filtered: SVector<f64, N>,
+    /// Valid when `updated`.
+    p_filtered: SMatrix<f64, N, N>,
+    updated: bool,
+    /// The open epoch's mark (its index among the marks).
+    open_mark: Option<usize>,
+    /// The last closed node: its filtered (x, P).
+    anchor: Option<(SVector<f64, N>, SMatrix<f64, N, N>)>,
+    /// Transition from the anchor to the open epoch.
+    phi: SMatrix<f64, N, N>,
+    /// Backward map from the anchor to the latest closed mark (None before
+    /// the first mark closes).
+    map: Option<BackwardMap<N>>,
+    /// The stored maps: mark i's leads from mark i + 1 to mark i.
+    chunks: Vec<Box<[f64]>>,
+    stored: usize,
+    marks: usize,
+    max_marks: usize,
+    overflow: bool,
+    failed: Option<EstimationError>,
+}
+
+impl<const N: usize> RtsRecorder<N> {
+    /// Bytes stored per marked epoch.
+    pub const BYTES_PER_MARK: usize = floats_per_mark(N) * std::mem::size_of::<f64>();
+
+    /// Start at epoch 0 with its (filtered) estimate; keep at most
+    /// `max_marks` marks (more overflow: see [`overflowed`](Self::overflowed)).
+    pub fn new(x: &SVector<f64, N>, p: &SMatrix<f64, N, N>, max_marks: usize) -> Self {
+        Self {
+            epoch: 0,
+            x_predicted: *x,
+            p_predicted: *p,
+            x_filtered: *x,
+            p_filtered: *p,
+            updated: false,
+            open_mark: None,
+            anchor: None,
+            phi: SMatrix::identity(),
+            map: None,
+            chunks: Vec::new(),
+            stored: 0,
+            marks: 0,
+            max_marks,
+            overflow: false,
+            failed: None,
+        }
+    }
+
+    /// Open the next epoch with its transition Φ (from the previous epoch)
+    /// and prediction (x⁻, P⁻); its filtered estimate starts equal to it.
+    pub fn predict(
+        &mut self,
+        phi: &SMatrix<f64, N, N>,
+        x_predicted: &SVector<f64, N>,
+        p_predicted: &SMatrix<f64, N, N>,
+    ) {
+        if self.overflow || self.failed.is_some() {
+            return;
+        }
+        if self.close_open_epoch() {
+            self.phi = *phi;
+        } else if self.map.is_some() {
+            // Only the steps after the first mark are ever composed.
+            let mut product = SMatrix::<f64, N, N>::zeros();
+            gemm(&mut product, 1.0, phi, &self.phi, 0.0);
+            self.phi = product;
+        }
+        self.epoch += 1;
+        self.x_predicted = *x_predicted;
+        self.p_predicted = *p_predicted;
+        self.updated = false;
+        self.open_mark = None;
+    }
+
+    /// The open epoch's estimates after its updates: the prediction x⁻ as
+    /// the filter now expresses it (a closed-loop filter moves it by the
+    /// feedback) and the filtered (x, P).
+    pub fn filtered(
+        &mut self,
+        x_predicted: &SVector<f64, N>,
+        x: &SVector<f64, N>,
+        p: &SMatrix<f64, N, N>,
+    ) {
+        self.x_predicted = *x_predicted;
+        self.x_filtered = *x;
+        self.p_filtered = *p;
+        self.updated = true;
+    }
+
+    /// The open epoch's filtered (x, P).
+    fn open_filtered(&self) -> (&SVector<f64, N>, &SMatrix<f64, N, N>) {
+        if self.updated {
+            (&self.x_filtered, &self.p_filtered)
+        } else {
+            (&self.x_predicted, &self.p_predicted)
+        }
+    }
+
+    /// The open epoch's predicted state x⁻.
+    pub fn x_predicted(&self) -> &SVector<f64, N> {
+        &self.x_predicted
+    }
+
+    /// Index of the open epoch (0: the one [`new`](Self::new) started).
+    pub fn epoch(&self) -> usize {
+        self.epoch
+    }
+
+    /// Mark the open epoch for the backward pass; returns its index among
+    /// the marks (the same index when marked again), None once more than
+    /// `max_marks` were asked for.
+    pub fn mark(&mut self) -> Option<usize> {
+        if let Some(m) = self.open_mark {
+            return Some(m);
+        }
+        if self.marks >= self.max_marks {
+            self.overflow = true;
+            return None;
+        }
+        self.open_mark = Some(self.marks);
+        self.marks += 1;
+        Some(self.marks - 1)
+    }
+
+    /// The open epoch's mark, if any.
+    pub fn open_mark(&self) -> Option<usize> {
+        self.open_mark
+    }
+
+    /// Marks so far.
+    pub fn marks(&self) -> usize {
+        self.marks
+    }
+
+    /// Whether more marks than `max_marks` were asked for (the backward
+    /// pass is then unavailable).
+    pub fn overflowed(&self) -> bool {
+        self.overflow
+    }
+
+    /// Close the open epoch; returns whether it was a node (updated or
+    /// marked), which then becomes the anchor.
+    fn close_open_epoch(&mut self) -> bool {
+        let node = self.open_mark.is_some()
+            || (self.updated
+                && (self.x_filtered != self.x_predicted || self.p_filtered != self.p_predicted));
+        if !node {
+            return false;
+        }
+        if let Err(e) = self.compose_to_open() {
+            self.failed = Some(e);
+            return true;
+        }
+        if self.open_mark.is_some() {
+            if let Some(map) = self.map.take() {
+                self.store(&map);
+            }
+            self.map = Some(BackwardMap::identity(self.epoch));
+        }
+        let (x, p) = self.open_filtered();
+        self.anchor = Some((*x, *p));
+        true
+    }
+
+    /// Compose the step from the anchor to the open epoch into the map.
+    fn compose_to_open(&mut self) -> Result<()> {
+        if let (Some(map), Some((x_j, p_j))) = (self.map.as_mut(), self.anchor.as_ref()) {
+            let step = RtsStep::new(
+                x_j,
+                p_j,
+                &self.phi,
+                &self.x_predicted,
+                &self.p_predicted,
+                self.epoch,
+            )?;
+            map.then(&step);
+        }
+        Ok(())
+    }
+
+    /// Append a completed map (of mark `self.stored`).
+    fn store(&mut self, map: &BackwardMap<N>) {
+        let stride = floats_per_mark(N);
+        let (chunk, slot) = (self.stored / MARKS_PER_CHUNK, self.stored % MARKS_PER_CHUNK);
+        if chunk == self.chunks.len() {
+            self.chunks
+                .push(vec![0.0; MARKS_PER_CHUNK * stride].into_boxed_slice());
+        }
+        let out = &mut self.chunks[chunk][slot * stride..(slot + 1) * stride];
+        let (a, rest) = out.split_at_mut(N * N);
+        let (b, rest) = rest.split_at_mut(N);
+        let (d, epoch) = rest.split_at_mut(N * (N + 1) / 2);
+        a.copy_from_slice(map.a.as_slice());
+        b.copy_from_slice(map.b.as_slice());
+        let mut i = 0;
+        for c in 0..N {
+            for r in c..N {
+                d[i] = map.d[(r, c)];
+                i += 1;
+            }
+        }
+        // Exact: an epoch index is far below 2⁵³.
+        epoch[0] = map.mark_epoch as f64;
+        self.stored += 1;
+    }
+
+    /// Stored map of mark `i`.
+    fn load(&self, i: usize) -> BackwardMap<N> {
+        let stride = floats_per_mark(N);
+        let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
+        let v = &self.chunks[chunk][slot * stride..(slot + 1) * stride];
+        let (a, rest) = v.split_at(N * N);
+        let (b, rest) = rest.split_at(N);
+        let (d_packed, epoch) = rest.split_at(N * (N + 1) / 2);
+        let mut d = SMatrix::<f64, N, N>::zeros();
+        let mut k = 0;
+        for c in 0..N {
+            for r in c..N {
+                d[(r, c)] = d_packed[k];
+                d[(c, r)] = d_packed[k];
+                k += 1;
+            }
+        }
+        BackwardMap {
+            a: SMatrix::from_column_slice(a),
+            b: SVector::from_column_slice(b),
+            d,
+            identity: false,
+            mark_epoch: epoch[0] as usize,
+        }
+    }
+
+    /// The backward pass: calls `visit(mark, xˢ, Pˢ)` for every mark, the
+    /// latest first. The open epoch is taken as the last epoch of the pass
+    /// (its smoothed estimate is its filtered one). Allocates nothing per
+    /// mark.
+    pub fn smooth_with(
+        &self,
+        mut visit: impl FnMut(usize, &SVector<f64, N>, &SMatrix<f64, N, N>) -> Result<()>,
+    ) -> Result<()> {
+        if let Some(e) = &self.failed {
+            return Err(e.clone());
+        }
+        let mut checked =
+            |mark: usize, epoch: usize, x: &SVector<f64, N>, p: &SMatrix<f64, N, N>| {
+                check::finite(x, Step::Smooth, Matrix::X).map_err(|e| e.at_epoch(epoch))?;
+                check::finite(p, Step::Smooth, Matrix::P).map_err(|e| e.at_epoch(epoch))?;
+                visit(mark, x, p)
+            };
+        let (mut x, mut p) = {
+            let (x, p) = self.open_filtered();
+            (*x, *p)
+        };
+        if let Some(m) = self.open_mark {
+            checked(m, self.epoch, &x, &p)?;
+        }
+        if let Some(map) = &self.map {
+            // The last closed mark, through the step to the open epoch.
+            let mut map = map.clone();
+            if let Some((x_j, p_j)) = &self.anchor {
+                let step = RtsStep::new(
+                    x_j,
+                    p_j,
+                    &self.phi,
+                    &self.x_predicted,
+                    &self.p_predicted,
+                    self.epoch,
+                )?;
+                map.then(&step);
+            }
+            (x, p) = map.apply(&x, &p);
+            checked(self.stored, map.mark_epoch, &x, &p)?;
+        }
+        for i in (0..self.stored).rev() {
+            let map = self.load(i);
+            (x, p) = map.apply(&x, &p);
+            checked(i, map.mark_epoch, &x, &p)?;
+        }
+        Ok(())
+    }
+
+    /// The smoothed estimate of every mark, oldest first (see
+    /// [`smooth_with`](Self::smooth_with)).
+    pub fn smooth(&self) -> Result<Vec<SmoothedEpoch<nalgebra::Const<N>>>> {
+        let mut out = Vec::with_capacity(self.marks);
+        self.smooth_with(|_, x, p| {
+            out.push(SmoothedEpoch { x: *x, p: *p });
+            Ok(())
+        })?;
+        out.reverse();
+        Ok(out)
+    }
 }

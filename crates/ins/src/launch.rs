@@ -146,11 +146,35 @@ impl LaunchIns {
         dt: f64,
         sensed: impl Fn(f64) -> (LaunchAttitude, Vector3<f64>),
     ) {
+        self.step_with_thrust(dt, &Self::step_thrust(t, dt, sensed));
+    }
+
+    /// The non-gravitational acceleration `Dᵀ f_B` in the launch frame from
+    /// a sensed attitude and body specific force.
+    pub fn thrust(attitude: &LaunchAttitude, force: &Vector3<f64>) -> Vector3<f64> {
+        attitude.orientation().transpose() * force
+    }
+
+    /// The thrust at the three RK4 times of the step from t to t + dt
+    /// (t, t + dt/2, t + dt), as [`step`](Self::step) evaluates it. It does
+    /// not depend on the INS state: a caller flying many INS through the
+    /// same sensed outputs computes it once per step.
+    pub fn step_thrust(
+        t: f64,
+        dt: f64,
+        sensed: impl Fn(f64) -> (LaunchAttitude, Vector3<f64>),
+    ) -> [Vector3<f64>; 3] {
         let thrust = |tau: f64| {
             let (att, f) = sensed(tau);
-            att.orientation().transpose() * f
+            Self::thrust(&att, &f)
         };
-        let (a0, a_half, a1) = (thrust(t), thrust(t + dt / 2.0), thrust(t + dt));
+        [thrust(t), thrust(t + dt / 2.0), thrust(t + dt)]
+    }
+
+    /// [`step`](Self::step) with the thrust of
+    /// [`step_thrust`](Self::step_thrust) given: the same arithmetic.
+    pub fn step_with_thrust(&mut self, dt: f64, thrust: &[Vector3<f64>; 3]) {
+        let [a0, a_half, a1] = *thrust;
         let (r, v) = (self.position, self.velocity);
         let (k1r, k1v) = (v, a0 + central_gravity(&r));
         let (k2r, k2v) = (

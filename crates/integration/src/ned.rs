@@ -6,12 +6,11 @@
 //! any measurement policy of the engine on each update.
 
 use aidnav_estimation::{
-    AcceptAll, EstimationError, FisherInformation, FixedKalmanFilter, ForwardEpoch,
-    MeasurementPolicy, Outcome, UpdateRecord,
+    AcceptAll, EstimationError, FisherInformation, FixedKalmanFilter, MeasurementPolicy, Outcome,
+    RtsRecorder, UpdateRecord,
     adaptive::{AnomalyDetector, InnovationFeedbackNoise},
     nalgebra::{Const, U3},
     recovery::{AgreementConfig, AgreementDetector, Update, Verdict},
-    rts_smooth,
 };
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
@@ -72,23 +71,37 @@ fn corrected(state: &NedState, x: &Vector21) -> NedState {
 /// Record of one GNSS update.
 pub type GnssUpdate = UpdateRecord<Const<STATES>, U3>;
 
-/// Bytes the stored forward pass takes per epoch (Φ, P⁻, P⁺, two vectors,
-/// the nominal state): what a smoothing run costs in memory.
-pub const BYTES_PER_RECORDED_EPOCH: usize =
-    std::mem::size_of::<ForwardEpoch<Const<STATES>>>() + std::mem::size_of::<NedState>();
+/// Bytes a smoothing run keeps per smoothed (marked) epoch: the
+/// recorder's backward map, the nominal state, and the smoothed state with
+/// its antenna covariance. Independent of the IMU rate and of the updates
+/// between marks.
+pub const BYTES_PER_SMOOTHED_EPOCH: usize = RtsRecorder::<STATES>::BYTES_PER_MARK
+    + std::mem::size_of::<NedState>()
+    + std::mem::size_of::<SmoothedAntenna>();
 
 /// The forward pass kept for the Rauch–Tung–Striebel smoother, in the
 /// closed-loop form: one epoch per covariance propagation, the updates at
-/// that time folded into it. Errors are stored relative to the nominal
-/// state *after* the epoch's feedback, so the filtered error is 0 and the
-/// predicted one is minus the feedback δ applied at the epoch; the engine's
-/// [`rts_smooth`] then works unchanged.
-#[derive(Debug, Clone, Default)]
+/// that time folded into it. Errors are relative to the nominal state
+/// *after* the epoch's feedback, so the filtered error is 0 and the
+/// predicted one is minus the feedback δ applied at the epoch. The engine's
+/// [`RtsRecorder`] keeps only what the backward pass needs at the marked
+/// epochs (the GNSS epochs of the epoch loop).
+#[derive(Debug, Clone)]
 struct ForwardRecord {
-    epochs: Vec<ForwardEpoch<Const<STATES>>>,
+    rts: Box<RtsRecorder<STATES>>,
+    /// The open epoch's nominal state (after its feedback so far).
+    open_state: NedState,
+    /// The nominal state of every marked epoch.
     states: Vec<NedState>,
-    max_epochs: usize,
-    overflow: bool,
+}
+
+/// The forward pass in full, for the test that checks [`RtsRecorder`]
+/// against the engine's stored-pass smoother on this filter.
+#[cfg(test)]
+#[derive(Debug, Clone, Default)]
+struct FullRecord {
+    epochs: Vec<aidnav_estimation::ForwardEpoch<Const<STATES>>>,
+    states: Vec<NedState>,
 }
 
 /// The filter: the entry point of spec 40's GNSS/INS integration.
@@ -170,6 +183,8 @@ pub struct NedFilter {
     pending_dt: f64,
     covariance_interval_s: f64,
     record: Option<ForwardRecord>,
+    #[cfg(test)]
+    full_record: Option<FullRecord>,
     open_loop: bool,
     monitor: Option<ConvergenceMonitor>,
     fed_back: Vector21,
@@ -300,6 +315,8 @@ impl NedFilter {
             pending_dt: 0.0,
             covariance_interval_s: 0.05,
             record: None,
+            #[cfg(test)]
+            full_record: None,
             open_loop: false,
             monitor: None,
             fed_back: Vector21::zeros(),
@@ -459,50 +476,73 @@ impl NedFilter {
             r.position.propagate(&phi, dt);
             r.velocity.propagate(&phi, dt);
         }
-        let (p, state) = (*self.kf.covariance(), *self.ins.state());
         if let Some(r) = self.record.as_mut() {
-            if r.epochs.len() >= r.max_epochs {
-                r.overflow = true;
-            } else {
-                r.epochs.push(ForwardEpoch {
-                    phi,
-                    x_predicted: Vector21::zeros(),
-                    p_predicted: p,
-                    x_filtered: Vector21::zeros(),
-                    p_filtered: p,
-                });
-                r.states.push(state);
-            }
+            r.rts
+                .predict(&phi, &Vector21::zeros(), self.kf.covariance());
+            r.open_state = *self.ins.state();
         }
-        Ok(())
-    }
-
-    /// Keep the forward pass (at most `max_epochs` covariance epochs) for
-    /// [`smoothed_states`](Self::smoothed_states); starts at the current state.
-    pub fn start_recording(&mut self, max_epochs: usize) {
-        let p = *self.kf.covariance();
-        self.record = Some(ForwardRecord {
-            epochs: vec![ForwardEpoch {
-                phi: SMatrix::identity(),
+        #[cfg(test)]
+        if let Some(r) = self.full_record.as_mut() {
+            let p = *self.kf.covariance();
+            r.epochs.push(aidnav_estimation::ForwardEpoch {
+                phi,
                 x_predicted: Vector21::zeros(),
                 p_predicted: p,
                 x_filtered: Vector21::zeros(),
                 p_filtered: p,
-            }],
-            states: vec![*self.ins.state()],
-            max_epochs: max_epochs.max(1),
-            overflow: false,
+            });
+            r.states.push(*self.ins.state());
+        }
+        Ok(())
+    }
+
+    /// Keep what the smoother needs of the forward pass, from the current
+    /// state on, for at most `max_epochs` smoothed epochs (those marked by
+    /// [`mark_for_smoothing`](Self::mark_for_smoothing); a run that marks
+    /// more cannot be smoothed). Memory: [`BYTES_PER_SMOOTHED_EPOCH`] per
+    /// marked epoch, nothing per covariance epoch.
+    pub fn start_recording(&mut self, max_epochs: usize) {
+        let p = *self.kf.covariance();
+        self.record = Some(ForwardRecord {
+            rts: Box::new(RtsRecorder::new(&Vector21::zeros(), &p, max_epochs.max(1))),
+            open_state: *self.ins.state(),
+            states: Vec::new(),
         });
+        #[cfg(test)]
+        {
+            self.full_record = Some(FullRecord {
+                epochs: vec![aidnav_estimation::ForwardEpoch {
+                    phi: SMatrix::identity(),
+                    x_predicted: Vector21::zeros(),
+                    p_predicted: p,
+                    x_filtered: Vector21::zeros(),
+                    p_filtered: p,
+                }],
+                states: vec![*self.ins.state()],
+            });
+        }
     }
 
-    /// Index of the current recorded epoch (None when not recording).
-    pub fn recorded_epoch(&self) -> Option<usize> {
-        self.record.as_ref().map(|r| r.epochs.len() - 1)
+    /// Ask for the smoothed state of the current covariance epoch (the last
+    /// propagated one, with every update made in it, also later ones);
+    /// returns its index in [`smoothed_states`](Self::smoothed_states)
+    /// (the same index when asked again in the same epoch). None when not
+    /// recording or past the recording's limit.
+    pub fn mark_for_smoothing(&mut self) -> Option<usize> {
+        let r = self.record.as_mut()?;
+        let new = r.rts.open_mark().is_none();
+        let mark = r.rts.mark()?;
+        if new {
+            r.states.push(r.open_state);
+        }
+        Some(mark)
     }
 
-    /// The Rauch–Tung–Striebel smoothed navigation state of every recorded
-    /// epoch (IMU position, velocity, attitude), or None when not
-    /// recording or when the record overflowed its epoch limit.
+    /// The Rauch–Tung–Striebel smoothed navigation state (IMU position,
+    /// velocity, attitude) of every epoch marked by
+    /// [`mark_for_smoothing`](Self::mark_for_smoothing), in marking order;
+    /// None when not recording or when more epochs were marked than the
+    /// recording's limit.
     pub fn smoothed_states(&self) -> Result<Option<Vec<NedState>>, EstimationError> {
         Ok(self
             .smoothed_states_with_covariance()?
@@ -516,23 +556,21 @@ impl NedFilter {
     pub fn smoothed_states_with_covariance(
         &self,
     ) -> Result<Option<Vec<SmoothedAntenna>>, EstimationError> {
-        let Some(r) = self.record.as_ref().filter(|r| !r.overflow) else {
+        let Some(r) = self.record.as_ref().filter(|r| !r.rts.overflowed()) else {
             return Ok(None);
         };
-        let smoothed = rts_smooth(&r.epochs)?;
-        Ok(Some(
-            smoothed
-                .iter()
-                .zip(&r.states)
-                .map(|(e, s)| {
-                    let state = corrected(s, &e.x);
-                    let c = state.attitude.matrix();
-                    let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
-                    let p = h * e.p * h.transpose();
-                    (state, (p + p.transpose()) * 0.5)
-                })
-                .collect(),
-        ))
+        let mut out = r.states.clone();
+        let mut covariances = vec![Matrix3::zeros(); out.len()];
+        r.rts.smooth_with(|mark, x, p| {
+            let state = corrected(&out[mark], x);
+            let c = state.attitude.matrix();
+            let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
+            let p = h * p * h.transpose();
+            out[mark] = state;
+            covariances[mark] = (p + p.transpose()) * 0.5;
+            Ok(())
+        })?;
+        Ok(Some(out.into_iter().zip(covariances).collect()))
     }
 
     /// Antenna position of an IMU state under this filter's lever arm.
@@ -901,12 +939,22 @@ impl NedFilter {
         self.instruments.gyro_scale += v3(GYRO_SCALE);
         self.instruments.accel_scale += v3(ACCEL_SCALE);
         let (p, state) = (*self.kf.covariance(), *self.ins.state());
-        if let Some(r) = self.record.as_mut()
-            && !r.overflow
-            && let (Some(e), Some(st)) = (r.epochs.last_mut(), r.states.last_mut())
-        {
+        if let Some(r) = self.record.as_mut() {
             // Errors relative to the post-feedback nominal: the prediction
             // sat the feedback δ away from it.
+            let x_predicted = r.rts.x_predicted() - x;
+            r.rts.filtered(&x_predicted, &Vector21::zeros(), &p);
+            r.open_state = state;
+            if r.rts.open_mark().is_some()
+                && let Some(st) = r.states.last_mut()
+            {
+                *st = state;
+            }
+        }
+        #[cfg(test)]
+        if let Some(r) = self.full_record.as_mut()
+            && let (Some(e), Some(st)) = (r.epochs.last_mut(), r.states.last_mut())
+        {
             e.x_predicted -= x;
             e.p_filtered = p;
             *st = state;
@@ -973,7 +1021,7 @@ mod tests {
             }
             if in_gap && k % 100 == 99 {
                 let drift = start.position.ned_to(&f.state().position).norm();
-                gap.push((f.recorded_epoch().unwrap(), drift));
+                gap.push((f.mark_for_smoothing().unwrap(), drift));
             }
         }
         let smoothed = f.smoothed_states().unwrap().unwrap();
@@ -991,6 +1039,91 @@ mod tests {
             worst_smoothed < 0.2 * worst_filtered,
             "{worst_smoothed} vs {worst_filtered}"
         );
+    }
+
+    /// The recorded smoother (the engine's [`RtsRecorder`], composed between
+    /// the marked epochs) against the engine's stored-pass smoother
+    /// ([`aidnav_estimation::rts_smooth`] over every covariance epoch, the
+    /// smoother this filter used before) on the same run: a static INS
+    /// with position and velocity fixes at 4 Hz, non-holonomic updates at
+    /// 10 Hz, zero-velocity updates at 1 Hz, an accelerometer bias that
+    /// appears in a 20 s gap without fixes, marks at every fix and every
+    /// second of the gap. Smoothed position, velocity, attitude and antenna
+    /// covariance agree to rounding.
+    #[test]
+    fn recorded_smoother_equals_the_stored_pass_smoother() {
+        // The smoothed output's promise (position in m, velocity in m/s,
+        // attitude in rad, covariance in m²); the difference is rounding.
+        const TOLERANCE: f64 = 1e-9;
+        let start = NedState {
+            position: Geodetic {
+                latitude_rad: 0.7,
+                longitude_rad: -1.8,
+                height_m: 1600.0,
+            },
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(0.01, -0.02, 0.5),
+        };
+        let model = NedErrorModel::default();
+        let sig = prior(&model, [0.5, 0.05, 0.01, 0.02]);
+        let mut f = NedFilter::new(model, start, &sig, Vec3::new(0.3, -0.1, -0.8)).unwrap();
+        f.start_recording(100_000);
+        let imu = NedMechanization::stationary_increment(&start, 0.01);
+        let mut biased = imu;
+        biased.delta_velocity += Vec3::new(0.02 * 0.01, -0.01 * 0.01, 0.0);
+        let mut marks = Vec::new(); // (mark, index in the full record)
+        let full_index = |f: &NedFilter| f.full_record.as_ref().unwrap().epochs.len() - 1;
+        for k in 0..9_000 {
+            let t = (k + 1) as f64 * 0.01;
+            f.propagate(if t > 30.0 { &biased } else { &imu }).unwrap();
+            let in_gap = (40.0..60.0).contains(&t);
+            if k % 10 == 9 {
+                f.update_non_holonomic(0.1).unwrap();
+            }
+            if k % 100 == 99 && !in_gap {
+                f.update_zero_velocity(0.05).unwrap();
+            }
+            if k % 25 == 24 && !in_gap {
+                let truth = start.position.offset_by(&(start.attitude * f.lever_arm));
+                let fix = truth.offset_by(&Vec3::new(0.01, -0.02, 0.015));
+                f.update_position(&fix, &Vector3::repeat(0.05)).unwrap();
+                f.update_velocity_with(&Vec3::zeros(), &Vector3::repeat(0.02), &mut AcceptAll)
+                    .unwrap();
+                marks.push((f.mark_for_smoothing().unwrap(), full_index(&f)));
+            }
+            if in_gap && k % 100 == 99 {
+                marks.push((f.mark_for_smoothing().unwrap(), full_index(&f)));
+            }
+        }
+        let new = f.smoothed_states_with_covariance().unwrap().unwrap();
+        let full = f.full_record.as_ref().unwrap();
+        let old = aidnav_estimation::rts_smooth(&full.epochs).unwrap();
+        assert_eq!(new.len(), marks.len());
+        assert!(full.epochs.len() > 2 * marks.len());
+        let mut worst = [0.0_f64; 4];
+        for &(m, i) in &marks {
+            let state = corrected(&full.states[i], &old[i].x);
+            let c = state.attitude.matrix();
+            let h = NedErrorModel::position_measurement((c * f.lever_arm).as_raw());
+            let p = h * old[i].p * h.transpose();
+            let p = (p + p.transpose()) * 0.5;
+            let (s, cov) = &new[m];
+            worst[0] = worst[0].max(state.position.ned_to(&s.position).norm());
+            worst[1] = worst[1].max((state.velocity - s.velocity).norm());
+            worst[2] = worst[2].max(state.attitude.angle_to(&s.attitude));
+            worst[3] = worst[3].max((p - cov).abs().max());
+        }
+        eprintln!(
+            "worst differences (position m, velocity m/s, attitude rad, covariance m²): {worst:?}"
+        );
+        assert!(worst.iter().all(|&w| w < TOLERANCE), "{worst:?}");
+        // The smoother did its job in the gap: the smoothed positions there
+        // moved away from the drifting filtered ones.
+        let moved = marks
+            .iter()
+            .map(|&(m, i)| full.states[i].position.ned_to(&new[m].0.position).norm())
+            .fold(0.0, f64::max);
+        assert!(moved > 0.1, "{moved}");
     }
 
     /// At a standstill without GNSS: zero-velocity updates hold the velocity

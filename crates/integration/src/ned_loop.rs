@@ -174,8 +174,9 @@ pub struct FixRecord {
     pub sigma_gnss_m: f64,
     /// Spec 20's K_eff = σ_GNSS / σ_filter (3-D position).
     pub k_eff: f64,
-    /// The filter's recorded covariance epoch (smoothing runs).
-    pub recorded_epoch: Option<usize>,
+    /// Index of this epoch's smoothed state in
+    /// [`NedFilter::smoothed_states`] (smoothing runs).
+    pub smoothed_index: Option<usize>,
 }
 
 /// Receives what the loop reports. Every method but [`EpochObserver::fix`]
@@ -420,7 +421,7 @@ fn fix_epoch(
             sigma_gnss: sigma_gnss_m,
         }
         .coefficient(row.sigma.norm()),
-        recorded_epoch: filter.recorded_epoch(),
+        smoothed_index: filter.mark_for_smoothing(),
     })
 }
 

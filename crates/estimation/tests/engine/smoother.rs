@@ -174,3 +174,138 @@ fn a_frozen_state_is_set_aside() {
         assert_eq!((b.x[1], b.p[(1, 1)], b.p[(0, 1)]), (0.0, 0.0, 0.0));
     }
 }
+
+/// [`RtsRecorder`] against [`rts_smooth`] over the same forward pass: a
+/// 6-state system with a frozen state, epochs with and without updates,
+/// closed-loop resets of the estimate (x⁻ moved by the feedback, x = 0),
+/// marks at some epochs only (the last epoch unmarked in one case, marked
+/// in the other). Both smoothers run from the same stored numbers; the
+/// recorder composes the steps between marks, so only rounding differs.
+#[test]
+fn recorder_equals_the_stored_pass_smoother_at_the_marks() {
+    use super::common::{normal, random_spd, random_transition, rng};
+    use aidnav_estimation::nalgebra::{Const, SMatrix, SVector};
+    use aidnav_estimation::{ForwardEpoch, RtsRecorder};
+    const N: usize = 6;
+    const FROZEN: usize = 4;
+    // Rounding of two orders of summation over ≈ 10² steps of O(1)
+    // numbers: far below the 1e-9 the smoothed output must keep.
+    const TOLERANCE: f64 = 1e-9;
+    type M = SMatrix<f64, N, N>;
+    type V = SVector<f64, N>;
+    let freeze = |m: &mut M| {
+        for i in 0..N {
+            if i != FROZEN {
+                m[(i, FROZEN)] = 0.0;
+                m[(FROZEN, i)] = 0.0;
+            }
+        }
+    };
+    for (seed, mark_last) in [(11_u64, false), (12, true)] {
+        let mut g = rng(seed);
+        let mut p = M::from_iterator(random_spd(&mut g, N, 0.5).iter().copied());
+        freeze(&mut p);
+        p[(FROZEN, FROZEN)] = 0.0;
+        let mut x = V::from_fn(|i, _| if i == FROZEN { 0.0 } else { normal(&mut g) });
+        let mut forward = vec![ForwardEpoch::<Const<N>> {
+            phi: M::identity(),
+            x_predicted: x,
+            p_predicted: p,
+            x_filtered: x,
+            p_filtered: p,
+        }];
+        let mut rec = RtsRecorder::<N>::new(&x, &p, usize::MAX);
+        let mut marked = Vec::new();
+        let epochs = 120;
+        for k in 0..epochs {
+            if k > 0 {
+                let mut phi = M::from_iterator(random_transition(&mut g, N).iter().copied());
+                freeze(&mut phi);
+                phi[(FROZEN, FROZEN)] = 1.0;
+                let mut q = M::from_iterator(random_spd(&mut g, N, 0.01).iter().copied()) * 0.05;
+                freeze(&mut q);
+                q[(FROZEN, FROZEN)] = 0.0;
+                x = phi * x;
+                p = phi * p * phi.transpose() + q;
+                p = (p + p.transpose()) * 0.5;
+                rec.predict(&phi, &x, &p);
+                forward.push(ForwardEpoch {
+                    phi,
+                    x_predicted: x,
+                    p_predicted: p,
+                    x_filtered: x,
+                    p_filtered: p,
+                });
+            }
+            // Updates at about half the epochs: two measurements of the
+            // live states (Joseph form).
+            if normal(&mut g) > 0.0 {
+                let mut h = SMatrix::<f64, 2, N>::from_fn(|_, _| normal(&mut g));
+                h.column_mut(FROZEN).fill(0.0);
+                let r = SMatrix::<f64, 2, 2>::from_diagonal(&SVector::<f64, 2>::new(0.3, 0.7));
+                let s = h * p * h.transpose() + r;
+                let gain = p * h.transpose() * s.try_inverse().unwrap();
+                let z = SVector::<f64, 2>::from_fn(|_, _| normal(&mut g));
+                let x_predicted = x;
+                x += gain * (z - h * x);
+                let i_kh = M::identity() - gain * h;
+                p = i_kh * p * i_kh.transpose() + gain * r * gain.transpose();
+                p = (p + p.transpose()) * 0.5;
+                // Closed loop at every other update: the estimate is fed
+                // back, so x = 0 and the prediction sits −x away.
+                let (x_predicted, x_filtered) = if normal(&mut g) > 0.0 {
+                    let fed = x;
+                    x = V::zeros();
+                    (x_predicted - fed, x)
+                } else {
+                    (x_predicted, x)
+                };
+                rec.filtered(&x_predicted, &x_filtered, &p);
+                let e = forward.last_mut().unwrap();
+                e.x_predicted = x_predicted;
+                e.x_filtered = x_filtered;
+                e.p_filtered = p;
+            }
+            let last = k == epochs - 1;
+            if (last && mark_last) || (!last && k % 7 != 3 && normal(&mut g) > 0.3) {
+                assert_eq!(rec.mark(), Some(marked.len()));
+                assert_eq!(rec.mark(), Some(marked.len()), "marking again");
+                marked.push(k);
+            }
+        }
+        assert_eq!(rec.epoch(), epochs - 1);
+        let reference = rts_smooth(&forward).unwrap();
+        let smoothed = rec.smooth().unwrap();
+        assert_eq!(smoothed.len(), marked.len());
+        assert!(marked.len() > 20, "{} marks", marked.len());
+        let mut worst = 0.0_f64;
+        for (s, &k) in smoothed.iter().zip(&marked) {
+            worst = worst
+                .max((s.x - reference[k].x).abs().max())
+                .max((s.p - reference[k].p).abs().max());
+            assert_eq!(s.p[(FROZEN, FROZEN)], 0.0, "the frozen state stays frozen");
+        }
+        eprintln!(
+            "seed {seed}: {} marks, worst difference {worst:e}",
+            marked.len()
+        );
+        assert!(worst < TOLERANCE, "seed {seed}: {worst:e}");
+        // The smoother did something: the first mark moved from its filtered value.
+        let first = &forward[marked[0]];
+        assert!((smoothed[0].x - first.x_filtered).norm() > 1e-3);
+    }
+}
+
+/// The recorder refuses more marks than it was given room for, and says so.
+#[test]
+fn recorder_overflows_at_its_limit() {
+    use aidnav_estimation::RtsRecorder;
+    use aidnav_estimation::nalgebra::{Matrix1, Vector1};
+    let mut rec = RtsRecorder::<1>::new(&Vector1::new(0.0), &Matrix1::new(1.0), 2);
+    assert_eq!(rec.mark(), Some(0));
+    rec.predict(&Matrix1::identity(), &Vector1::new(0.0), &Matrix1::new(2.0));
+    assert_eq!(rec.mark(), Some(1));
+    rec.predict(&Matrix1::identity(), &Vector1::new(0.0), &Matrix1::new(3.0));
+    assert_eq!(rec.mark(), None);
+    assert!(rec.overflowed());
+}

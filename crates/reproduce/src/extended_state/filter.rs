@@ -3,6 +3,7 @@
 //! the switches it drives.
 
 use super::*;
+use aidnav_estimation::Step;
 
 /// The filter's prior covariance, fix noise R and process noise Q.
 #[allow(clippy::type_complexity)]
@@ -99,12 +100,12 @@ fn feed_back_navigation(
 #[allow(clippy::type_complexity)]
 pub(super) fn filter_pass(
     sc: &ExtendedStateScenario,
-    traj: &LaunchTrajectory,
-    errors: &LaunchInstrumentErrors,
+    flight: &Flight<'_>,
     rng: &mut RunRng,
     forced: &[f64],
     mut history: Option<&mut FilterHistory>,
 ) -> Result<(Vec<Option<Snapshot>>, Vec<Option<Snapshot>>), EstimationError> {
+    let (traj, errors) = (flight.traj, &flight.errors);
     let dt = traj.dt_s;
     let per_fix = (sc.fix_interval_s / dt).round() as usize;
     let start_step = (sc.fusion_start_s / dt).round() as usize;
@@ -136,7 +137,7 @@ pub(super) fn filter_pass(
             let a = ExtendedStateModel::continuous(t + dt / 2.0, &att, &f);
             phi = ExtendedStateModel::transition(&a, dt, TransitionForm::Exact) * phi;
         }
-        ins.step(t, dt, |tau| raw_outputs(traj, errors, tau));
+        ins.step_with_thrust(dt, &flight.raw[k]);
         let step = k + 1;
         if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
             continue;
@@ -201,4 +202,208 @@ pub(super) fn filter_pass(
         }
     }
     Ok((at_switch, at_forced))
+}
+
+/// One fix of a [`CovariancePath`].
+#[derive(Debug, Clone)]
+struct PathFix {
+    /// Transition from the previous fix (unused at the first).
+    phi: Matrix14,
+    /// Kalman gain of the fix's update.
+    gain: SMatrix<f64, STATES, NAVIGATION>,
+}
+
+/// What the filter pass does not take from the run. Q, R and H are fixed
+/// and Φ is built from the true instrument outputs, the same in every run
+/// when the error signs are fixed; so are the covariance, the gains, the
+/// Fisher information, δ(n) and the fixes at which the switches fire. One
+/// filter pass computes them per trajectory ([`CovariancePath::new`]); a
+/// run then replays only its state ([`replay`]): `x⁻ = Φ x`,
+/// `x = x⁻ + K (z − H x⁻)`, the feedback into its INS. The same
+/// operations on the same numbers as [`filter_pass`], so the same results.
+pub(super) struct CovariancePath {
+    fixes: Vec<PathFix>,
+    /// Per threshold, the fix at which its switch fires (None: never).
+    switch_at: Vec<Option<usize>>,
+    /// The error that ended the path before t_B (a run needing a later fix
+    /// meets it as [`filter_pass`] would).
+    error: Option<EstimationError>,
+}
+
+impl CovariancePath {
+    /// The filter pass of `flight` without a state: every fix to t_B.
+    pub(super) fn new(sc: &ExtendedStateScenario, flight: &Flight<'_>) -> Self {
+        let mut path = Self {
+            fixes: Vec::new(),
+            switch_at: vec![None; sc.thresholds.len()],
+            error: None,
+        };
+        if let Err(e) = path.compute(sc, flight) {
+            path.error = Some(e);
+        }
+        path
+    }
+
+    fn compute(
+        &mut self,
+        sc: &ExtendedStateScenario,
+        flight: &Flight<'_>,
+    ) -> Result<(), EstimationError> {
+        let (traj, errors) = (flight.traj, &flight.errors);
+        let dt = traj.dt_s;
+        let per_fix = (sc.fix_interval_s / dt).round() as usize;
+        let start_step = (sc.fusion_start_s / dt).round() as usize;
+        let last = traj.samples() - 1;
+        let (p0, r, q) = filter_matrices(sc);
+        let mut kf = FixedKalmanFilter::<STATES>::new(SVector::zeros(), p0)?;
+        let mut fisher = FisherInformation::from_prior_covariance(&p0)?;
+        let c = ExtendedStateModel::measurement();
+        let mut switches: Vec<ConvergenceSwitch> = sc
+            .thresholds
+            .iter()
+            .map(|&threshold| {
+                ConvergenceSwitch::new(SwitchRule {
+                    threshold,
+                    ..sc.switch
+                })
+            })
+            .collect();
+        let mut phi = Matrix14::identity();
+        let z = SVector::<f64, NAVIGATION>::zeros();
+        for k in 0..last {
+            let t = k as f64 * dt;
+            if k >= start_step && sc.transition == TransitionForm::Exact {
+                let (att, f) = raw_outputs(traj, errors, t + dt / 2.0);
+                let a = ExtendedStateModel::continuous(t + dt / 2.0, &att, &f);
+                phi = ExtendedStateModel::transition(&a, dt, TransitionForm::Exact) * phi;
+            }
+            let step = k + 1;
+            if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
+                continue;
+            }
+            let t_fix = step as f64 * dt;
+            let first = self.fixes.is_empty();
+            if !first {
+                if sc.transition == TransitionForm::FirstOrder {
+                    let t0 = t_fix - sc.fix_interval_s;
+                    let (att, f) = raw_outputs(traj, errors, t0);
+                    let a = ExtendedStateModel::continuous(t0, &att, &f);
+                    phi = ExtendedStateModel::transition(
+                        &a,
+                        sc.fix_interval_s,
+                        TransitionForm::FirstOrder,
+                    );
+                }
+                kf.predict(&phi, &q)?;
+                fisher.propagate(&phi)?;
+            }
+            let predicted = *kf.covariance();
+            // The gain does not depend on z: the state is the run's.
+            let rec = kf.update(&z, &c, &r)?;
+            fisher.add_measurement(&c, &r)?;
+            let bound = fisher.cramer_rao_bound()?;
+            let delta = cramer_rao_ratio(&rec.gain, &predicted, &bound, NAVIGATION);
+            let n = self.fixes.len();
+            self.fixes.push(PathFix {
+                phi,
+                gain: rec.gain,
+            });
+            phi = Matrix14::identity();
+            let fusion_s = t_fix - sc.fusion_start_s;
+            for (s, at) in switches.iter_mut().zip(self.switch_at.iter_mut()) {
+                if s.observe(fusion_s, delta) {
+                    *at = Some(n);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// [`filter_pass`] of one run on a shared [`CovariancePath`] (no history):
+/// the snapshots at the switches and at the forced times.
+#[allow(clippy::type_complexity)]
+pub(super) fn replay(
+    sc: &ExtendedStateScenario,
+    flight: &Flight<'_>,
+    path: &CovariancePath,
+    rng: &mut RunRng,
+    forced: &[f64],
+) -> Result<(Vec<Option<Snapshot>>, Vec<Option<Snapshot>>), EstimationError> {
+    let traj = flight.traj;
+    let dt = traj.dt_s;
+    let per_fix = (sc.fix_interval_s / dt).round() as usize;
+    let start_step = (sc.fusion_start_s / dt).round() as usize;
+    let last = traj.samples() - 1;
+    let c = ExtendedStateModel::measurement();
+    let mut at_switch: Vec<Option<Snapshot>> = vec![None; path.switch_at.len()];
+    let mut at_forced: Vec<Option<Snapshot>> = vec![None; forced.len()];
+    let mut ins = LaunchIns::default();
+    let mut x = SVector::<f64, STATES>::zeros();
+    let mut n = 0;
+    for k in 0..last {
+        ins.step_with_thrust(dt, &flight.raw[k]);
+        let step = k + 1;
+        if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
+            continue;
+        }
+        let t_fix = step as f64 * dt;
+        let Some(fix) = path.fixes.get(n) else {
+            // The shared pass failed here; so would this run's.
+            return Err(path
+                .error
+                .clone()
+                .expect("a path shorter than the flight ended in an error"));
+        };
+        if n > 0 {
+            // KalmanFilter::predict_state.
+            x = fix.phi * x;
+            check_finite(&x, Step::Predict)?;
+        }
+        let truth_r = traj.positions[step];
+        let truth_v = traj.velocities[step];
+        let z = fix_residual(sc, &ins, &truth_r, &truth_v, rng);
+        // KalmanFilter::update: ν = z − H x, x += K ν.
+        let residual = z - c * x;
+        x += fix.gain * residual;
+        check_finite(&x, Step::Update)?;
+        // Closed loop on the navigation states (feed_back_navigation).
+        for i in 0..3 {
+            ins.position[i] -= x[i];
+            ins.velocity[i] -= x[3 + i];
+        }
+        x.rows_mut(0, NAVIGATION).fill(0.0);
+        let snapshot = Snapshot {
+            time_s: t_fix,
+            ins,
+            estimate: std::array::from_fn(|i| x[NAVIGATION + i]),
+        };
+        for (at, slot) in path.switch_at.iter().zip(at_switch.iter_mut()) {
+            if *at == Some(n) {
+                *slot = Some(snapshot);
+            }
+        }
+        for (f, slot) in forced.iter().zip(at_forced.iter_mut()) {
+            if slot.is_none() && t_fix >= *f {
+                *slot = Some(snapshot);
+            }
+        }
+        n += 1;
+        if at_switch.iter().all(Option::is_some) && at_forced.iter().all(Option::is_some) {
+            break;
+        }
+    }
+    Ok((at_switch, at_forced))
+}
+
+/// The engine's check of a state after a step.
+fn check_finite(x: &SVector<f64, STATES>, step: Step) -> Result<(), EstimationError> {
+    if x.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(EstimationError::NonFinite {
+            step,
+            matrix: aidnav_estimation::Matrix::X,
+        })
+    }
 }

@@ -36,7 +36,7 @@ mod scenario;
 
 pub use scenario::*;
 
-use filter::filter_pass;
+use filter::{CovariancePath, filter_pass, replay};
 
 /// What the filter pass keeps at a switch.
 #[derive(Debug, Clone, Copy)]
@@ -136,6 +136,15 @@ pub struct ExtendedStateResult {
     pub sweep: Vec<SweepPoint>,
 }
 
+/// The truth's instrument errors when every run has the same (None: drawn
+/// per run).
+fn fixed_errors(sc: &ExtendedStateScenario) -> Option<LaunchInstrumentErrors> {
+    match sc.error_signs {
+        ErrorSigns::Positive => Some(LaunchInstrumentErrors::table2(1.0)),
+        ErrorSigns::Random => None,
+    }
+}
+
 /// The truth's instrument errors for one run.
 fn true_errors(sc: &ExtendedStateScenario, rng: &mut RunRng) -> LaunchInstrumentErrors {
     match sc.error_signs {
@@ -163,53 +172,125 @@ fn raw_outputs(
     )
 }
 
-/// Fly the INS autonomously from `start` (at step index `from`) to t_B with
-/// the instruments corrected by `correction` (None: uncorrected); calls
-/// `each_step(k, &ins)` after every step.
-fn fly(
-    traj: &LaunchTrajectory,
-    errors: &LaunchInstrumentErrors,
-    correction: Option<&LaunchInstrumentErrors>,
-    start: LaunchIns,
-    from: usize,
-    mut each_step: impl FnMut(usize, &LaunchIns),
-) -> f64 {
-    let dt = traj.dt_s;
-    let mut ins = start;
-    let last = traj.samples() - 1;
-    for k in from..last {
-        ins.step(k as f64 * dt, dt, |tau| {
-            let (att, f) = raw_outputs(traj, errors, tau);
-            match correction {
-                Some(c) => c.correct(tau, &att, &f),
-                None => (att, f),
-            }
-        });
-        each_step(k + 1, &ins);
+/// How an INS flight corrects its instruments.
+#[derive(Debug, Clone, Copy)]
+enum Correction<'a> {
+    /// Not at all: the raw outputs.
+    None,
+    /// With the true errors (the oracle).
+    Truth,
+    /// With a run's estimate.
+    Estimate(&'a LaunchInstrumentErrors),
+}
+
+/// The raw instrument outputs at the three RK4 times of one step.
+type StepOutputs = [(aidnav_frames::launch::LaunchAttitude, Vector3<f64>); 3];
+
+/// One trajectory with one set of true instrument errors, and what every
+/// INS flown on them shares: the raw instrument outputs at the three RK4
+/// times of every step, and the thrust `Dᵀ f` there from the raw outputs
+/// and from the outputs corrected with the true errors. None of it depends
+/// on the INS state, so a run's filter pass and flights read them instead
+/// of evaluating the trajectory and the error model again (with fixed
+/// error signs, one `Flight` per trajectory serves every run); a flight
+/// corrected with a run's estimate corrects the stored outputs. The same
+/// arithmetic as [`LaunchIns::step`] on [`raw_outputs`], so the same
+/// numbers.
+struct Flight<'a> {
+    traj: &'a LaunchTrajectory,
+    errors: LaunchInstrumentErrors,
+    outputs: Vec<StepOutputs>,
+    raw: Vec<[Vector3<f64>; 3]>,
+    truth_corrected: Vec<[Vector3<f64>; 3]>,
+}
+
+impl<'a> Flight<'a> {
+    fn new(traj: &'a LaunchTrajectory, errors: LaunchInstrumentErrors) -> Self {
+        let dt = traj.dt_s;
+        let outputs: Vec<StepOutputs> = (0..traj.samples() - 1)
+            .map(|k| Self::times(k, dt).map(|tau| raw_outputs(traj, &errors, tau)))
+            .collect();
+        let mut flight = Self {
+            traj,
+            errors,
+            outputs,
+            raw: Vec::new(),
+            truth_corrected: Vec::new(),
+        };
+        let n = flight.outputs.len();
+        flight.raw = (0..n)
+            .map(|k| flight.live_thrust(Correction::None, k))
+            .collect();
+        flight.truth_corrected = (0..n)
+            .map(|k| flight.live_thrust(Correction::Truth, k))
+            .collect();
+        flight
     }
-    (ins.position - traj.positions[last]).norm()
+
+    /// The RK4 times of step k, as [`LaunchIns::step_thrust`] computes them.
+    fn times(k: usize, dt: f64) -> [f64; 3] {
+        let t = k as f64 * dt;
+        [t, t + dt / 2.0, t + dt]
+    }
+
+    /// The thrust of step k (from k dt to (k + 1) dt) from the stored
+    /// outputs, corrected as given.
+    fn live_thrust(&self, correction: Correction<'_>, k: usize) -> [Vector3<f64>; 3] {
+        let times = Self::times(k, self.traj.dt_s);
+        std::array::from_fn(|i| {
+            let (att, f) = &self.outputs[k][i];
+            let tau = times[i];
+            let (att, f) = match correction {
+                Correction::None => (*att, *f),
+                Correction::Truth => self.errors.correct(tau, att, f),
+                Correction::Estimate(c) => c.correct(tau, att, f),
+            };
+            LaunchIns::thrust(&att, &f)
+        })
+    }
+
+    /// Fly the INS autonomously from `start` (at step index `from`) to t_B
+    /// with the instruments corrected as given; calls `each_step(k, &ins)`
+    /// after every step. Returns |Δx(t_B)|.
+    fn fly(
+        &self,
+        correction: Correction<'_>,
+        start: LaunchIns,
+        from: usize,
+        mut each_step: impl FnMut(usize, &LaunchIns),
+    ) -> f64 {
+        let traj = self.traj;
+        let dt = traj.dt_s;
+        let mut ins = start;
+        let last = traj.samples() - 1;
+        for k in from..last {
+            match correction {
+                Correction::None => ins.step_with_thrust(dt, &self.raw[k]),
+                Correction::Truth => ins.step_with_thrust(dt, &self.truth_corrected[k]),
+                Correction::Estimate(_) => {
+                    ins.step_with_thrust(dt, &self.live_thrust(correction, k))
+                }
+            }
+            each_step(k + 1, &ins);
+        }
+        (ins.position - traj.positions[last]).norm()
+    }
 }
 
 /// Ratio and errors of the three switched cases from one snapshot.
-fn branches(
-    traj: &LaunchTrajectory,
-    errors: &LaunchInstrumentErrors,
-    snapshot: &Snapshot,
-) -> ThresholdRun {
-    let from = (snapshot.time_s / traj.dt_s).round() as usize;
+fn branches(flight: &Flight<'_>, snapshot: &Snapshot) -> ThresholdRun {
+    let from = (snapshot.time_s / flight.traj.dt_s).round() as usize;
     let estimated = LaunchInstrumentErrors::from_estimate(&snapshot.estimate);
     ThresholdRun {
         switch_time_s: snapshot.time_s,
-        outputs_only_m: fly(traj, errors, None, snapshot.ins, from, |_, _| {}),
-        proposed_m: fly(
-            traj,
-            errors,
-            Some(&estimated),
+        outputs_only_m: flight.fly(Correction::None, snapshot.ins, from, |_, _| {}),
+        proposed_m: flight.fly(
+            Correction::Estimate(&estimated),
             snapshot.ins,
             from,
             |_, _| {},
         ),
-        oracle_m: fly(traj, errors, Some(errors), snapshot.ins, from, |_, _| {}),
+        oracle_m: flight.fly(Correction::Truth, snapshot.ins, from, |_, _| {}),
     }
 }
 
@@ -253,16 +334,35 @@ pub fn run(
     let trajs = trajectories(sc)?;
     let mut cases = Vec::new();
     for (ti, traj) in trajs.iter().enumerate() {
+        // With fixed error signs every run flies the same errors: their
+        // thrust tables, the free INS and the filter's covariance path are
+        // computed once.
+        let fixed = fixed_errors(sc).map(|e| {
+            let flight = Flight::new(traj, e);
+            let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+            let path = CovariancePath::new(sc, &flight);
+            (flight, free, path)
+        });
         let per_run = mc.try_run(|run, _| {
             let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
-            let errors = true_errors(sc, &mut rng);
-            let free = fly(traj, &errors, None, LaunchIns::default(), 0, |_, _| {});
-            let (switches, _) = filter_pass(sc, traj, &errors, &mut rng, &[], None)?;
+            let own;
+            let (flight, free, switches) = match &fixed {
+                Some((flight, free, path)) => {
+                    let (switches, _) = replay(sc, flight, path, &mut rng, &[])?;
+                    (flight, *free, switches)
+                }
+                None => {
+                    own = Flight::new(traj, true_errors(sc, &mut rng));
+                    let free = own.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+                    let (switches, _) = filter_pass(sc, &own, &mut rng, &[], None)?;
+                    (&own, free, switches)
+                }
+            };
             let t_b = traj.target.t_b_s;
             let out: Vec<(ThresholdRun, bool)> = switches
                 .iter()
                 .map(|s| match s {
-                    Some(s) => (branches(traj, &errors, s), false),
+                    Some(s) => (branches(flight, s), false),
                     None => (
                         ThresholdRun {
                             switch_time_s: t_b,
@@ -312,9 +412,9 @@ fn figures(
 ) -> Result<ExtendedStateResult, ExtendedStateError> {
     let ti = sc.figure_target as u64;
     let mut rng = channel_rng(sc.seed, 0, ti);
-    let errors = true_errors(sc, &mut rng);
+    let flight = Flight::new(traj, true_errors(sc, &mut rng));
     let mut history = FilterHistory::default();
-    let (switches, _) = filter_pass(sc, traj, &errors, &mut rng, &[], Some(&mut history))?;
+    let (switches, _) = filter_pass(sc, &flight, &mut rng, &[], Some(&mut history))?;
     // |Δx(t)| every second: before the switch the closed-loop INS (run again
     // to record it), after it the autonomous branches.
     let stride = (1.0 / traj.dt_s).round().max(1.0) as usize;
@@ -329,7 +429,7 @@ fn figures(
         }
     };
     let mut error_free = vec![0.0];
-    fly(traj, &errors, None, LaunchIns::default(), 0, |k, ins| {
+    flight.fly(Correction::None, LaunchIns::default(), 0, |k, ins| {
         record(&mut error_free, k, ins)
     });
     // Before its switch each curve is the closed-loop INS (in `history`).
@@ -349,11 +449,11 @@ fn figures(
             outputs.extend(before.iter().copied());
             let estimated = LaunchInstrumentErrors::from_estimate(&s.estimate);
             let mut p = Vec::new();
-            fly(traj, &errors, Some(&estimated), s.ins, from, |k, ins| {
+            flight.fly(Correction::Estimate(&estimated), s.ins, from, |k, ins| {
                 record(&mut p, k, ins)
             });
             let mut o = Vec::new();
-            fly(traj, &errors, None, s.ins, from, |k, ins| {
+            flight.fly(Correction::None, s.ins, from, |k, ins| {
                 record(&mut o, k, ins)
             });
             proposed.extend(p);
@@ -392,15 +492,26 @@ fn forced_switch_sweep(
         t += sc.sweep_step_s;
     }
     let sweep_mc = MonteCarlo::new(sc.sweep_runs, sc.seed).quiet();
+    let fixed = fixed_errors(sc).map(|e| {
+        let flight = Flight::new(traj, e);
+        let path = CovariancePath::new(sc, &flight);
+        (flight, path)
+    });
     let sweep_runs = sweep_mc.try_run(|run, _| {
         let mut rng = channel_rng(sc.seed, run as u64, 1000 + ti);
-        let errors = true_errors(sc, &mut rng);
-        let (_, at) = filter_pass(sc, traj, &errors, &mut rng, &forced, None)?;
+        let own;
+        let (flight, at) = match &fixed {
+            Some((flight, path)) => (flight, replay(sc, flight, path, &mut rng, &forced)?.1),
+            None => {
+                own = Flight::new(traj, true_errors(sc, &mut rng));
+                (&own, filter_pass(sc, &own, &mut rng, &forced, None)?.1)
+            }
+        };
         Ok::<_, EstimationError>(
             at.iter()
                 .map(|s| {
                     s.map_or(f64::NAN, |s| {
-                        let b = branches(traj, &errors, &s);
+                        let b = branches(flight, &s);
                         b.outputs_only_m / b.proposed_m
                     })
                 })

@@ -67,7 +67,14 @@ fn noise_free_fixes_recover_the_instrument_errors() {
         fix_noise_scale: 0.0,
         ..sc.clone()
     };
-    filter_pass(&exact, &traj, &errors, &mut rng, &[], Some(&mut history)).unwrap();
+    filter_pass(
+        &exact,
+        &Flight::new(&traj, errors),
+        &mut rng,
+        &[],
+        Some(&mut history),
+    )
+    .unwrap();
     let last = history.instrument_error.last().unwrap();
     let truth = errors.estimated_components();
     for i in 0..ESTIMATED {
@@ -94,7 +101,14 @@ fn covariance_respects_the_bound_and_delta_falls() {
         let errors = LaunchInstrumentErrors::table2(1.0);
         let mut history = FilterHistory::default();
         let mut rng = channel_rng(2, 0, 0);
-        filter_pass(&sc, &traj, &errors, &mut rng, &[], Some(&mut history)).unwrap();
+        filter_pass(
+            &sc,
+            &Flight::new(&traj, errors),
+            &mut rng,
+            &[],
+            Some(&mut history),
+        )
+        .unwrap();
         let worst = history
             .bound_gap
             .iter()
@@ -147,4 +161,72 @@ fn a_tiny_sweep_step_names_the_key_and_the_memory_it_would_need() {
         aidnav_io::config::Validate::validate(&ExtendedStateScenario::default()),
         Ok(())
     );
+}
+
+/// The shared thrust tables fly the INS exactly as evaluating the
+/// instrument outputs inside every step does (bit for bit): uncorrected,
+/// corrected with the true errors, and with an estimate (evaluated).
+#[test]
+fn shared_thrust_tables_fly_the_ins_bit_for_bit() {
+    let traj = LaunchTrajectory::solve(&TABLE1[0], &LaunchProgram::default(), 0.01).unwrap();
+    let errors = LaunchInstrumentErrors::table2(1.0);
+    let mut estimate = errors;
+    estimate.accel_bias *= 0.9;
+    let flight = Flight::new(&traj, errors);
+    let (dt, last) = (traj.dt_s, traj.samples() - 1);
+    let from = last / 3;
+    for (correction, by) in [
+        (Correction::None, None),
+        (Correction::Truth, Some(&errors)),
+        (Correction::Estimate(&estimate), Some(&estimate)),
+    ] {
+        let start = LaunchIns {
+            position: traj.positions[from] + Vector3::new(3.0, -2.0, 1.0),
+            velocity: traj.velocities[from],
+        };
+        let mut live = start;
+        for k in from..last {
+            live.step(k as f64 * dt, dt, |tau| {
+                let (att, f) = raw_outputs(&traj, &errors, tau);
+                match by {
+                    Some(c) => c.correct(tau, &att, &f),
+                    None => (att, f),
+                }
+            });
+        }
+        let mut flown = start;
+        let error = flight.fly(correction, start, from, |_, ins| flown = *ins);
+        assert_eq!(flown, live, "{correction:?}");
+        assert_eq!(error, (live.position - traj.positions[last]).norm());
+    }
+}
+
+/// A run replayed on the shared covariance path gives the snapshots of its
+/// own full filter pass, bit for bit: at both thresholds' switches and at
+/// forced times, over several runs (different fix noise).
+#[test]
+fn replay_on_the_shared_path_equals_the_filter_pass() {
+    let sc = quick(vec![TABLE1[0]]);
+    let traj = LaunchTrajectory::solve(&TABLE1[0], &sc.program, sc.imu_dt_s).unwrap();
+    let flight = Flight::new(&traj, LaunchInstrumentErrors::table2(1.0));
+    let path = CovariancePath::new(&sc, &flight);
+    let forced = [45.0, 90.0];
+    for run in 0..4 {
+        let mut a = channel_rng(sc.seed, run, 0);
+        let mut b = channel_rng(sc.seed, run, 0);
+        let full = filter_pass(&sc, &flight, &mut a, &forced, None).unwrap();
+        let replayed = replay(&sc, &flight, &path, &mut b, &forced).unwrap();
+        assert!(full.0.iter().chain(&full.1).all(Option::is_some));
+        let same = |x: &[Option<Snapshot>], y: &[Option<Snapshot>]| {
+            x.len() == y.len()
+                && x.iter().zip(y).all(|(p, q)| match (p, q) {
+                    (Some(p), Some(q)) => {
+                        p.time_s == q.time_s && p.ins == q.ins && p.estimate == q.estimate
+                    }
+                    _ => false,
+                })
+        };
+        assert!(same(&full.0, &replayed.0), "run {run}: switches");
+        assert!(same(&full.1, &replayed.1), "run {run}: forced");
+    }
 }
