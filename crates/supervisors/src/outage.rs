@@ -6,6 +6,9 @@
 //! during stable GNSS and builds every predictor once:
 //! - hold: the last estimate;
 //! - trend: `k t + d` fitted by least squares on the last `trend_window_s`;
+//! - moving average: the mean of the same window, held (the paper's "линия
+//!   скользящего среднего", which smooths the fluctuations the hold
+//!   carries into the outage);
 //! - self-organising model: [`aidnav_estimation::gmdh`] selection on the last
 //!   `model_window_s` (candidates: polynomial, the given frequencies such as
 //!   the Schuler frequency, and a searched grid);
@@ -32,6 +35,8 @@ pub enum Predictor {
     Hold,
     /// Linear trend on the last window.
     Trend,
+    /// Mean of the trend's window, held.
+    MovingAverage,
     /// Trend blended into the self-organising model.
     CombinedTrend,
     /// Self-organising (GMDH) model.
@@ -128,6 +133,7 @@ fn one() -> usize {
 pub struct OutageBridge {
     t0: f64,
     last: f64,
+    mean: f64,
     slope: f64,
     intercept: f64,
     model: GmdhModel,
@@ -164,6 +170,7 @@ impl OutageBridge {
         let from = |w: f64| times.partition_point(|&t| t < t0 - w);
         let k = from(config.trend_window_s).min(times.len().saturating_sub(2));
         let (slope, intercept) = line(&times[k..], &estimates[k..]);
+        let mean = estimates[k..].iter().sum::<f64>() / (times.len() - k) as f64;
         let m = from(config.model_window_s);
         let step = config.model_decimation.max(1);
         // Every step-th sample counted back from the last, so the model always
@@ -178,6 +185,7 @@ impl OutageBridge {
         Ok(Self {
             t0,
             last,
+            mean,
             slope,
             intercept,
             model,
@@ -195,6 +203,7 @@ impl OutageBridge {
         let age = t - self.t0;
         match predictor {
             Predictor::Hold => self.last,
+            Predictor::MovingAverage => self.mean,
             Predictor::Trend => self.slope * t + self.intercept,
             Predictor::Gmdh => self.model.predict(t),
             Predictor::CombinedTrend => {
@@ -208,7 +217,8 @@ impl OutageBridge {
     /// The change each predictor foresees since the outage start, every
     /// component anchored at its own value there (the trend's line and the
     /// model do not pass exactly through the last estimate): for correcting
-    /// a navigation output that was right at the outage start. Hold: 0;
+    /// a navigation output that was right at the outage start. Hold and
+    /// moving average (flat): 0;
     /// trend and model: `f(t) − f(T0)`; combined trend: the weighted
     /// increments; relay: the increment of the predictor it uses at that age.
     pub fn predict_increment(&self, predictor: Predictor, t: f64) -> f64 {
@@ -216,7 +226,7 @@ impl OutageBridge {
         let trend = || self.slope * (t - self.t0);
         let model = || self.model.predict(t) - self.model.predict(self.t0);
         match predictor {
-            Predictor::Hold => 0.0,
+            Predictor::Hold | Predictor::MovingAverage => 0.0,
             Predictor::Trend => trend(),
             Predictor::Gmdh => model(),
             Predictor::CombinedTrend => {
@@ -257,6 +267,11 @@ mod tests {
         let y: Vec<f64> = t.iter().map(|&t| f(t)).collect();
         let b = OutageBridge::start(&t, &y, &config()).unwrap();
         assert_eq!(b.predict(Predictor::Hold, 1500.0), f(999.0));
+        // The moving average: the mean of the last 50 s (t = 949 … 999,
+        // 51 samples), against the closed form of the sine's mean there.
+        let mean = (949..=999).map(|t| f(f64::from(t))).sum::<f64>() / 51.0;
+        assert!((b.predict(Predictor::MovingAverage, 1500.0) - mean).abs() < 1e-12);
+        assert_eq!(b.predict_increment(Predictor::MovingAverage, 1500.0), 0.0);
         // The model knows the signal: exact far beyond the window.
         assert!((b.predict(Predictor::Gmdh, 1700.0) - f(1700.0)).abs() < 1e-6);
         // The trend follows the local slope: good shortly after, bad later.

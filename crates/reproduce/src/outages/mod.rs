@@ -32,9 +32,10 @@ const ADAPTIVE_VARIANCE_WINDOW: usize = 10;
 const CHANNEL_RECOVERY_FAULTS: u64 = 1;
 
 /// Predictor keys, in table order (`summary.json` uses these).
-pub const PREDICTORS: [&str; 6] = [
+pub const PREDICTORS: [&str; 7] = [
     "apriori",
     "hold",
+    "moving_average",
     "trend",
     "combined_trend",
     "gmdh",

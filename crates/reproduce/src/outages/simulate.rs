@@ -26,6 +26,7 @@ use crate::anomalies::{initial_truth, percentile};
 /// is the filter's own propagation, not the bridge's).
 const BRIDGE_PREDICTORS: [Predictor; PREDICTORS.len() - 1] = [
     Predictor::Hold,
+    Predictor::MovingAverage,
     Predictor::Trend,
     Predictor::CombinedTrend,
     Predictor::Gmdh,
