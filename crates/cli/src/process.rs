@@ -102,6 +102,7 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<ExitCode> {
             s.map_or_else(|| NO_REFERENCE.to_string(), |v| format!("{v:.4} m"))
         );
     }
+    print_selection(&r);
     print_outages(&r);
     print_consistency(&r);
     print_efficiency(&r);
@@ -243,6 +244,21 @@ fn print_consistency(r: &ProcessReport) {
             .map_or_else(|| "—".to_string(), |f| format!("{:.1} %", 100.0 * f)),
         c.chi2_99
     );
+}
+
+/// The output the efficiency criterion selects, per parameter.
+fn print_selection(r: &ProcessReport) {
+    let s = &r.selection;
+    if s.epochs > 0 {
+        println!(
+            "selected output (efficiency criterion per parameter, selected.csv): position from the integrated solution at {:.1} % of {} GNSS epochs ({} switches), velocity at {:.1} % ({} switches), GNSS otherwise",
+            100.0 * s.position_integrated_fraction,
+            s.epochs,
+            s.position_switches,
+            100.0 * s.velocity_integrated_fraction,
+            s.velocity_switches
+        );
+    }
 }
 
 /// The efficiency criterion in the outages.

@@ -61,6 +61,11 @@ pub struct ProcessReport {
     /// Fraction of the clean run's epochs at which K_eff > 1 (the
     /// integrated solution is predicted better than GNSS).
     pub k_eff_integrated_fraction: f64,
+    /// The efficiency criterion applied per parameter (`selected.csv`):
+    /// `epochs`, `position_integrated_fraction`,
+    /// `velocity_integrated_fraction`, `position_switches`,
+    /// `velocity_switches`. See [`crate::process::selection`].
+    pub selection: crate::process::SelectionSummary,
     /// (fraction, policy, RMS 3-D error over the reference epochs against
     /// the clean fixes; null: no reference or the run failed).
     pub anomalies: Vec<(f64, crate::process::PolicyName, Option<f64>)>,
@@ -226,6 +231,7 @@ impl ProcessReport {
                 ..crate::process::Consistency::default()
             },
             k_eff_integrated_fraction: result.k_eff_integrated_fraction,
+            selection: result.selection,
             anomalies: scores.anomalies,
             post_outage_bursts: scores.post_outage_bursts,
             tuning: None,

@@ -107,6 +107,11 @@ pub struct ProcessResult {
     pub instrument_convergence_s: Vec<(f64, Option<f64>)>,
     /// Fraction of the epochs at which K_eff > 1.
     pub k_eff_integrated_fraction: f64,
+    /// The output the efficiency criterion selects per parameter, one per
+    /// epoch (`selected.csv`; see [`super::selection`]).
+    pub selected: Vec<super::selection::SelectedEpoch>,
+    /// Its fractions and switches (`result.selection`).
+    pub selection: super::selection::SelectionSummary,
     /// How and when the filter started.
     pub start: StartSummary,
     /// Standstill (zero-velocity + zero-angular-rate) updates made.
@@ -240,6 +245,7 @@ impl Process {
         warnings.extend(begin.warnings.iter().cloned());
         warnings.extend(divergence_warnings(&epochs, t0));
         warnings.extend(rejection_run_warnings(&epochs, t0));
+        let selected = super::selection::select_sources(cfg, &epochs);
         Ok(ProcessResult {
             imu_samples: inputs.imu.len(),
             gnss_epochs: inputs.gnss.len(),
@@ -261,6 +267,8 @@ impl Process {
             },
             k_eff_integrated_fraction: epochs.iter().filter(|e| e.k_eff > 1.0).count() as f64
                 / epochs.len().max(1) as f64,
+            selection: super::selection::selection_summary(&selected),
+            selected,
             fix_track: inputs.gnss.iter().map(|g| g.position).collect(),
             first_fix_time_s: inputs.gnss[0].time_s,
             start: StartSummary {

@@ -754,6 +754,10 @@ pub struct EfficiencyConfig {
     /// σ_GNSS, prior data [m, 3-D]. Default none: each fix's own σ (with
     /// the `gnss` floors) — in an outage the withheld fix's.
     pub sigma_gnss_m: Option<f64>,
+    /// σ_GNSS of velocity [m/s, 3-D] for the selected output
+    /// (`selected.csv`). Default none: each fix's velocity σ (with the
+    /// `gnss` floor).
+    pub sigma_gnss_velocity_mps: Option<f64>,
 }
 
 /// Self-tuning of the noise (`aidnav tune`, `[imu.noise] auto = true`):

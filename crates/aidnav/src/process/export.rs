@@ -1,6 +1,6 @@
 //! A [`ProcessResult`] and its optional [`Scores`] as the files `aidnav
 //! process` writes: `solution.csv`, `navresult.txt` (optional),
-//! `smoothed.csv`, `trajectory.svg`, `instruments.csv`, `innovations.svg`,
+//! `smoothed.csv`, `selected.csv`, `trajectory.svg`, `instruments.csv`, `innovations.svg`,
 //! `outage_drift.svg` (with scores) and `summary.json`; a tuning's
 //! `allan.svg`, `allan.csv` and `tuned_noise.toml`.
 
@@ -12,12 +12,14 @@ use aidnav_frames::earth::Geodetic;
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
 use aidnav_io::writers::{Summary, begin_outputs, write_table_noting_infinities};
+use aidnav_supervisors::efficiency::Source;
 use serde::Serialize;
 
 use super::api::ProcessResult;
 use super::config::ProcessConfig;
 use super::run::{Epoch, SolutionRow};
 use super::scoring::Scores;
+use super::selection::SelectedEpoch;
 use super::tune::{AxisAllan, ImuAllan, TuneResult, tuned_noise_toml};
 
 /// Write every file of a result (and of its scores) into `out`, in the
@@ -46,6 +48,9 @@ pub fn write_files(
         warnings.extend(write_smoothed(&path, &result.smoothed)?);
         files.push(path);
     }
+    let path = out.join("selected.csv");
+    warnings.extend(write_selected(&path, &result.selected)?);
+    files.push(path);
     let path = out.join("trajectory.svg");
     trajectory_chart(result).write_svg(&path)?;
     files.push(path);
@@ -305,6 +310,48 @@ pub fn write_navresult(
         );
     }
     aidnav_io::writers::write_atomic(path, text.as_bytes())
+}
+
+/// Write `selected.csv`: per GNSS epoch the output spec 20's efficiency
+/// criterion selects for position and for velocity, with its source (1
+/// integrated, 2 GNSS) and K_eff (see [`super::selection`]).
+pub fn write_selected(path: &Path, selected: &[SelectedEpoch]) -> Result<Vec<String>, IoError> {
+    let code = |s: Source| match s {
+        Source::Integrated => 1.0,
+        Source::Gnss => 2.0,
+    };
+    let rows = selected.iter().map(|s| {
+        vec![
+            s.time_s,
+            code(s.position_source),
+            s.position.latitude_rad.to_degrees(),
+            s.position.longitude_rad.to_degrees(),
+            s.position.height_m,
+            s.k_eff_position,
+            code(s.velocity_source),
+            s.velocity.x,
+            s.velocity.y,
+            s.velocity.z,
+            s.k_eff_velocity,
+        ]
+    });
+    write_table_noting_infinities(
+        path,
+        &[
+            POSITION_COLUMNS[0],
+            "position_source (1 integrated, 2 gnss)",
+            "antenna latitude [deg]",
+            "antenna longitude [deg]",
+            "antenna height [m]",
+            "k_eff_position",
+            "velocity_source (1 integrated, 2 gnss)",
+            "vn [m/s]",
+            "ve [m/s]",
+            "vd [m/s]",
+            "k_eff_velocity",
+        ],
+        rows,
+    )
 }
 
 /// Write `smoothed.csv`: time and the smoothed antenna and IMU positions.

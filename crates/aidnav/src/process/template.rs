@@ -370,6 +370,10 @@ pub const OPTIONAL_KEYS: &[(&str, &str)] = &[
         "efficiency",
         "# sigma_gnss_m = 1.5               # σ_GNSS of K_eff [m, 3-D] (default: each fix's own σ)",
     ),
+    (
+        "efficiency",
+        "# sigma_gnss_velocity_mps = 0.1    # σ_GNSS of velocity for selected.csv [m/s, 3-D] (default: each fix's)",
+    ),
 ];
 
 /// A complete configuration for `platform`: every key with its default,

@@ -331,6 +331,9 @@ fn validate_supervision_and_scores(cfg: &ProcessConfig) -> Result<(), Invalid> {
     if let Some(sg) = cfg.efficiency.sigma_gnss_m {
         all_positive("efficiency", &[("sigma_gnss_m", sg)])?;
     }
+    if let Some(sv) = cfg.efficiency.sigma_gnss_velocity_mps {
+        bounded("efficiency", "sigma_gnss_velocity_mps", sv, 1e-9, 1e4)?;
+    }
     let i = cfg.output.interval_s;
     if !(i == 0.0 || (1e-3..=3600.0).contains(&i)) {
         return Err(Invalid::new(
