@@ -147,6 +147,56 @@ enum Command {
     /// comments) and summary.json. `[imu.noise] auto = true` makes `aidnav
     /// process` run this first and use the fitted values.
     Tune(TuneArgs),
+    /// Write a log aidnav reads as another program's input files (today
+    /// KF-GINS's).
+    ///
+    /// Reads the files `aidnav process`'s configuration names, with its
+    /// formats and units, exactly as `process` reads them, and writes into
+    /// --out: imu.txt (KF-GINS IMU text: `time dθx dθy dθz dvx dvy dvz`,
+    /// rad and m/s, the increments over the interval ending at the time),
+    /// gnss.txt (`time lat lon h σN σE σD`, degrees and metres; GNSS
+    /// velocity, fix quality and satellites are not written) and
+    /// kf-gins.yaml (a KF-GINS configuration skeleton: paths, IMU rate,
+    /// start time, initial position from the first fix, levelled roll and
+    /// pitch, yaw from initial.attitude_deg or 0 — check it —, the
+    /// [imu.noise] values in KF-GINS's units, the lever arm).
+    ///
+    /// The IMU samples are written as the readers give them: in the SENSOR
+    /// frame on the IMU file's own time tags. imu.mounting_deg,
+    /// imu.time_offset_s and imu.smoothing_s are not applied, so the same
+    /// configuration with `imu_format = "kf_gins"`, `gnss_format =
+    /// "kf_gins"` and these file names reads the same samples back (times
+    /// aside). Times: aidnav's are GPST seconds since 1970, KF-GINS's GPS
+    /// seconds of week; the start of the first IMU sample's GPS week is
+    /// subtracted from every time (a log crossing into the next week goes
+    /// on past 604800 s). Each IMU sample becomes one row whose interval
+    /// has the sample at its middle (ends at the midpoints between
+    /// samples); a first row of zeros opens the first interval. Numbers are
+    /// written in their shortest exact decimal form.
+    Convert(ConvertArgs),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ConvertTarget {
+    /// KF-GINS (i2Nav-WHU/KF-GINS) text files and YAML configuration.
+    KfGins,
+}
+
+#[derive(Debug, Args)]
+struct ConvertArgs {
+    /// Configuration file (TOML), as `aidnav process` takes it.
+    #[arg(value_name = "CONFIG.toml")]
+    config: PathBuf,
+    /// The format to write.
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    to: ConvertTarget,
+    /// Directory of the data files (replaces data.dir of the configuration).
+    #[arg(long, value_name = "DIR")]
+    data: Option<PathBuf>,
+    /// Output directory (created if needed; imu.txt, gnss.txt and
+    /// kf-gins.yaml in it are overwritten).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -303,6 +353,7 @@ fn main() -> ExitCode {
         Command::Run(a) => run_scenario(a).map(|()| ExitCode::SUCCESS),
         Command::Process(a) => run_process(a),
         Command::Tune(a) => run_tune(a).map(|()| ExitCode::SUCCESS),
+        Command::Convert(a) => run_convert(a).map(|()| ExitCode::SUCCESS),
     };
     match result {
         Ok(code) => code,
@@ -311,6 +362,24 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `aidnav convert`: write the files, print what was written.
+fn run_convert(a: ConvertArgs) -> Result<()> {
+    let r = match a.to {
+        ConvertTarget::KfGins => jobs::convert_kfgins(&a.config, a.data.as_deref(), &a.out)?,
+    };
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!(
+        "{} IMU samples, {} GNSS epochs; times in seconds of GPS week {}",
+        r.imu_samples, r.gnss_epochs, r.gps_week
+    );
+    for f in &r.files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
 }
 
 /// `aidnav … | head`: when the reader of stdout goes away, end the process

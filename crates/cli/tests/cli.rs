@@ -1135,3 +1135,128 @@ fn process_with_auto_noise_tunes_first() {
         assert!(out.join(f).is_file(), "{f} missing");
     }
 }
+
+/// `aidnav convert --to kf-gins` on the drive, read back by aidnav's own
+/// KF-GINS readers under the same configuration: the same samples. Rates,
+/// specific force, positions and σ are written in their shortest exact
+/// decimal form, so they come back to 4 ulp (rate × dt / dt) and exactly;
+/// times move by the start of the GPS week, and an IMU sample's time by at
+/// most a quarter of the change of spacing around it (its interval's ends
+/// are the midpoints to its neighbours) plus 1e-9 s of rounding at 6e5 s.
+#[test]
+fn convert_to_kf_gins_round_trips_the_drive() {
+    use aidnav::process::{Inputs, ProcessConfig};
+    let dir = tempfile::tempdir().unwrap();
+    let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
+    let data = repo().join("data/rtklibexplorer-gnss-imu/drive_0708");
+    let original = example.replace(
+        "dir = \"../data/rtklibexplorer-gnss-imu/drive_0708\"",
+        &format!("dir = {:?}", data.to_str().unwrap()),
+    );
+    let c = dir.path().join("drive.toml");
+    std::fs::write(&c, &original).unwrap();
+    let out = dir.path().join("kf");
+    let stdout = success(&[
+        "convert",
+        c.to_str().unwrap(),
+        "--to",
+        "kf-gins",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(stdout.contains("times in seconds of GPS week"), "{stdout}");
+    let yaml = std::fs::read_to_string(out.join("kf-gins.yaml")).unwrap();
+    for key in [
+        "imupath:",
+        "gnsspath:",
+        "outputpath:",
+        "imudatalen: 7",
+        "imudatarate: 100",
+        "starttime:",
+        "endtime: -1",
+        "initpos:",
+        "initvel:",
+        "initatt:",
+        "imunoise:",
+        "corrtime:",
+        "antlever:",
+    ] {
+        assert!(yaml.contains(key), "{key} missing:\n{yaml}");
+    }
+    let converted = original
+        .replace(
+            &format!("dir = {:?}", data.to_str().unwrap()),
+            &format!("dir = {:?}", out.to_str().unwrap()),
+        )
+        .replace("imu = \"imu_1934.csv\"", "imu = \"imu.txt\"")
+        .replace("imu_format = \"rtklib_tagged\"", "imu_format = \"kf_gins\"")
+        .replace("imu_tags = \"imu_1934.csv.tag\"", "")
+        .replace("gnss = \"gnss_1934_sf.pos\"", "gnss = \"gnss.txt\"")
+        .replace("gnss_format = \"rtklib_pos\"", "gnss_format = \"kf_gins\"");
+    let cfg_a: ProcessConfig = toml::from_str(&original).unwrap();
+    let cfg_b: ProcessConfig = toml::from_str(&converted).unwrap();
+    let a = Inputs::load_raw(&cfg_a, dir.path()).unwrap();
+    let b = Inputs::load_raw(&cfg_b, dir.path()).unwrap();
+    assert_eq!(a.imu.len(), b.imu.len());
+    assert_eq!(a.gnss.len(), b.gnss.len());
+    let week = a.imu[0].time_s - b.imu[0].time_s;
+    assert_eq!((week - 315_964_800.0).rem_euclid(604_800.0), 0.0, "{week}");
+    for (k, (x, y)) in a.imu.iter().zip(&b.imu).enumerate() {
+        let jitter = if k == 0 || k + 1 == a.imu.len() {
+            0.0
+        } else {
+            ((a.imu[k + 1].time_s - x.time_s) - (x.time_s - a.imu[k - 1].time_s)).abs()
+        };
+        let dt = x.time_s - week - y.time_s;
+        assert!(dt.abs() <= jitter / 4.0 + 1e-9, "IMU {k}: {dt} s");
+        for (p, q) in x
+            .angular_rate
+            .iter()
+            .chain(x.specific_force.iter())
+            .zip(y.angular_rate.iter().chain(y.specific_force.iter()))
+        {
+            assert!(
+                (p - q).abs() <= 4.0 * f64::EPSILON * p.abs(),
+                "IMU {k}: {p} {q}"
+            );
+        }
+    }
+    for (k, (x, y)) in a.gnss.iter().zip(&b.gnss).enumerate() {
+        assert_eq!(x.time_s - week, y.time_s, "GNSS {k}");
+        assert!((x.position.latitude_rad - y.position.latitude_rad).abs() < 1e-15);
+        assert!((x.position.longitude_rad - y.position.longitude_rad).abs() < 1e-15);
+        assert_eq!(x.position.height_m, y.position.height_m, "GNSS {k}");
+        assert_eq!(x.position_sigma_neu, y.position_sigma_neu, "GNSS {k}");
+    }
+    // The converted log goes through `process`'s loading (mounting, time
+    // offset, overlap and turn-rate checks) as the original does.
+    let mounted = Inputs::load_unsmoothed(&cfg_b, dir.path()).unwrap();
+    assert_eq!(mounted.imu.len(), a.imu.len());
+}
+
+#[test]
+fn convert_help_and_errors() {
+    let help = success(&["convert", "--help"]);
+    assert!(help.contains("SENSOR"), "{help}");
+    assert!(help.contains("seconds of week"), "{help}");
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.toml");
+    let err = failure(&[
+        "convert",
+        missing.to_str().unwrap(),
+        "--to",
+        "kf-gins",
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+    ]);
+    assert!(err.contains("missing.toml"), "{err}");
+    let err = failure(&[
+        "convert",
+        missing.to_str().unwrap(),
+        "--to",
+        "rinex",
+        "--out",
+        "o",
+    ]);
+    assert!(err.contains("kf-gins"), "{err}");
+}

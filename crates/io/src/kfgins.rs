@@ -289,6 +289,147 @@ pub fn read_kfgins_gnss_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>,
     Ok((fixes, warnings))
 }
 
+/// The GPS week holding `time_s` (GPST seconds since 1970, aidnav's time
+/// scale) and the week's start on that scale: KF-GINS files carry seconds
+/// of week, `time_s − start`. `None` before GPS time began (1980-01-06), or
+/// when the time is not finite.
+///
+/// ```
+/// // 2024-08-27 00:00:00 GPST is in GPS week 2329, 172 800 s into it.
+/// let (week, start) = aidnav_io::kfgins::gps_week_start(1_724_716_800.0).unwrap();
+/// assert_eq!(week, 2329);
+/// assert_eq!(1_724_716_800.0 - start, 172_800.0);
+/// ```
+pub fn gps_week_start(time_s: f64) -> Option<(u32, f64)> {
+    use crate::text::{GPS_EPOCH_1970_S, WEEK_S};
+    if !time_s.is_finite() || time_s < GPS_EPOCH_1970_S {
+        return None;
+    }
+    let week = ((time_s - GPS_EPOCH_1970_S) / WEEK_S).floor();
+    Some((week as u32, GPS_EPOCH_1970_S + week * WEEK_S))
+}
+
+fn write_error(path: &Path, message: impl Into<String>) -> crate::IoError {
+    crate::IoError::Write {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// The text of a KF-GINS IMU file holding `samples` (rates and specific
+/// force at their times, in whatever frame they are), times shifted by
+/// `−shift_s` (the GPS week's start: [`gps_week_start`]); `path` names the
+/// file in errors.
+///
+/// Each sample becomes one row of increments over an interval whose middle
+/// is the sample: the interval's ends are the midpoints between neighbouring
+/// samples (half a spacing beyond the first and last), the increments the
+/// rates times the interval. A first row of zeros opens the first interval.
+/// [`read_kfgins_imu`] gives back the samples: the rates to a few units of
+/// the last place (numbers are written in their shortest exact decimal
+/// form), the times exactly on an even grid and within a quarter of the
+/// change of spacing otherwise. Errors: fewer than two samples, times that
+/// do not increase, non-finite values.
+pub fn kfgins_imu_text(samples: &[ImuSample], shift_s: f64, path: &Path) -> Result<String> {
+    use std::fmt::Write as _;
+    if samples.len() < 2 {
+        return Err(write_error(
+            path,
+            format!("{} IMU samples: need at least 2", samples.len()),
+        ));
+    }
+    let t: Vec<f64> = samples.iter().map(|s| s.time_s - shift_s).collect();
+    let n = t.len();
+    let mut ends = Vec::with_capacity(n + 1);
+    ends.push(t[0] - 0.5 * (t[1] - t[0]));
+    for k in 0..n - 1 {
+        ends.push(0.5 * (t[k] + t[k + 1]));
+    }
+    ends.push(t[n - 1] + 0.5 * (t[n - 1] - t[n - 2]));
+    let mut text = String::with_capacity(100 * (n + 1));
+    let _ = writeln!(text, "{} 0 0 0 0 0 0", ends[0]);
+    for (k, s) in samples.iter().enumerate() {
+        let dt = ends[k + 1] - ends[k];
+        if dt.is_nan() || dt <= 0.0 || !ends[k + 1].is_finite() {
+            return Err(write_error(
+                path,
+                format!(
+                    "IMU sample {k}: time {} does not increase (previous interval end {})",
+                    num(s.time_s),
+                    num(ends[k] + shift_s)
+                ),
+            ));
+        }
+        let (w, f) = (s.angular_rate * dt, s.specific_force * dt);
+        if !w.iter().chain(f.iter()).all(|x| x.is_finite()) {
+            return Err(write_error(
+                path,
+                format!("IMU sample {k} at {}: not finite", num(s.time_s)),
+            ));
+        }
+        let _ = writeln!(
+            text,
+            "{} {} {} {} {} {} {}",
+            ends[k + 1],
+            w.x,
+            w.y,
+            w.z,
+            f.x,
+            f.y,
+            f.z
+        );
+    }
+    Ok(text)
+}
+
+/// The text of a KF-GINS GNSS file holding `fixes`: `time lat lon h σN σE
+/// σD` (degrees, metres; the σ as [`GnssFix::position_sigma_neu`] holds
+/// them), times shifted by `−shift_s`, every number in its shortest exact
+/// decimal form. Seven columns only: KF-GINS reads seven by default, and
+/// velocity, quality and satellite count are not written. Errors: no fix,
+/// non-finite values.
+pub fn kfgins_gnss_text(fixes: &[GnssFix], shift_s: f64, path: &Path) -> Result<String> {
+    use std::fmt::Write as _;
+    if fixes.is_empty() {
+        return Err(write_error(path, "no GNSS fix to write"));
+    }
+    let mut text = String::with_capacity(100 * fixes.len());
+    for (k, g) in fixes.iter().enumerate() {
+        let p = &g.position;
+        let v = [
+            g.time_s - shift_s,
+            p.latitude_rad.to_degrees(),
+            p.longitude_rad.to_degrees(),
+            p.height_m,
+            g.position_sigma_neu.x,
+            g.position_sigma_neu.y,
+            g.position_sigma_neu.z,
+        ];
+        if !v.iter().all(|x| x.is_finite()) {
+            return Err(write_error(
+                path,
+                format!("GNSS fix {k} at {}: not finite", num(g.time_s)),
+            ));
+        }
+        let _ = writeln!(
+            text,
+            "{} {} {} {} {} {} {}",
+            v[0], v[1], v[2], v[3], v[4], v[5], v[6]
+        );
+    }
+    Ok(text)
+}
+
+/// Write [`kfgins_imu_text`] to `path` (atomically).
+pub fn write_kfgins_imu(path: &Path, samples: &[ImuSample], shift_s: f64) -> Result<()> {
+    crate::writers::write_atomic(path, kfgins_imu_text(samples, shift_s, path)?.as_bytes())
+}
+
+/// Write [`kfgins_gnss_text`] to `path` (atomically).
+pub fn write_kfgins_gnss(path: &Path, fixes: &[GnssFix], shift_s: f64) -> Result<()> {
+    crate::writers::write_atomic(path, kfgins_gnss_text(fixes, shift_s, path)?.as_bytes())
+}
+
 /// Column indices of named header fields; error naming the missing one.
 fn columns(path: &Path, header: &str, wanted: &[&str]) -> Result<Vec<usize>> {
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
@@ -614,6 +755,87 @@ fn check_rate_at_rest(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The writers invert the readers: an uneven, jittered 100 Hz log in
+    /// GPST since 1970 written as KF-GINS text (seconds of week) and read
+    /// back gives the rates and specific forces to 4 ulp (x·dt/dt, each
+    /// operation rounding once; the numbers are written exactly) and the
+    /// times to a quarter of the change of spacing plus 1e-9 s.
+    #[test]
+    fn kfgins_writers_round_trip() {
+        let t0 = 1_724_716_800.0 + 3_600.25;
+        let (_, start) = gps_week_start(t0).unwrap();
+        let mut time = t0;
+        let samples: Vec<ImuSample> = (0..200)
+            .map(|k| {
+                let k = k as f64;
+                time += 0.01 + if k % 7.0 == 0.0 { 2e-4 } else { 0.0 };
+                ImuSample {
+                    time_s: time,
+                    angular_rate: Vector3::new(0.01 * k.sin(), -0.2, 1.0 / (k + 3.0)),
+                    specific_force: Vector3::new(0.3, -0.1 * k.cos(), -9.81),
+                }
+            })
+            .collect();
+        let path = Path::new("imu.txt");
+        let text = kfgins_imu_text(&samples, start, path).unwrap();
+        let (back, w) = read_kfgins_imu_from(text.as_bytes(), path).unwrap();
+        assert!(w.is_empty());
+        assert_eq!(back.len(), samples.len());
+        for (k, (a, b)) in samples.iter().zip(&back).enumerate() {
+            let jitter = if k == 0 || k + 1 == samples.len() {
+                0.0
+            } else {
+                ((samples[k + 1].time_s - a.time_s) - (a.time_s - samples[k - 1].time_s)).abs()
+            };
+            assert!(
+                (a.time_s - start - b.time_s).abs() <= jitter / 4.0 + 1e-9,
+                "{k}: {} {}",
+                a.time_s - start,
+                b.time_s
+            );
+            for (x, y) in a
+                .angular_rate
+                .iter()
+                .chain(a.specific_force.iter())
+                .zip(b.angular_rate.iter().chain(b.specific_force.iter()))
+            {
+                assert!(
+                    (x - y).abs() <= 4.0 * f64::EPSILON * x.abs(),
+                    "{k}: {x} {y}"
+                );
+            }
+        }
+        let fixes: Vec<GnssFix> = samples
+            .iter()
+            .step_by(100)
+            .map(|s| GnssFix {
+                time_s: s.time_s,
+                position: Geodetic {
+                    latitude_rad: 0.6,
+                    longitude_rad: -2.1,
+                    height_m: 12.345_678_9,
+                },
+                quality: 1,
+                satellites: 9,
+                position_sigma_neu: Vector3::new(0.01, 0.012, 0.03),
+                velocity_ned: None,
+                velocity_sigma_neu: None,
+            })
+            .collect();
+        let text = kfgins_gnss_text(&fixes, start, Path::new("gnss.txt")).unwrap();
+        let (gback, _) = read_kfgins_gnss_from(text.as_bytes(), Path::new("gnss.txt")).unwrap();
+        assert_eq!(gback.len(), fixes.len());
+        for (a, b) in fixes.iter().zip(&gback) {
+            assert_eq!(a.time_s - start, b.time_s);
+            assert!((a.position.latitude_rad - b.position.latitude_rad).abs() < 1e-15);
+            assert!((a.position.longitude_rad - b.position.longitude_rad).abs() < 1e-15);
+            assert_eq!(a.position.height_m, b.position.height_m);
+            assert_eq!(a.position_sigma_neu, b.position_sigma_neu);
+        }
+        let err = kfgins_imu_text(&samples[..1], start, path).unwrap_err();
+        assert!(err.to_string().contains("imu.txt"), "{err}");
+    }
 
     /// Increments of a rate that grows linearly (ω = a t): each row's mean
     /// rate is the rate at the interval's middle, where the sample is now

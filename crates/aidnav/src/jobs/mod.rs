@@ -13,10 +13,12 @@ use serde::Serialize;
 
 use crate::VERSION;
 
+mod convert;
 mod process;
 mod reproduce;
 mod tune;
 
+pub use convert::*;
 pub use process::*;
 pub use reproduce::*;
 pub use tune::*;

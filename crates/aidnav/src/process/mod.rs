@@ -103,6 +103,12 @@ impl Inputs {
         load_inputs(cfg, base)
     }
 
+    /// The samples as the readers give them (sensor frame, the file's time
+    /// tags, no smoothing): [`load_raw`].
+    pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
+        load_raw(cfg, base)
+    }
+
     /// [`Inputs::load`] without the smoothing (`imu.smoothing_s`): the
     /// samples as the sensor gave them, for noise analysis.
     pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
@@ -132,13 +138,35 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
 
 /// Read, time-shift and rotate to the body frame.
 pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
+    let (mut inputs, imu_path, gnss_path) = read_raw(cfg, base)?;
+    aidnav_ins::mounting::mount(&mut inputs.imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
+    let w = check_overlap(&inputs.imu, &inputs.gnss, &imu_path, &gnss_path)?;
+    inputs.warnings.extend(w);
+    check_turn_rate(&inputs.imu, &inputs.gnss, &imu_path, &gnss_path)?;
+    Ok(inputs)
+}
+
+/// The samples as the readers give them, before [`load_unsmoothed`] applies
+/// the configuration: IMU in the sensor frame on the IMU file's time tags
+/// (no `imu.mounting_deg`, no `imu.time_offset_s`, no smoothing), GNSS as
+/// read, and the readers' warnings. The files are read with the
+/// configuration's formats and units, exactly as `aidnav process` reads them.
+pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
+    Ok(read_raw(cfg, base)?.0)
+}
+
+/// [`load_raw`] and the two files' paths.
+fn read_raw(
+    cfg: &ProcessConfig,
+    base: &Path,
+) -> Result<(Inputs, std::path::PathBuf, std::path::PathBuf), ProcessError> {
     let dir = if cfg.data.dir.is_absolute() {
         cfg.data.dir.clone()
     } else {
         base.join(&cfg.data.dir)
     };
     let imu_path = dir.join(&cfg.data.imu);
-    let (mut imu, mut warnings) = match cfg.data.imu_format {
+    let (imu, mut warnings) = match cfg.data.imu_format {
         ImuFormat::RtklibTagged => {
             let tags = cfg.data.imu_tags.as_ref().ok_or_else(|| {
                 ProcessError::Data("data.imu_tags is needed for imu_format = rtklib_tagged".into())
@@ -167,14 +195,15 @@ pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, Proce
         )?,
     };
     warnings.extend(w);
-    aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
-    warnings.extend(check_overlap(&imu, &gnss, &imu_path, &gnss_path)?);
-    check_turn_rate(&imu, &gnss, &imu_path, &gnss_path)?;
-    Ok(Inputs {
-        imu,
-        gnss,
-        warnings,
-    })
+    Ok((
+        Inputs {
+            imu,
+            gnss,
+            warnings,
+        },
+        imu_path,
+        gnss_path,
+    ))
 }
 
 /// The IMU and GNSS time spans must overlap (GNSS in seconds of week against
