@@ -303,7 +303,7 @@ pub struct EstimatorScore {
 }
 
 /// One run kept for plotting: truth and estimates of δV and tilt per epoch.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct ExampleRun {
     /// True δV per epoch [m/s].
     pub truth: Vec<f64>,
@@ -406,8 +406,11 @@ impl Estimator {
     }
 }
 
-/// Per-run output: per-estimator sum of squared δV errors, and the example traces.
-struct RunOut {
+/// One run's output, what [`finish`] combines: per-estimator sum of
+/// squared δV errors, the count of anomalous epochs, and (run 0) the
+/// example traces.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunOut {
     sq: Vec<f64>,
     anomalous_epochs: usize,
     example: Option<ExampleRun>,
@@ -519,15 +522,37 @@ pub fn illustrate(
     Ok(out.example.unwrap_or_default())
 }
 
-/// Run the experiment.
+/// Run the experiment: [`finish`] of every run ([`run_range`] over
+/// `0..mc.runs`).
 pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, EstimationError> {
+    finish(sc, run_range(sc, mc, 0..mc.runs)?)
+}
+
+/// Runs `range` of the campaign (run k draws stream k of the seed and
+/// its faults channel k, whatever the range): a chunk of the campaign, for
+/// [`finish`] to combine with the others. Chunks may be computed anywhere;
+/// their runs are the ones [`run`] computes.
+pub fn run_range(
+    sc: &AnomaliesScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<Vec<RunOut>, EstimationError> {
     let (setup, wrong) = setups(sc);
     let sigma = sc.platform.gnss_velocity_sigma_mps;
-    let per_run = mc.try_run(|k, rng| -> Result<RunOut, EstimationError> {
+    mc.try_run_range(range, |k, rng| -> Result<RunOut, EstimationError> {
         let mut fault_rng = channel_rng(sc.seed, k as u64, CHANNEL_FAULTS);
         let faults = plan(&sc.faults, &[], sc.epochs, sigma, &mut fault_rng);
         one_run(sc, (&setup, &wrong), &faults, sc.epochs, rng, k == 0)
-    })?;
+    })
+}
+
+/// The experiment's result from its runs, in run order (the chunks of
+/// [`run_range`] concatenated): the same numbers, bit for bit, as [`run`]
+/// with as many runs.
+pub fn finish(
+    sc: &AnomaliesScenario,
+    per_run: Vec<RunOut>,
+) -> Result<AnomaliesResult, EstimationError> {
     let n = sc.epochs as f64;
     let total = per_run.len() as f64 * n;
     let rms: Vec<f64> = (0..ESTIMATORS.len())

@@ -13,10 +13,12 @@ use serde::Serialize;
 
 use crate::VERSION;
 
+mod campaign;
 mod process;
 mod reproduce;
 mod tune;
 
+pub use campaign::*;
 pub use process::*;
 pub use reproduce::*;
 pub use tune::*;

@@ -130,49 +130,99 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
 
 /// Read, time-shift and rotate to the body frame.
 pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
-    let dir = if cfg.data.dir.is_absolute() {
+    let dir = data_dir(cfg, base);
+    let imu_path = dir.join(&cfg.data.imu);
+    let (imu, mut warnings) = read_imu(
+        cfg.data.imu_format,
+        &imu_path,
+        cfg.data.imu_tags.as_ref().map(|t| dir.join(t)).as_deref(),
+        cfg.data.imu_units,
+    )?;
+    let gnss_path = dir.join(&cfg.data.gnss);
+    let (gnss, w) = read_gnss(cfg.data.gnss_format, &gnss_path, cfg.data.gnss_sigma_m)?;
+    warnings.extend(w);
+    Inputs::from_samples(cfg, imu, gnss, warnings, (&imu_path, &gnss_path))
+}
+
+/// The directory of the data files: `data.dir`, relative to `base` unless
+/// absolute.
+pub fn data_dir(cfg: &ProcessConfig, base: &Path) -> std::path::PathBuf {
+    if cfg.data.dir.is_absolute() {
         cfg.data.dir.clone()
     } else {
         base.join(&cfg.data.dir)
-    };
-    let imu_path = dir.join(&cfg.data.imu);
-    let (mut imu, mut warnings) = match cfg.data.imu_format {
+    }
+}
+
+/// Read an IMU file of `format` (sensor frame, SI, time as written): the
+/// samples and the reader's warnings. `tags` is the RTKLIB `.tag` file
+/// (needed for `rtklib_tagged`), `units` the units of a generic CSV whose
+/// columns are named `gx … az`.
+pub fn read_imu(
+    format: ImuFormat,
+    path: &Path,
+    tags: Option<&Path>,
+    units: Option<aidnav_io::kfgins::ImuUnits>,
+) -> Result<(Vec<ImuSample>, Vec<String>), ProcessError> {
+    Ok(match format {
         ImuFormat::RtklibTagged => {
-            let tags = cfg.data.imu_tags.as_ref().ok_or_else(|| {
+            let tags = tags.ok_or_else(|| {
                 ProcessError::Data("data.imu_tags is needed for imu_format = rtklib_tagged".into())
             })?;
-            read_tagged_imu(&imu_path, &dir.join(tags))?
+            read_tagged_imu(path, tags)?
         }
-        ImuFormat::KfGins => aidnav_io::kfgins::read_kfgins_imu(&imu_path)?,
+        ImuFormat::KfGins => aidnav_io::kfgins::read_kfgins_imu(path)?,
         ImuFormat::GenericCsv => aidnav_io::kfgins::read_generic_imu_with(
-            &imu_path,
-            aidnav_io::kfgins::GenericImuOptions {
-                units: cfg.data.imu_units,
-            },
+            path,
+            aidnav_io::kfgins::GenericImuOptions { units },
         )?,
-    };
-    let gnss_path = dir.join(&cfg.data.gnss);
-    let (gnss, w) = match cfg.data.gnss_format {
-        GnssFormat::RtklibPos => read_pos(&gnss_path)?,
-        GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(&gnss_path)?,
-        GnssFormat::Nmea => aidnav_io::nmea::read_nmea(&gnss_path)?,
-        GnssFormat::Ubx => aidnav_io::ubx::read_ubx(&gnss_path)?,
-        GnssFormat::GenericCsv => aidnav_io::generic_gnss::read_generic_gnss(
-            &gnss_path,
-            aidnav_io::generic_gnss::GenericGnssOptions {
-                default_sigma_m: cfg.data.gnss_sigma_m,
-            },
-        )?,
-    };
-    warnings.extend(w);
-    aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
-    warnings.extend(check_overlap(&imu, &gnss, &imu_path, &gnss_path)?);
-    check_turn_rate(&imu, &gnss, &imu_path, &gnss_path)?;
-    Ok(Inputs {
-        imu,
-        gnss,
-        warnings,
     })
+}
+
+/// Read a GNSS file of `format`: the fixes and the reader's warnings.
+/// `default_sigma_m` (horizontal, up) is the σ of a generic CSV without σ
+/// columns.
+pub fn read_gnss(
+    format: GnssFormat,
+    path: &Path,
+    default_sigma_m: Option<[f64; 2]>,
+) -> Result<(Vec<GnssFix>, Vec<String>), ProcessError> {
+    Ok(match format {
+        GnssFormat::RtklibPos => read_pos(path)?,
+        GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(path)?,
+        GnssFormat::Nmea => aidnav_io::nmea::read_nmea(path)?,
+        GnssFormat::Ubx => aidnav_io::ubx::read_ubx(path)?,
+        GnssFormat::GenericCsv => aidnav_io::generic_gnss::read_generic_gnss(
+            path,
+            aidnav_io::generic_gnss::GenericGnssOptions { default_sigma_m },
+        )?,
+    })
+}
+
+impl Inputs {
+    /// Inputs from samples already in memory (sensor-frame IMU, time as
+    /// recorded), treated as [`load_unsmoothed`] treats the files' samples:
+    /// time-shifted (`imu.time_offset_s`), rotated to the body frame
+    /// (`imu.mounting_deg`), and checked (the spans overlap, the gyro turns
+    /// with the GNSS course). `origins` name the IMU and GNSS sources in
+    /// messages (the files, or e.g. `imu (in memory)`). Not smoothed.
+    pub fn from_samples(
+        cfg: &ProcessConfig,
+        mut imu: Vec<ImuSample>,
+        gnss: Vec<GnssFix>,
+        mut warnings: Vec<String>,
+        origins: (&Path, &Path),
+    ) -> Result<Self, ProcessError> {
+        let (imu_path, gnss_path) = origins;
+        aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
+        warnings.extend(check_overlap(&imu, &gnss, imu_path, gnss_path)?);
+        check_turn_rate(&imu, &gnss, imu_path, gnss_path)?;
+        Ok(Inputs {
+            imu,
+            gnss,
+            warnings,
+        })
+    }
 }
 
 /// The IMU and GNSS time spans must overlap (GNSS in seconds of week against
