@@ -10,25 +10,25 @@ use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 
 create_exception!(
-    _aidnav,
+    aidnav,
     AidnavError,
     PyException,
     "Base class of aidnav's errors; the message names the file, line, column or key."
 );
 create_exception!(
-    _aidnav,
+    aidnav,
     ConfigError,
     AidnavError,
     "A configuration or scenario (TOML file or dict) is malformed or holds a value out of range: `path:line: key: message`."
 );
 create_exception!(
-    _aidnav,
+    aidnav,
     DataError,
     AidnavError,
     "A data file (or in-memory data) cannot be read or holds a bad value: `path:line: column `name`: message`."
 );
 create_exception!(
-    _aidnav,
+    aidnav,
     FilterError,
     AidnavError,
     "The estimation engine refused a step (a matrix not finite, not symmetric, not positive definite, of the wrong shape), naming the step, the matrix and the epoch."

@@ -261,17 +261,27 @@ pub struct Campaign {
 #[pymethods]
 impl Campaign {
     /// The campaign of experiment `name` (`experiment_names()`).
+    /// `scenario_text` gives the scenario as TOML text instead (`origin`
+    /// names it in errors).
     #[new]
-    #[pyo3(signature = (name, scenario=None, runs=None, seed=None))]
+    #[pyo3(signature = (name, scenario=None, runs=None, seed=None, *, scenario_text=None, origin=None))]
     fn new(
         name: &str,
         scenario: Option<&Bound<'_, PyAny>>,
         runs: Option<usize>,
         seed: Option<u64>,
+        scenario_text: Option<String>,
+        origin: Option<PathBuf>,
     ) -> PyResult<Self> {
         let experiment: Experiment = name.parse().map_err(errors::job)?;
-        let src = match scenario {
-            Some(s) if !s.is_none() => Some(source(s, None, "scenario")?),
+        let src = match (scenario_text, scenario) {
+            (Some(text), _) => Some(Source {
+                text,
+                origin: origin.unwrap_or_else(|| PathBuf::from("<scenario text>")),
+                base: PathBuf::from("."),
+                name: String::new(),
+            }),
+            (None, Some(s)) if !s.is_none() => Some(source(s, None, "scenario")?),
             _ => None,
         };
         let overrides = ScenarioOverrides {
