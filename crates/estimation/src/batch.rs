@@ -5,7 +5,7 @@
 //! Python package's batch call); [`LinearGaussianModel::run`](crate::LinearGaussianModel::run)
 //! is the same loop with records for observers.
 
-use nalgebra::{DMatrix, DVector, Dyn};
+use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, allocator::Allocator};
 
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::kalman::KalmanFilter;
@@ -24,8 +24,11 @@ pub struct BatchKeep {
 
 /// Per-epoch results of [`filter_batch`]; matrices row-major, one row per
 /// epoch.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct BatchOutput {
+#[derive(Debug, Clone, PartialEq)]
+pub struct BatchOutput<N: Dim>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
     /// Filtered states, epochs × n.
     pub states: Vec<f64>,
     /// Filtered covariances, epochs × n × n (with [`BatchKeep::covariance`]).
@@ -37,7 +40,7 @@ pub struct BatchOutput {
     /// What the policy decided ([`Outcome::Missing`] without a measurement).
     pub outcomes: Vec<Outcome>,
     /// The forward pass (with [`BatchKeep::forward`]).
-    pub forward: Vec<ForwardEpoch<Dyn>>,
+    pub forward: Vec<ForwardEpoch<N>>,
 }
 
 /// Run `kf` over `epochs` measurement rows of `m` values each (`z`,
@@ -47,18 +50,23 @@ pub struct BatchOutput {
 /// (rows of H and rows/columns of R selected) under `policy`; an epoch with
 /// none is a prediction only (`policy.missing()` is told). Errors carry the
 /// epoch.
+/// The filter may be of fixed size (`N = Const<n>`) or run-time sized;
+/// measurements are run-time sized.
 #[allow(clippy::too_many_arguments)]
-pub fn filter_batch<P: MeasurementPolicy<Dyn> + ?Sized>(
-    kf: &mut KalmanFilter<Dyn>,
-    phi: &DMatrix<f64>,
-    q: &DMatrix<f64>,
-    h: &DMatrix<f64>,
+pub fn filter_batch<N: Dim, P: MeasurementPolicy<Dyn> + ?Sized>(
+    kf: &mut KalmanFilter<N>,
+    phi: &OMatrix<f64, N, N>,
+    q: &OMatrix<f64, N, N>,
+    h: &OMatrix<f64, Dyn, N>,
     r: &DMatrix<f64>,
     z: &[f64],
     predict_first: bool,
     policy: &mut P,
     keep: BatchKeep,
-) -> Result<BatchOutput> {
+) -> Result<BatchOutput<N>>
+where
+    DefaultAllocator: crate::kalman::FilterAllocator<N, Dyn>,
+{
     let n = kf.dim();
     let m = h.nrows();
     if m == 0 || z.len() % m != 0 {

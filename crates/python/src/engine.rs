@@ -1,12 +1,16 @@
 //! The estimation engine: `KalmanFilter`, the policies, the batch call and
 //! the RTS smoother.
 
+use aidnav::estimation::kalman::FilterAllocator;
 use aidnav::estimation::scheme::{Scheme as RustScheme, SchemeParameters, SchemePolicy};
 use aidnav::estimation::{
-    BatchKeep, CovarianceUpdate, DynKalmanFilter, ForwardEpoch, UpdateRecord, filter_batch,
+    AcceptAll, BatchKeep, CovarianceUpdate, DynKalmanFilter, EstimationError, ForwardEpoch,
+    KalmanFilter as RustKalmanFilter, Matrix, Step, UpdateRecord, filter_batch,
     rts_smooth as rust_rts_smooth,
 };
-use nalgebra::{DMatrix, DVector, Dyn};
+use nalgebra::{
+    Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, SMatrix, SVector,
+};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -196,12 +200,349 @@ impl Update {
     }
 }
 
-/// A linear Kalman filter of run-time size (the engine's `KalmanFilter<Dyn>`):
-/// Joseph-form update, Cholesky-solved gain, P symmetrised and checked
-/// after every step.
+/// A filter of any size behind one interface: fixed-size (`Const<n>`)
+/// filters for n ≤ [`MAX_FIXED`], whose products the compiler unrolls
+/// (about twice as fast at 15 states), run-time sized beyond. Matrices
+/// arrive row-major, as numpy holds them.
+trait AnyFilter: Send + Sync {
+    fn dim(&self) -> usize;
+    fn state(&self) -> DVector<f64>;
+    fn covariance(&self) -> DMatrix<f64>;
+    fn set_state(&mut self, x: DVector<f64>) -> Result<(), EstimationError>;
+    fn set_covariance(&mut self, p: &[f64]) -> Result<(), EstimationError>;
+    fn predict(&mut self, phi: &[f64], q: &[f64]) -> Result<(), EstimationError>;
+    fn update(
+        &mut self,
+        z: &DVector<f64>,
+        h: &[f64],
+        r: &DMatrix<f64>,
+        policy: Option<&mut SchemePolicy<Dyn>>,
+    ) -> Result<UpdateRecord<Dyn, Dyn>, EstimationError>;
+    #[allow(clippy::too_many_arguments)]
+    fn batch(
+        &mut self,
+        phi: &[f64],
+        q: &[f64],
+        h: &[f64],
+        r: &DMatrix<f64>,
+        z: &[f64],
+        predict_first: bool,
+        policy: Option<&mut SchemePolicy<Dyn>>,
+        keep: BatchKeep,
+    ) -> Result<Batch, EstimationError>;
+    fn boxed_clone(&self) -> Box<dyn AnyFilter>;
+}
+
+/// A batch's arrays, flat and row-major, with the smoothed pass.
+struct Batch {
+    states: Vec<f64>,
+    covariances: Vec<f64>,
+    residuals: Vec<f64>,
+    nis: Vec<f64>,
+    outcomes: Vec<&'static str>,
+    smoothed: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+/// Largest state count served by a fixed-size filter.
+const MAX_FIXED: usize = 24;
+
+/// The plain update with M fixed: the same arithmetic as the `Dyn` path.
+fn update_fixed_m<N: Dim, const M: usize>(
+    kf: &mut RustKalmanFilter<N>,
+    z: &DVector<f64>,
+    h: &[f64],
+    r: &DMatrix<f64>,
+) -> Result<UpdateRecord<Dyn, Dyn>, EstimationError>
+where
+    DefaultAllocator: FilterAllocator<N, Const<M>> + FilterAllocator<N, Dyn>,
+{
+    let n = kf.dim();
+    check_len(h.len(), (M, n), Step::Update, Matrix::H)?;
+    check_len(r.len(), (M, M), Step::Update, Matrix::R)?;
+    let (nd, _) = kf.covariance().shape_generic();
+    let hm = OMatrix::<f64, Const<M>, N>::from_row_slice_generic(Const::<M>, nd, h);
+    let zm = OMatrix::<f64, Const<M>, nalgebra::U1>::from_column_slice_generic(
+        Const::<M>,
+        nalgebra::U1,
+        z.as_slice(),
+    );
+    let rm = OMatrix::<f64, Const<M>, Const<M>>::from_column_slice_generic(
+        Const::<M>,
+        Const::<M>,
+        r.as_slice(),
+    );
+    let rec = kf.update(&zm, &hm, &rm)?;
+    Ok(UpdateRecord::<Dyn, Dyn> {
+        residual: DVector::from_column_slice(rec.residual.as_slice()),
+        s: DMatrix::from_column_slice(M, M, rec.s.as_slice()),
+        gain: DMatrix::from_column_slice(n, M, rec.gain.as_slice()),
+        nis: rec.nis,
+        outcome: rec.outcome,
+    })
+}
+
+impl<N: Dim> AnyFilter for RustKalmanFilter<N>
+where
+    // Measurement sizes served by fixed-size code when no policy is given
+    // (a policy keeps state sized at run time: it takes the `Dyn` path).
+    DefaultAllocator: FilterAllocator<N, Dyn>
+        + FilterAllocator<N, Const<1>>
+        + FilterAllocator<N, Const<2>>
+        + FilterAllocator<N, Const<3>>
+        + FilterAllocator<N, Const<4>>
+        + FilterAllocator<N, Const<5>>
+        + FilterAllocator<N, Const<6>>,
+    RustKalmanFilter<N>: Send + Sync + 'static,
+{
+    fn dim(&self) -> usize {
+        RustKalmanFilter::dim(self)
+    }
+    fn state(&self) -> DVector<f64> {
+        DVector::from_column_slice(RustKalmanFilter::state(self).as_slice())
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        let n = RustKalmanFilter::dim(self);
+        DMatrix::from_column_slice(n, n, RustKalmanFilter::covariance(self).as_slice())
+    }
+    fn set_state(&mut self, x: DVector<f64>) -> Result<(), EstimationError> {
+        let (nd, _) = RustKalmanFilter::covariance(self).shape_generic();
+        check_len(
+            x.len(),
+            (RustKalmanFilter::dim(self), 1),
+            Step::Initialise,
+            Matrix::X,
+        )?;
+        RustKalmanFilter::set_state(
+            self,
+            OVector::<f64, N>::from_column_slice_generic(nd, nalgebra::U1, x.as_slice()),
+        )
+    }
+    fn set_covariance(&mut self, p: &[f64]) -> Result<(), EstimationError> {
+        let p = square_of::<N>(self, p, Step::Initialise, Matrix::P)?;
+        RustKalmanFilter::set_covariance(self, p)
+    }
+    fn predict(&mut self, phi: &[f64], q: &[f64]) -> Result<(), EstimationError> {
+        let phi = square_of::<N>(self, phi, Step::Predict, Matrix::Phi)?;
+        let q = square_of::<N>(self, q, Step::Predict, Matrix::Q)?;
+        RustKalmanFilter::predict(self, &phi, &q)
+    }
+    fn update(
+        &mut self,
+        z: &DVector<f64>,
+        h: &[f64],
+        r: &DMatrix<f64>,
+        policy: Option<&mut SchemePolicy<Dyn>>,
+    ) -> Result<UpdateRecord<Dyn, Dyn>, EstimationError> {
+        if policy.is_none() {
+            match z.len() {
+                1 => return update_fixed_m::<N, 1>(self, z, h, r),
+                2 => return update_fixed_m::<N, 2>(self, z, h, r),
+                3 => return update_fixed_m::<N, 3>(self, z, h, r),
+                4 => return update_fixed_m::<N, 4>(self, z, h, r),
+                5 => return update_fixed_m::<N, 5>(self, z, h, r),
+                6 => return update_fixed_m::<N, 6>(self, z, h, r),
+                _ => {}
+            }
+        }
+        let h = rows_of::<N>(self, h, z.len())?;
+        let rec = match policy {
+            None => RustKalmanFilter::update(self, z, &h, r),
+            Some(p) => RustKalmanFilter::update_with(self, z, &h, r, p),
+        }?;
+        let (n, m) = (RustKalmanFilter::dim(self), z.len());
+        Ok(UpdateRecord::<Dyn, Dyn> {
+            residual: rec.residual,
+            s: rec.s,
+            gain: DMatrix::from_column_slice(n, m, rec.gain.as_slice()),
+            nis: rec.nis,
+            outcome: rec.outcome,
+        })
+    }
+    fn batch(
+        &mut self,
+        phi: &[f64],
+        q: &[f64],
+        h: &[f64],
+        r: &DMatrix<f64>,
+        z: &[f64],
+        predict_first: bool,
+        policy: Option<&mut SchemePolicy<Dyn>>,
+        keep: BatchKeep,
+    ) -> Result<Batch, EstimationError> {
+        let phi = square_of::<N>(self, phi, Step::Predict, Matrix::Phi)?;
+        let q = square_of::<N>(self, q, Step::Predict, Matrix::Q)?;
+        let h = rows_of::<N>(self, h, r.nrows())?;
+        let out = match policy {
+            None => filter_batch(
+                self,
+                &phi,
+                &q,
+                &h,
+                r,
+                z,
+                predict_first,
+                &mut AcceptAll,
+                keep,
+            ),
+            Some(p) => filter_batch(self, &phi, &q, &h, r, z, predict_first, p, keep),
+        }?;
+        let smoothed = if keep.forward {
+            let s = rust_rts_smooth(&out.forward)?;
+            let xs = s.iter().flat_map(|e| e.x.iter().copied()).collect();
+            // P is symmetric: its column-major slice is its row-major one.
+            let ps = s.iter().flat_map(|e| e.p.iter().copied()).collect();
+            Some((xs, ps))
+        } else {
+            None
+        };
+        Ok(Batch {
+            states: out.states,
+            covariances: out.covariances,
+            residuals: out.residuals,
+            nis: out.nis,
+            outcomes: out.outcomes.iter().map(|o| o.as_str()).collect(),
+            smoothed,
+        })
+    }
+    fn boxed_clone(&self) -> Box<dyn AnyFilter> {
+        Box::new(self.clone())
+    }
+}
+
+/// The engine's shape error for a matrix that does not fit.
+fn check_len(
+    len: usize,
+    (rows, cols): (usize, usize),
+    step: Step,
+    matrix: Matrix,
+) -> Result<(), EstimationError> {
+    if len == rows * cols {
+        return Ok(());
+    }
+    Err(EstimationError::DimensionMismatch {
+        step,
+        matrix,
+        rows: len / cols.max(1),
+        cols,
+        expected_rows: rows,
+        expected_cols: cols,
+    })
+}
+
+/// A row-major n×n slice as the filter's square matrix.
+fn square_of<N: Dim>(
+    kf: &RustKalmanFilter<N>,
+    s: &[f64],
+    step: Step,
+    matrix: Matrix,
+) -> Result<OMatrix<f64, N, N>, EstimationError>
+where
+    DefaultAllocator: FilterAllocator<N, Dyn>,
+{
+    let n = kf.dim();
+    check_len(s.len(), (n, n), step, matrix)?;
+    let (nd, _) = kf.covariance().shape_generic();
+    Ok(OMatrix::<f64, N, N>::from_row_slice_generic(nd, nd, s))
+}
+
+/// A row-major m×n slice as H.
+fn rows_of<N: Dim>(
+    kf: &RustKalmanFilter<N>,
+    s: &[f64],
+    m: usize,
+) -> Result<OMatrix<f64, Dyn, N>, EstimationError>
+where
+    DefaultAllocator: FilterAllocator<N, Dyn>,
+{
+    let n = kf.dim();
+    check_len(s.len(), (m, n), Step::Update, Matrix::H)?;
+    let (nd, _) = kf.covariance().shape_generic();
+    Ok(OMatrix::<f64, Dyn, N>::from_row_slice_generic(
+        Dyn(m),
+        nd,
+        s,
+    ))
+}
+
+/// A new filter of the size of `x0`: fixed-size up to [`MAX_FIXED`].
+fn new_filter(
+    x0: &[f64],
+    p0: &[f64],
+    form: CovarianceUpdate,
+) -> Result<Box<dyn AnyFilter>, EstimationError> {
+    let n = x0.len();
+    check_len(p0.len(), (n, n), Step::Initialise, Matrix::P)?;
+    macro_rules! fixed {
+        ($($k:literal)*) => {
+            match n {
+                $($k => {
+                    let kf = RustKalmanFilter::<Const<$k>>::new(
+                        SVector::<f64, $k>::from_column_slice(x0),
+                        SMatrix::<f64, $k, $k>::from_row_slice(p0),
+                    )?;
+                    return Ok(Box::new(kf.with_covariance_update(form)));
+                })*
+                _ => {}
+            }
+        };
+    }
+    fixed!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
+    debug_assert!(n > MAX_FIXED || n == 0);
+    let kf = DynKalmanFilter::new(
+        DVector::from_column_slice(x0),
+        DMatrix::from_row_slice(n, n, p0),
+    )?;
+    Ok(Box::new(kf.with_covariance_update(form)))
+}
+
+/// A 2-D array's values, row-major, and its shape.
+fn row_major(a: &PyReadonlyArray2<'_, f64>) -> (Vec<f64>, (usize, usize)) {
+    let v = a.as_array();
+    let dim = v.dim();
+    let data = match v.as_slice() {
+        Some(s) => s.to_vec(),
+        None => v.iter().copied().collect(),
+    };
+    (data, dim)
+}
+
+/// An n×n argument's shape, refused as the engine refuses it.
+fn shape_is(dim: (usize, usize), n: usize, step: Step, matrix: Matrix) -> PyResult<()> {
+    if dim == (n, n) {
+        return Ok(());
+    }
+    Err(errors::estimation(EstimationError::DimensionMismatch {
+        step,
+        matrix,
+        rows: dim.0,
+        cols: dim.1,
+        expected_rows: n,
+        expected_cols: n,
+    }))
+}
+
+/// H's shape (m × n), refused as the engine refuses it.
+fn h_is(dim: (usize, usize), m: usize, n: usize) -> PyResult<()> {
+    if dim == (m, n) {
+        return Ok(());
+    }
+    Err(errors::estimation(EstimationError::DimensionMismatch {
+        step: Step::Update,
+        matrix: Matrix::H,
+        rows: dim.0,
+        cols: dim.1,
+        expected_rows: m,
+        expected_cols: n,
+    }))
+}
+
+/// A linear Kalman filter (the engine's `KalmanFilter`): Joseph-form
+/// update, Cholesky-solved gain, P symmetrised and checked after every
+/// step. Fixed-size code up to 24 states, run-time sized beyond: the same
+/// arithmetic either way.
 #[pyclass(module = "aidnav._aidnav")]
 pub struct KalmanFilter {
-    kf: DynKalmanFilter,
+    kf: Box<dyn AnyFilter>,
 }
 
 fn square(name: &str, m: &DMatrix<f64>, n: usize) -> PyResult<()> {
@@ -245,21 +586,22 @@ impl KalmanFilter {
         P0: PyReadonlyArray2<'_, f64>,
         joseph: bool,
     ) -> PyResult<Self> {
-        let kf = DynKalmanFilter::new(vector(&x0), matrix(&P0)).map_err(errors::estimation)?;
         let form = if joseph {
             CovarianceUpdate::Joseph
         } else {
             CovarianceUpdate::Standard
         };
-        Ok(Self {
-            kf: kf.with_covariance_update(form),
-        })
+        let x0 = vector(&x0);
+        let (p0, pd) = row_major(&P0);
+        shape_is(pd, x0.len(), Step::Initialise, Matrix::P)?;
+        let kf = new_filter(x0.as_slice(), &p0, form).map_err(errors::estimation)?;
+        Ok(Self { kf })
     }
 
     /// The state estimate (a copy).
     #[getter]
     fn x<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        to_array1(py, self.kf.state())
+        to_array1(py, &self.kf.state())
     }
 
     /// Set the state.
@@ -271,15 +613,15 @@ impl KalmanFilter {
     /// The covariance (a copy).
     #[getter(P)]
     fn p<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-        to_array2(py, self.kf.covariance())
+        to_array2(py, &self.kf.covariance())
     }
 
     /// Set the covariance (checked: symmetric, finite).
     #[setter(P)]
     fn set_p(&mut self, p: PyReadonlyArray2<'_, f64>) -> PyResult<()> {
-        self.kf
-            .set_covariance(matrix(&p))
-            .map_err(errors::estimation)
+        let (p, pd) = row_major(&p);
+        shape_is(pd, self.kf.dim(), Step::Initialise, Matrix::P)?;
+        self.kf.set_covariance(&p).map_err(errors::estimation)
     }
 
     /// Number of states.
@@ -295,9 +637,12 @@ impl KalmanFilter {
         F: PyReadonlyArray2<'_, f64>,
         Q: PyReadonlyArray2<'_, f64>,
     ) -> PyResult<()> {
-        self.kf
-            .predict(&matrix(&F), &matrix(&Q))
-            .map_err(errors::estimation)
+        let n = self.kf.dim();
+        let (f, fd) = row_major(&F);
+        let (q, qd) = row_major(&Q);
+        shape_is(fd, n, Step::Predict, Matrix::Phi)?;
+        shape_is(qd, n, Step::Predict, Matrix::Q)?;
+        self.kf.predict(&f, &q).map_err(errors::estimation)
     }
 
     /// Measurement update with z (m), H (m×n), R (m×m) under `policy`
@@ -311,10 +656,13 @@ impl KalmanFilter {
         R: PyReadonlyArray2<'py, f64>,
         policy: Option<&'py Bound<'py, PyAny>>,
     ) -> PyResult<Update> {
-        let (z, h, r) = (vector(&z), matrix(&H), matrix(&R));
+        let z = vector(&z);
+        let (h, hd) = row_major(&H);
+        h_is(hd, z.len(), self.kf.dim())?;
+        let r = matrix(&R);
         let record = match policy_of(policy)? {
-            None => self.kf.update(&z, &h, &r),
-            Some(mut p) => self.kf.update_with(&z, &h, &r, &mut p.policy),
+            None => self.kf.update(&z, &h, &r, None),
+            Some(mut p) => self.kf.update(&z, &h, &r, Some(&mut p.policy)),
         }
         .map_err(errors::estimation)?;
         Ok(Update { record })
@@ -344,48 +692,30 @@ impl KalmanFilter {
         smooth: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let n = self.kf.dim();
-        let (phi, q, h, r) = (matrix(&F), matrix(&Q), matrix(&H), matrix(&R));
-        square("F", &phi, n)?;
-        square("Q", &q, n)?;
-        let m = h.nrows();
-        let zv = zs.as_array();
-        if zv.ncols() != m {
+        let (phi, fd) = row_major(&F);
+        let (q, qd) = row_major(&Q);
+        shape_is(fd, n, Step::Predict, Matrix::Phi)?;
+        shape_is(qd, n, Step::Predict, Matrix::Q)?;
+        let (h, hd) = row_major(&H);
+        let m = hd.0;
+        h_is(hd, m, n)?;
+        let r = matrix(&R);
+        let (z, (epochs, zc)) = row_major(&zs);
+        if zc != m {
             return Err(PyValueError::new_err(format!(
-                "zs has {} columns, H has {m} rows",
-                zv.ncols()
+                "zs has {zc} columns, H has {m} rows"
             )));
         }
-        let epochs = zv.nrows();
-        let z: Vec<f64> = match zv.as_slice() {
-            Some(s) => s.to_vec(),
-            None => zv.iter().copied().collect(),
-        };
         let keep = BatchKeep {
             covariance: covariances,
             forward: smooth,
         };
         let mut policy = policy_of(policy)?;
         let kf = &mut self.kf;
-        let out = match policy.as_deref_mut() {
-            None => py.detach(|| {
-                filter_batch(
-                    kf,
-                    &phi,
-                    &q,
-                    &h,
-                    &r,
-                    &z,
-                    predict_first,
-                    &mut aidnav::estimation::AcceptAll,
-                    keep,
-                )
-            }),
-            Some(p) => {
-                let pol = &mut p.policy;
-                py.detach(|| filter_batch(kf, &phi, &q, &h, &r, &z, predict_first, pol, keep))
-            }
-        }
-        .map_err(errors::estimation)?;
+        let pol = policy.as_deref_mut().map(|p| &mut p.policy);
+        let out = py
+            .detach(|| kf.batch(&phi, &q, &h, &r, &z, predict_first, pol, keep))
+            .map_err(errors::estimation)?;
         let d = PyDict::new(py);
         d.set_item(
             "x",
@@ -396,20 +726,19 @@ impl KalmanFilter {
             PyArray1::from_vec(py, out.residuals).reshape([epochs, m])?,
         )?;
         d.set_item("nis", PyArray1::from_vec(py, out.nis))?;
-        let outcomes: Vec<&str> = out.outcomes.iter().map(|o| o.as_str()).collect();
-        d.set_item("outcome", outcomes)?;
+        d.set_item("outcome", out.outcomes)?;
         if covariances {
             d.set_item(
                 "P",
                 PyArray1::from_vec(py, out.covariances).reshape([epochs, n, n])?,
             )?;
         }
-        if smooth {
-            let forward = out.forward;
-            let smoothed = py
-                .detach(|| rust_rts_smooth(&forward))
-                .map_err(errors::estimation)?;
-            smoothed_into(py, &d, &smoothed, n)?;
+        if let Some((xs, ps)) = out.smoothed {
+            d.set_item("x_smooth", PyArray1::from_vec(py, xs).reshape([epochs, n])?)?;
+            d.set_item(
+                "P_smooth",
+                PyArray1::from_vec(py, ps).reshape([epochs, n, n])?,
+            )?;
         }
         Ok(d)
     }
@@ -417,7 +746,7 @@ impl KalmanFilter {
     /// A copy of the filter.
     fn copy(&self) -> Self {
         Self {
-            kf: self.kf.clone(),
+            kf: self.kf.boxed_clone(),
         }
     }
 
