@@ -69,7 +69,7 @@ where
 {
     let n = kf.dim();
     let m = h.nrows();
-    if m == 0 || z.len() % m != 0 {
+    if m == 0 || !z.len().is_multiple_of(m) {
         return Err(EstimationError::DimensionMismatch {
             step: Step::Update,
             matrix: Matrix::Z,

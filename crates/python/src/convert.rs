@@ -146,9 +146,7 @@ where
                 )));
             }
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                if let Err(e) = py.check_signals() {
-                    return Err(e);
-                }
+                py.check_signals()?;
             }
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
                 return Err(PyKeyboardInterrupt::new_err(
