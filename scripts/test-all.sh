@@ -12,15 +12,16 @@ cd "$(dirname "$0")/.."
 target=${CARGO_TARGET_DIR:-target}
 
 cargo test --workspace
-# The CLI the Python tests compare with: cargo test's build of it (the test
-# profile, optimised), so nothing is compiled twice.
-cargo build --profile test -p aidnav-cli --bin aidnav
+# The CLI the Python tests compare with: the binary cargo test built for
+# the CLI's integration tests (the test profile, optimised).
+cli="$target/debug/aidnav"
+[ -x "$cli" ] || { echo "no $cli after cargo test" >&2; exit 1; }
 
 venv=${AIDNAV_VENV:-$target/py-venv}
 python=${PYTHON:-python3}
 [ -x "$venv/bin/python" ] || "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install -q numpy pandas filterpy "dask[distributed]" pytest
-# Built with the test profile here, reusing cargo test's dependencies (a
-# plain `pip install ./python` builds in release).
-MATURIN_PEP517_ARGS="--profile test" "$venv/bin/python" -m pip install -q --force-reinstall --no-deps ./python
-AIDNAV_CLI="$target/debug/aidnav" "$venv/bin/python" -m pytest python/tests -q -p no:cacheprovider
+# A release build, as users get it (maturin cannot build a cdylib with
+# cargo's test profile: that profile means a test harness).
+"$venv/bin/python" -m pip install -q --force-reinstall --no-deps ./python
+AIDNAV_CLI="$cli" "$venv/bin/python" -m pytest python/tests -q -p no:cacheprovider

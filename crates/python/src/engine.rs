@@ -201,8 +201,9 @@ impl Update {
 }
 
 /// A filter of any size behind one interface: fixed-size (`Const<n>`)
-/// filters for n ≤ [`MAX_FIXED`], whose products the compiler unrolls
-/// (about twice as fast at 15 states), run-time sized beyond. Matrices
+/// filters for the sizes of [`new_filter`] (1–6, 9, 12, 15, 18, 21, 24),
+/// whose products the compiler unrolls (about twice as fast at 15 states),
+/// run-time sized otherwise (each fixed size costs compile time). Matrices
 /// arrive row-major, as numpy holds them.
 trait AnyFilter: Send + Sync {
     fn dim(&self) -> usize;
@@ -242,9 +243,6 @@ struct Batch {
     outcomes: Vec<&'static str>,
     smoothed: Option<(Vec<f64>, Vec<f64>)>,
 }
-
-/// Largest state count served by a fixed-size filter.
-const MAX_FIXED: usize = 24;
 
 /// The plain update with M fixed: the same arithmetic as the `Dyn` path.
 fn update_fixed_m<N: Dim, const M: usize>(
@@ -464,7 +462,7 @@ where
     ))
 }
 
-/// A new filter of the size of `x0`: fixed-size up to [`MAX_FIXED`].
+/// A new filter of the size of `x0`: fixed-size for the common sizes.
 fn new_filter(
     x0: &[f64],
     p0: &[f64],
@@ -486,8 +484,8 @@ fn new_filter(
             }
         };
     }
-    fixed!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
-    debug_assert!(n > MAX_FIXED || n == 0);
+    fixed!(1 2 3 4 5 6 9 12 15 18 21 24);
+
     let kf = DynKalmanFilter::new(
         DVector::from_column_slice(x0),
         DMatrix::from_row_slice(n, n, p0),
@@ -538,8 +536,8 @@ fn h_is(dim: (usize, usize), m: usize, n: usize) -> PyResult<()> {
 
 /// A linear Kalman filter (the engine's `KalmanFilter`): Joseph-form
 /// update, Cholesky-solved gain, P symmetrised and checked after every
-/// step. Fixed-size code up to 24 states, run-time sized beyond: the same
-/// arithmetic either way.
+/// step. Fixed-size code for 1–6, 9, 12, 15, 18, 21 and 24 states,
+/// run-time sized otherwise: the same arithmetic either way.
 #[pyclass(module = "aidnav._aidnav")]
 pub struct KalmanFilter {
     kf: Box<dyn AnyFilter>,
