@@ -11,7 +11,7 @@
    constant-velocity model;
 3. process on the drive from Python against the CLI binary (same build);
 4. reproduce anomalies at 1000 runs on a two-worker LocalCluster against
-   one worker (each worker one thread).
+   one worker (each worker one thread and RAYON_NUM_THREADS=1: one core).
 Medians over repeats; the machine is shared, so ratios are of one run.
 """
 
@@ -117,6 +117,10 @@ def process_row():
 def dask_row(runs=1000):
     from dask.distributed import Client, LocalCluster
 
+    # One core per worker: each worker's Rust runs use a rayon pool of this
+    # size (the workers inherit the variable), so one worker is one core and
+    # two workers are two, on this 2-core machine.
+    os.environ["RAYON_NUM_THREADS"] = "1"
     times = {}
     for workers in (1, 2):
         with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
