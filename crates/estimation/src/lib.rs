@@ -49,6 +49,7 @@
 
 pub mod adaptive;
 pub mod allan;
+pub mod batch;
 pub mod blocked;
 mod check;
 pub mod consistency;
@@ -68,6 +69,7 @@ pub mod scheme;
 pub mod smoother;
 pub mod subspace;
 
+pub use batch::{BatchKeep, BatchOutput, filter_batch};
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
 pub use error::{EstimationError, Matrix, Result, Step};
 pub use information::{FisherInformation, InformationFilter};

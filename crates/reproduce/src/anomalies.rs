@@ -465,7 +465,7 @@ pub struct EstimatorScore {
 }
 
 /// One run kept for plotting: truth and estimates of δV and tilt per epoch.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct ExampleRun {
     /// True δV per epoch [m/s].
     pub truth: Vec<f64>,
@@ -646,8 +646,11 @@ impl Estimator {
     }
 }
 
-/// Per-run output: per-estimator sum of squared δV errors, and the example traces.
-struct RunOut {
+/// One run's output, what [`finish`] combines: per-estimator sum of
+/// squared δV errors, the count of anomalous epochs, and (run 0) the
+/// example traces.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunOut {
     sq: Vec<f64>,
     anomalous_epochs: usize,
     lost_epochs: usize,
@@ -763,15 +766,37 @@ pub fn illustrate(
     Ok(out.example.unwrap_or_default())
 }
 
-/// Run the experiment.
+/// Run the experiment: [`finish`] of every run ([`run_range`] over
+/// `0..mc.runs`).
 pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, EstimationError> {
+    finish(sc, run_range(sc, mc, 0..mc.runs)?)
+}
+
+/// Runs `range` of the campaign (run k draws stream k of the seed and
+/// its faults channel k, whatever the range): a chunk of the campaign, for
+/// [`finish`] to combine with the others. Chunks may be computed anywhere;
+/// their runs are the ones [`run`] computes.
+pub fn run_range(
+    sc: &AnomaliesScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<Vec<RunOut>, EstimationError> {
     let (setup, wrong) = setups(sc);
     let sigma = sc.platform.gnss_velocity_sigma_mps;
-    let per_run = mc.try_run(|k, rng| -> Result<RunOut, EstimationError> {
+    mc.try_run_range(range, |k, rng| -> Result<RunOut, EstimationError> {
         let mut fault_rng = channel_rng(sc.seed, k as u64, CHANNEL_FAULTS);
         let faults = plan(&sc.faults, &[], sc.epochs, sigma, &mut fault_rng);
         one_run(sc, (&setup, &wrong), &faults, sc.epochs, rng, k == 0)
-    })?;
+    })
+}
+
+/// The experiment's result from its runs, in run order (the chunks of
+/// [`run_range`] concatenated): the same numbers, bit for bit, as [`run`]
+/// with as many runs.
+pub fn finish(
+    sc: &AnomaliesScenario,
+    per_run: Vec<RunOut>,
+) -> Result<AnomaliesResult, EstimationError> {
     let n = sc.epochs as f64;
     let total = per_run.len() as f64 * n;
     let rms: Vec<f64> = (0..ESTIMATORS.len())
@@ -812,15 +837,16 @@ pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, E
         example,
         outlier: illustrate(sc, &[fixed(1)], il.epochs)?,
         burst: illustrate(sc, &[fixed(il.burst_length)], il.epochs)?,
-        per_type: per_type(sc, mc)?,
+        per_type: per_type(sc)?,
     })
 }
 
 /// The per-type table: for each of [`ANOMALY_TYPES`], `per_type.runs` runs
 /// of every estimator; run k draws stream k of the seed for the truth (the
 /// same truth for every type and as run k of the main table) and stream
-/// `CHANNEL_PER_TYPE + type` of run k for the faults.
-fn per_type(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<Vec<TypeScores>, EstimationError> {
+/// `CHANNEL_PER_TYPE + type` of run k for the faults. Computed whole by
+/// [`finish`] (not in [`run_range`]'s chunks: it is a fixed, small campaign).
+fn per_type(sc: &AnomaliesScenario) -> Result<Vec<TypeScores>, EstimationError> {
     let pt = &sc.per_type;
     if pt.runs == 0 {
         return Ok(Vec::new());
@@ -830,11 +856,8 @@ fn per_type(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<Vec<TypeScores>, 
     let kf = index_of("kf_plain");
     let mut table = Vec::with_capacity(ANOMALY_TYPES.len());
     for (t, name) in ANOMALY_TYPES.iter().enumerate() {
-        let campaign = MonteCarlo {
-            runs: pt.runs,
-            label: format!("anomalies, {name}"),
-            ..mc.clone()
-        };
+        // No bar of its own: a few seconds beside the main campaign's.
+        let campaign = MonteCarlo::new(pt.runs, sc.seed).quiet();
         let (specs, outages) = pt.faults(t, sc.epochs);
         let per_run = campaign.try_run(|k, rng| -> Result<RunOut, EstimationError> {
             let mut fault_rng = channel_rng(sc.seed, k as u64, CHANNEL_PER_TYPE + t as u64);

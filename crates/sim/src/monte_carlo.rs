@@ -75,8 +75,20 @@ impl MonteCarlo {
         T: Send,
         F: Fn(usize, &mut RunRng) -> T + Sync,
     {
+        self.run_range(0..self.runs, f)
+    }
+
+    /// Run `f(run_index, rng)` for the runs in `range` only, in parallel;
+    /// results in run order. Run k draws stream k of the seed whatever the
+    /// range, so a campaign computed in chunks (on other threads, processes
+    /// or machines) gives each run the numbers the whole campaign gives it.
+    pub fn run_range<T, F>(&self, range: std::ops::Range<usize>, f: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(usize, &mut RunRng) -> T + Sync,
+    {
         let bar = self.bar();
-        let out = (0..self.runs)
+        let out = range
             .into_par_iter()
             .map(|k| {
                 let mut rng = run_rng(self.seed, k as u64);
@@ -97,6 +109,17 @@ impl MonteCarlo {
         F: Fn(usize, &mut RunRng) -> Result<T, E> + Sync,
     {
         self.run(f).into_iter().collect()
+    }
+
+    /// As [`run_range`](Self::run_range) for fallible runs: the first error
+    /// (lowest run index) wins.
+    pub fn try_run_range<T, E, F>(&self, range: std::ops::Range<usize>, f: F) -> Result<Vec<T>, E>
+    where
+        T: Send,
+        E: Send,
+        F: Fn(usize, &mut RunRng) -> Result<T, E> + Sync,
+    {
+        self.run_range(range, f).into_iter().collect()
     }
 }
 

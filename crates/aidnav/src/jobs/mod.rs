@@ -13,11 +13,13 @@ use serde::Serialize;
 
 use crate::VERSION;
 
+mod campaign;
 mod convert;
 mod process;
 mod reproduce;
 mod tune;
 
+pub use campaign::*;
 pub use convert::*;
 pub use process::*;
 pub use reproduce::*;

@@ -129,7 +129,6 @@ pub fn process(
     out: &Path,
     score: bool,
 ) -> JobResult<ProcessReport> {
-    use crate::process::{Inputs, Process, export};
     use std::time::Instant;
     let (mut cfg, _) = aidnav_io::load_toml::<crate::process::ProcessConfig>(config)?;
     if let Some(d) = data_dir {
@@ -137,63 +136,115 @@ pub fn process(
     }
     let base = config.parent().unwrap_or(Path::new("."));
     let t_read = Instant::now();
-    let inputs = Inputs::load_unsmoothed(&cfg, base).map_err(process_error)?;
-    // With `[imu.noise] auto` this tunes the noise first.
-    let process = Process::from_unsmoothed(cfg, inputs).map_err(process_error)?;
+    let process = crate::process::Process::load(cfg, base).map_err(process_error)?;
     let read_s = t_read.elapsed().as_secs_f64();
-    let t_run = Instant::now();
-    let result = process.run().map_err(process_error)?;
-    let run_s = t_run.elapsed().as_secs_f64();
-    let t_score = Instant::now();
-    let scores = if score {
-        Some(process.score().map_err(process_error)?)
-    } else {
-        None
-    };
-    let score_s = t_score.elapsed().as_secs_f64();
-    let cfg = process.config();
-    aidnav_io::writers::begin_outputs(out)?;
-    let (mut files, mut written) =
-        export::write_files(&result, scores.as_ref(), out, cfg.output.kf_gins_text)?;
-    if let Some(t) = process.tuning() {
-        let name = config.file_name().map_or_else(
-            || config.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
-        let (f, w) = export::write_tune_files(t, out, &name)?;
-        files.extend(f);
-        written.extend(w);
+    let run = ProcessRun::run(process, score, read_s)?;
+    let name = config.file_name().map_or_else(
+        || config.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    run.write(out, &name)
+}
+
+/// A processed log: the [`crate::process::Process`] (configuration and
+/// inputs), its result and scores, before anything is written. What
+/// `aidnav process` and the Python package's `process` share.
+#[derive(Debug, Clone)]
+pub struct ProcessRun {
+    /// The log and its configuration (tuned with `[imu.noise] auto`).
+    pub process: crate::process::Process,
+    /// The filter pass over the whole log.
+    pub result: crate::process::ProcessResult,
+    /// Its scores (None: not scored).
+    pub scores: Option<crate::process::Scores>,
+    /// Wall time \[s\]: reading (and tuning), one filter pass, scoring.
+    pub timing_s: [f64; 3],
+}
+
+impl ProcessRun {
+    /// Filter (and with `score`, score) a log; `read_s` is the time its
+    /// reading took, for the report.
+    pub fn run(process: crate::process::Process, score: bool, read_s: f64) -> JobResult<Self> {
+        use std::time::Instant;
+        let t_run = Instant::now();
+        let result = process.run().map_err(process_error)?;
+        let run_s = t_run.elapsed().as_secs_f64();
+        let t_score = Instant::now();
+        let scores = if score {
+            Some(process.score().map_err(process_error)?)
+        } else {
+            None
+        };
+        let score_s = t_score.elapsed().as_secs_f64();
+        Ok(Self {
+            process,
+            result,
+            scores,
+            timing_s: [read_s, run_s, score_s],
+        })
     }
-    let mut report = ProcessReport::new(
-        result,
-        scores.unwrap_or_default(),
-        [read_s, run_s, score_s],
-        files,
-    );
-    report.warnings.extend(
-        written
-            .into_iter()
-            .map(|w| Warning::new(WarningKind::Output, w)),
-    );
-    report.tuning = process.tuning().cloned();
-    if let Some(t) = &report.tuning {
+
+    /// The report `summary.json` holds under `result`, with `files` listed
+    /// and the writers' warnings (kind `output`) added.
+    pub fn report(&self, files: Vec<PathBuf>, written: Vec<String>) -> ProcessReport {
+        let mut report = ProcessReport::new(
+            self.result.clone(),
+            self.scores.clone().unwrap_or_default(),
+            self.timing_s,
+            files,
+        );
         report.warnings.extend(
-            t.notes
-                .iter()
-                .map(|n| Warning::new(WarningKind::Input, n.clone())),
+            written
+                .into_iter()
+                .map(|w| Warning::new(WarningKind::Output, w)),
         );
+        report.tuning = self.process.tuning().cloned();
+        if let Some(t) = &report.tuning {
+            report.warnings.extend(
+                t.notes
+                    .iter()
+                    .map(|n| Warning::new(WarningKind::Input, n.clone())),
+            );
+        }
+        if let Some(rms) = report.tracking_rms_m.filter(|v| !v.is_finite()) {
+            report.warnings.push(Warning::new(
+                WarningKind::Divergence,
+                format!(
+                    "the RMS 3-D antenna error over the reference epochs is {rms} (no finite error to average)"
+                ),
+            ));
+        }
+        report
     }
-    if let Some(rms) = report.tracking_rms_m.filter(|v| !v.is_finite()) {
-        report.warnings.push(Warning::new(
-            WarningKind::Divergence,
-            format!(
-                "the RMS 3-D antenna error over the reference epochs is {rms} (no finite error to average)"
-            ),
-        ));
+
+    /// `summary.json` as a value: the configuration as used and `report`
+    /// under `result`.
+    pub fn summary(&self, report: &ProcessReport) -> Summary {
+        crate::process::export::summary(self.process.config(), report)
     }
-    let path = export::write_summary(out, cfg, &report)?;
-    report.files.push(path);
-    Ok(report)
+
+    /// Write every file `aidnav process` writes into `out` (`config_name`
+    /// names the configuration in `tuned_noise.toml`) and return the report.
+    pub fn write(&self, out: &Path, config_name: &str) -> JobResult<ProcessReport> {
+        use crate::process::export;
+        let cfg = self.process.config();
+        aidnav_io::writers::begin_outputs(out)?;
+        let (mut files, mut written) = export::write_files(
+            &self.result,
+            self.scores.as_ref(),
+            out,
+            cfg.output.kf_gins_text,
+        )?;
+        if let Some(t) = self.process.tuning() {
+            let (f, w) = export::write_tune_files(t, out, config_name)?;
+            files.extend(f);
+            written.extend(w);
+        }
+        let mut report = self.report(files, written);
+        let path = export::write_summary(out, cfg, &report)?;
+        report.files.push(path);
+        Ok(report)
+    }
 }
 
 impl ProcessReport {

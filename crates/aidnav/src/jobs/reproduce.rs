@@ -57,16 +57,7 @@ pub fn consistency(
         }),
     )?;
     aidnav_reproduce::figures::nees_figure(scenario, &result, out)?;
-    let mut summary = Summary::new(
-        "reproduce consistency",
-        VERSION,
-        Some(scenario.seed),
-        scenario,
-    );
-    summary.insert("runs", scenario.runs);
-    summary.insert("nees_epoch_bounds", result.nees_epoch_bounds);
-    summary.insert("variants", &result.variants);
-    summary.write(out)?;
+    consistency_summary(scenario, &result).write(out)?;
     Ok(result)
 }
 
@@ -106,17 +97,6 @@ pub fn anomalies(
         }),
     )?;
     aidnav_reproduce::figures::anomaly_example_figure(&result, dt, out)?;
-    let mut summary = Summary::new(
-        "reproduce anomalies",
-        VERSION,
-        Some(scenario.seed),
-        scenario,
-    );
-    let rms: serde_json::Map<String, serde_json::Value> = result
-        .scores
-        .iter()
-        .map(|s| (s.name.clone(), serde_json::json!(s.rms_mps)))
-        .collect();
     aidnav_reproduce::figures::anomaly_figures(
         &result,
         scenario.illustration.at_epoch,
@@ -124,17 +104,13 @@ pub fn anomalies(
         scenario.platform.equivalent_tilt_rad(),
         out,
     )?;
-    summary.insert("rms", rms);
-    summary.insert("scores", &result.scores);
-    summary.insert("anomaly_fraction", result.anomaly_fraction);
-    summary.insert("per_type", &result.per_type);
     if !result.per_type.is_empty() {
         aidnav_io::writers::write_atomic(
             &out.join("anomaly_types.csv"),
             anomaly_types_csv(&result.per_type).as_bytes(),
         )?;
     }
-    summary.write(out)?;
+    anomalies_summary(scenario, &result).write(out)?;
     Ok(result)
 }
 
@@ -182,25 +158,7 @@ pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult
     aidnav_reproduce::figures::outage_predictors_figure(&result, out)?;
     aidnav_reproduce::figures::efficiency_figure(&result.efficiency_example, out)?;
     aidnav_reproduce::figures::recovery_figure(&result.efficiency_example, out)?;
-    let mut summary = Summary::new("reproduce outages", VERSION, Some(scenario.seed), scenario);
-    summary.insert("efficiency", &result.efficiency);
-    for (key, scores) in [("short", &result.short), ("long", &result.long)] {
-        let improvement: serde_json::Map<String, serde_json::Value> = scores
-            .predictors
-            .iter()
-            .map(|p| (p.name.clone(), serde_json::json!(p.improvement)))
-            .collect();
-        summary.insert(
-            key,
-            serde_json::json!({
-                "length_s": scores.length_s,
-                "uncorrected_rms_mps": scores.uncorrected_rms_mps,
-                "improvement": improvement,
-                "predictors": scores.predictors,
-            }),
-        );
-    }
-    summary.write(out)?;
+    outages_summary(scenario, &result).write(out)?;
     Ok(result)
 }
 
@@ -233,22 +191,7 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
         }),
     )?;
     aidnav_reproduce::figures::group_figure(scenario, &result, out)?;
-    let mut summary = Summary::new("reproduce group", VERSION, Some(scenario.seed), scenario);
-    for c in &result.cases {
-        summary.insert(
-            &c.name,
-            serde_json::json!({
-                "members": c.members,
-                "position_sigma_m": c.position_sigma_m,
-                "position_rms_m": c.position_rms_m,
-                "velocity_sigma_mps": c.velocity_sigma_mps,
-                "velocity_rms_mps": c.velocity_rms_mps,
-                "steady_position_sigma_m": c.steady_position_sigma_m,
-                "steady_velocity_sigma_mps": c.steady_velocity_sigma_mps,
-            }),
-        );
-    }
-    summary.write(out)?;
+    group_summary(scenario, &result).write(out)?;
     Ok(result)
 }
 
@@ -282,11 +225,7 @@ pub fn formation(
         }),
     )?;
     aidnav_reproduce::figures::formation_figure(scenario, &result, out)?;
-    let mut summary = Summary::new(command, VERSION, Some(scenario.seed), scenario);
-    summary.insert("solutions", SOLUTIONS);
-    summary.insert("members", &result.members);
-    summary.insert("relative_measurements_per_epoch", result.relative_per_epoch);
-    summary.write(out)?;
+    formation_summary(scenario, command, &result).write(out)?;
     Ok(result)
 }
 
@@ -334,6 +273,106 @@ pub fn extended_state(
         }),
     )?;
     aidnav_reproduce::figures::extended_state_figures(scenario, &result, out)?;
+    extended_state_summary(scenario, &result).write(out)?;
+    Ok(result)
+}
+
+/// The consistency demo's `summary.json` as a value.
+pub fn consistency_summary(scenario: &ConsistencyScenario, result: &ConsistencyResult) -> Summary {
+    let mut summary = Summary::new(
+        "reproduce consistency",
+        VERSION,
+        Some(scenario.seed),
+        scenario,
+    );
+    summary.insert("runs", scenario.runs);
+    summary.insert("nees_epoch_bounds", result.nees_epoch_bounds);
+    summary.insert("variants", &result.variants);
+    summary
+}
+
+/// The anomalies experiment's `summary.json` as a value.
+pub fn anomalies_summary(scenario: &AnomaliesScenario, result: &AnomaliesResult) -> Summary {
+    let mut summary = Summary::new(
+        "reproduce anomalies",
+        VERSION,
+        Some(scenario.seed),
+        scenario,
+    );
+    let rms: serde_json::Map<String, serde_json::Value> = result
+        .scores
+        .iter()
+        .map(|s| (s.name.clone(), serde_json::json!(s.rms_mps)))
+        .collect();
+    summary.insert("rms", rms);
+    summary.insert("scores", &result.scores);
+    summary.insert("anomaly_fraction", result.anomaly_fraction);
+    summary.insert("per_type", &result.per_type);
+    summary
+}
+
+/// The outages experiment's `summary.json` as a value.
+pub fn outages_summary(scenario: &OutagesScenario, result: &OutagesResult) -> Summary {
+    let mut summary = Summary::new("reproduce outages", VERSION, Some(scenario.seed), scenario);
+    summary.insert("efficiency", &result.efficiency);
+    for (key, scores) in [("short", &result.short), ("long", &result.long)] {
+        let improvement: serde_json::Map<String, serde_json::Value> = scores
+            .predictors
+            .iter()
+            .map(|p| (p.name.clone(), serde_json::json!(p.improvement)))
+            .collect();
+        summary.insert(
+            key,
+            serde_json::json!({
+                "length_s": scores.length_s,
+                "uncorrected_rms_mps": scores.uncorrected_rms_mps,
+                "improvement": improvement,
+                "predictors": scores.predictors,
+            }),
+        );
+    }
+    summary
+}
+
+/// The group experiment's `summary.json` as a value.
+pub fn group_summary(scenario: &GroupScenario, result: &GroupResult) -> Summary {
+    let mut summary = Summary::new("reproduce group", VERSION, Some(scenario.seed), scenario);
+    for c in &result.cases {
+        summary.insert(
+            &c.name,
+            serde_json::json!({
+                "members": c.members,
+                "position_sigma_m": c.position_sigma_m,
+                "position_rms_m": c.position_rms_m,
+                "velocity_sigma_mps": c.velocity_sigma_mps,
+                "velocity_rms_mps": c.velocity_rms_mps,
+                "steady_position_sigma_m": c.steady_position_sigma_m,
+                "steady_velocity_sigma_mps": c.steady_velocity_sigma_mps,
+            }),
+        );
+    }
+    summary
+}
+
+/// The formation pipeline's `summary.json` as a value (`command` as the
+/// CLI names it: `reproduce formation` or `run FILE`).
+pub fn formation_summary(
+    scenario: &FormationScenario,
+    command: &str,
+    result: &FormationResult,
+) -> Summary {
+    let mut summary = Summary::new(command, VERSION, Some(scenario.seed), scenario);
+    summary.insert("solutions", SOLUTIONS);
+    summary.insert("members", &result.members);
+    summary.insert("relative_measurements_per_epoch", result.relative_per_epoch);
+    summary
+}
+
+/// The extended-state experiment's `summary.json` as a value.
+pub fn extended_state_summary(
+    scenario: &ExtendedStateScenario,
+    result: &ExtendedStateResult,
+) -> Summary {
     let mut summary = Summary::new(
         "reproduce extended-state",
         VERSION,
@@ -342,6 +381,5 @@ pub fn extended_state(
     );
     summary.insert("cases", &result.cases);
     summary.insert("sweep", &result.sweep);
-    summary.write(out)?;
-    Ok(result)
+    summary
 }

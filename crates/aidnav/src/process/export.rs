@@ -187,7 +187,12 @@ pub fn write_summary(
     cfg: &ProcessConfig,
     report: &impl Serialize,
 ) -> Result<PathBuf, IoError> {
-    // The configuration as used: the platform's values filled in.
+    summary(cfg, report).write(out)
+}
+
+/// `summary.json` as a value: the configuration as used (the platform's
+/// values filled in) and `report` under `result`.
+pub fn summary(cfg: &ProcessConfig, report: &impl Serialize) -> Summary {
     let mut summary = Summary::new(
         "process",
         crate::VERSION,
@@ -195,7 +200,7 @@ pub fn write_summary(
         &cfg.resolved(),
     );
     summary.insert("result", report);
-    summary.write(out)
+    summary
 }
 
 /// Write `solution.csv`: per GNSS epoch the antenna position, NED velocity,
@@ -208,6 +213,15 @@ pub fn write_solution(
     epochs: &[Epoch],
     between: &[SolutionRow],
 ) -> Result<Vec<String>, IoError> {
+    let (header, rows) = solution_table(epochs, between);
+    write_table_noting_infinities(path, &header, rows)
+}
+
+/// The header and rows of `solution.csv` ([`write_solution`]).
+pub fn solution_table(
+    epochs: &[Epoch],
+    between: &[SolutionRow],
+) -> (Vec<&'static str>, Vec<Vec<f64>>) {
     let navigation = |row: &SolutionRow| {
         let (r, p, y) = row.attitude.euler_angles();
         let mut v = time_and_positions(row.time_s, &row.antenna, &row.imu);
@@ -244,7 +258,7 @@ pub fn write_solution(
         row.push(0.0);
         row
     });
-    let rows = merge_in_time(epoch_rows, other_rows, |row| row[0]);
+    let rows = merge_in_time(epoch_rows, other_rows, |row| row[0]).collect();
     let header: Vec<&str> = POSITION_COLUMNS
         .iter()
         .copied()
@@ -273,7 +287,7 @@ pub fn write_solution(
             "outcome (1 accepted, 2 limited, 3 rejected, 4 reset to the fix, 0 no fix)",
         ])
         .collect();
-    write_table_noting_infinities(path, &header, rows)
+    (header, rows)
 }
 
 /// Write `navresult.txt` in KF-GINS's layout: the GNSS epochs and the rows
@@ -356,12 +370,18 @@ pub fn write_selected(path: &Path, selected: &[SelectedEpoch]) -> Result<Vec<Str
 
 /// Write `smoothed.csv`: time and the smoothed antenna and IMU positions.
 pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<Vec<String>, IoError> {
-    write_table_noting_infinities(
-        path,
-        &POSITION_COLUMNS,
+    let (header, rows) = smoothed_table(smoothed);
+    write_table_noting_infinities(path, &header, rows)
+}
+
+/// The header and rows of `smoothed.csv` ([`write_smoothed`]).
+pub fn smoothed_table(smoothed: &[Epoch]) -> (Vec<&'static str>, Vec<Vec<f64>>) {
+    (
+        POSITION_COLUMNS.to_vec(),
         smoothed
             .iter()
-            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position)),
+            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position))
+            .collect(),
     )
 }
 
@@ -391,9 +411,14 @@ fn time_and_positions(time_s: f64, antenna: &Geodetic, imu: &Geodetic) -> Vec<f6
 
 /// Write `instruments.csv`: the instrument corrections after every epoch.
 pub fn write_instruments(path: &Path, epochs: &[Epoch]) -> Result<Vec<String>, IoError> {
-    write_table_noting_infinities(
-        path,
-        &[
+    let (header, rows) = instruments_table(epochs);
+    write_table_noting_infinities(path, &header, rows)
+}
+
+/// The header and rows of `instruments.csv` ([`write_instruments`]).
+pub fn instruments_table(epochs: &[Epoch]) -> (Vec<&'static str>, Vec<Vec<f64>>) {
+    (
+        vec![
             "time [s GPST since 1970]",
             "gyro_bias_x [deg/h]",
             "gyro_bias_y [deg/h]",
@@ -408,15 +433,18 @@ pub fn write_instruments(path: &Path, epochs: &[Epoch]) -> Result<Vec<String>, I
             "accel_scale_y [ppm]",
             "accel_scale_z [ppm]",
         ],
-        epochs.iter().map(|e| {
-            let i = &e.instruments;
-            let mut row = vec![e.time_s()];
-            row.extend(i.gyro_bias.iter().map(|v| v.to_degrees() * 3600.0));
-            row.extend(i.accel_bias.iter().map(|v| v / 9.806_65 * 1e3));
-            row.extend(i.gyro_scale.iter().map(|v| v * 1e6));
-            row.extend(i.accel_scale.iter().map(|v| v * 1e6));
-            row
-        }),
+        epochs
+            .iter()
+            .map(|e| {
+                let i = &e.instruments;
+                let mut row = vec![e.time_s()];
+                row.extend(i.gyro_bias.iter().map(|v| v.to_degrees() * 3600.0));
+                row.extend(i.accel_bias.iter().map(|v| v / 9.806_65 * 1e3));
+                row.extend(i.gyro_scale.iter().map(|v| v * 1e6));
+                row.extend(i.accel_scale.iter().map(|v| v * 1e6));
+                row
+            })
+            .collect(),
     )
 }
 

@@ -103,16 +103,16 @@ impl Inputs {
         load_inputs(cfg, base)
     }
 
-    /// The samples as the readers give them (sensor frame, the file's time
-    /// tags, no smoothing): [`load_raw`].
-    pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
-        load_raw(cfg, base)
-    }
-
     /// [`Inputs::load`] without the smoothing (`imu.smoothing_s`): the
     /// samples as the sensor gave them, for noise analysis.
     pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
         load_unsmoothed(cfg, base)
+    }
+
+    /// The samples as the readers give them (sensor frame, the file's time
+    /// tags, no smoothing): [`load_raw`].
+    pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
+        load_raw(cfg, base)
     }
 
     /// These inputs with the IMU smoothed by a zero-phase centred moving
@@ -138,12 +138,15 @@ pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
 
 /// Read, time-shift and rotate to the body frame.
 pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
-    let (mut inputs, imu_path, gnss_path) = read_raw(cfg, base)?;
-    aidnav_ins::mounting::mount(&mut inputs.imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
-    let w = check_overlap(&inputs.imu, &inputs.gnss, &imu_path, &gnss_path)?;
-    inputs.warnings.extend(w);
-    check_turn_rate(&inputs.imu, &inputs.gnss, &imu_path, &gnss_path)?;
-    Ok(inputs)
+    let raw = load_raw(cfg, base)?;
+    let dir = data_dir(cfg, base);
+    Inputs::from_samples(
+        cfg,
+        raw.imu,
+        raw.gnss,
+        raw.warnings,
+        (&dir.join(&cfg.data.imu), &dir.join(&cfg.data.gnss)),
+    )
 }
 
 /// The samples as the readers give them, before [`load_unsmoothed`] applies
@@ -152,58 +155,103 @@ pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, Proce
 /// read, and the readers' warnings. The files are read with the
 /// configuration's formats and units, exactly as `aidnav process` reads them.
 pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
-    Ok(read_raw(cfg, base)?.0)
+    let dir = data_dir(cfg, base);
+    let imu_path = dir.join(&cfg.data.imu);
+    let (imu, mut warnings) = read_imu(
+        cfg.data.imu_format,
+        &imu_path,
+        cfg.data.imu_tags.as_ref().map(|t| dir.join(t)).as_deref(),
+        cfg.data.imu_units,
+    )?;
+    let gnss_path = dir.join(&cfg.data.gnss);
+    let (gnss, w) = read_gnss(cfg.data.gnss_format, &gnss_path, cfg.data.gnss_sigma_m)?;
+    warnings.extend(w);
+    Ok(Inputs {
+        imu,
+        gnss,
+        warnings,
+    })
 }
 
-/// [`load_raw`] and the two files' paths.
-fn read_raw(
-    cfg: &ProcessConfig,
-    base: &Path,
-) -> Result<(Inputs, std::path::PathBuf, std::path::PathBuf), ProcessError> {
-    let dir = if cfg.data.dir.is_absolute() {
+/// The directory of the data files: `data.dir`, relative to `base` unless
+/// absolute.
+pub fn data_dir(cfg: &ProcessConfig, base: &Path) -> std::path::PathBuf {
+    if cfg.data.dir.is_absolute() {
         cfg.data.dir.clone()
     } else {
         base.join(&cfg.data.dir)
-    };
-    let imu_path = dir.join(&cfg.data.imu);
-    let (imu, mut warnings) = match cfg.data.imu_format {
+    }
+}
+
+/// Read an IMU file of `format` (sensor frame, SI, time as written): the
+/// samples and the reader's warnings. `tags` is the RTKLIB `.tag` file
+/// (needed for `rtklib_tagged`), `units` the units of a generic CSV whose
+/// columns are named `gx … az`.
+pub fn read_imu(
+    format: ImuFormat,
+    path: &Path,
+    tags: Option<&Path>,
+    units: Option<aidnav_io::kfgins::ImuUnits>,
+) -> Result<(Vec<ImuSample>, Vec<String>), ProcessError> {
+    Ok(match format {
         ImuFormat::RtklibTagged => {
-            let tags = cfg.data.imu_tags.as_ref().ok_or_else(|| {
+            let tags = tags.ok_or_else(|| {
                 ProcessError::Data("data.imu_tags is needed for imu_format = rtklib_tagged".into())
             })?;
-            read_tagged_imu(&imu_path, &dir.join(tags))?
+            read_tagged_imu(path, tags)?
         }
-        ImuFormat::KfGins => aidnav_io::kfgins::read_kfgins_imu(&imu_path)?,
+        ImuFormat::KfGins => aidnav_io::kfgins::read_kfgins_imu(path)?,
         ImuFormat::GenericCsv => aidnav_io::kfgins::read_generic_imu_with(
-            &imu_path,
-            aidnav_io::kfgins::GenericImuOptions {
-                units: cfg.data.imu_units,
-            },
+            path,
+            aidnav_io::kfgins::GenericImuOptions { units },
         )?,
-    };
-    let gnss_path = dir.join(&cfg.data.gnss);
-    let (gnss, w) = match cfg.data.gnss_format {
-        GnssFormat::RtklibPos => read_pos(&gnss_path)?,
-        GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(&gnss_path)?,
-        GnssFormat::Nmea => aidnav_io::nmea::read_nmea(&gnss_path)?,
-        GnssFormat::Ubx => aidnav_io::ubx::read_ubx(&gnss_path)?,
+    })
+}
+
+/// Read a GNSS file of `format`: the fixes and the reader's warnings.
+/// `default_sigma_m` (horizontal, up) is the σ of a generic CSV without σ
+/// columns.
+pub fn read_gnss(
+    format: GnssFormat,
+    path: &Path,
+    default_sigma_m: Option<[f64; 2]>,
+) -> Result<(Vec<GnssFix>, Vec<String>), ProcessError> {
+    Ok(match format {
+        GnssFormat::RtklibPos => read_pos(path)?,
+        GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(path)?,
+        GnssFormat::Nmea => aidnav_io::nmea::read_nmea(path)?,
+        GnssFormat::Ubx => aidnav_io::ubx::read_ubx(path)?,
         GnssFormat::GenericCsv => aidnav_io::generic_gnss::read_generic_gnss(
-            &gnss_path,
-            aidnav_io::generic_gnss::GenericGnssOptions {
-                default_sigma_m: cfg.data.gnss_sigma_m,
-            },
+            path,
+            aidnav_io::generic_gnss::GenericGnssOptions { default_sigma_m },
         )?,
-    };
-    warnings.extend(w);
-    Ok((
-        Inputs {
+    })
+}
+
+impl Inputs {
+    /// Inputs from samples already in memory (sensor-frame IMU, time as
+    /// recorded), treated as [`load_unsmoothed`] treats the files' samples:
+    /// time-shifted (`imu.time_offset_s`), rotated to the body frame
+    /// (`imu.mounting_deg`), and checked (the spans overlap, the gyro turns
+    /// with the GNSS course). `origins` name the IMU and GNSS sources in
+    /// messages (the files, or e.g. `imu (in memory)`). Not smoothed.
+    pub fn from_samples(
+        cfg: &ProcessConfig,
+        mut imu: Vec<ImuSample>,
+        gnss: Vec<GnssFix>,
+        mut warnings: Vec<String>,
+        origins: (&Path, &Path),
+    ) -> Result<Self, ProcessError> {
+        let (imu_path, gnss_path) = origins;
+        aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
+        warnings.extend(check_overlap(&imu, &gnss, imu_path, gnss_path)?);
+        check_turn_rate(&imu, &gnss, imu_path, gnss_path)?;
+        Ok(Inputs {
             imu,
             gnss,
             warnings,
-        },
-        imu_path,
-        gnss_path,
-    ))
+        })
+    }
 }
 
 /// The IMU and GNSS time spans must overlap (GNSS in seconds of week against

@@ -1,0 +1,275 @@
+//! The reproductions as values, and Monte Carlo campaigns in chunks.
+//!
+//! [`reproduce_summary`] runs an experiment and returns its `summary.json`
+//! without writing a file (what `aidnav reproduce NAME` writes). A
+//! [`Campaign`] can also be computed a chunk of runs at a time
+//! ([`Campaign::run_chunk`]), on other threads, processes or machines, and
+//! combined ([`Campaign::finish`]) into the summary of the whole campaign,
+//! bit for bit: run k always draws stream k of the master seed, and the
+//! combination folds the runs in run order. A chunk travels as bytes
+//! (postcard: f64 as its eight bytes, so nothing is rounded on the way).
+
+use std::ops::Range;
+use std::path::Path;
+
+use aidnav_io::writers::Summary;
+use aidnav_reproduce::MonteCarloScenario;
+use aidnav_reproduce::anomalies::AnomaliesScenario;
+use aidnav_reproduce::consistency::ConsistencyScenario;
+use aidnav_reproduce::extended_state::ExtendedStateScenario;
+use aidnav_reproduce::formation::FormationScenario;
+use aidnav_reproduce::group::GroupScenario;
+use aidnav_reproduce::outages::OutagesScenario;
+use aidnav_sim::MonteCarlo;
+
+use super::*;
+
+/// A reproduction, by the name `aidnav reproduce` gives it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Experiment {
+    /// `consistency`: the NEES/NIS demo.
+    Consistency,
+    /// `extended-state`: spec 10's launch INS.
+    ExtendedState,
+    /// `anomalies`: spec 20's anomalous fixes.
+    Anomalies,
+    /// `outages`: spec 20's outage bridging.
+    Outages,
+    /// `group`: spec 30's one-axis group.
+    Group,
+    /// `formation`: spec 30's formation pipeline.
+    Formation,
+}
+
+impl Experiment {
+    /// Every experiment, in the order of `reproduce all`.
+    pub const ALL: [Experiment; 6] = [
+        Experiment::Consistency,
+        Experiment::ExtendedState,
+        Experiment::Anomalies,
+        Experiment::Outages,
+        Experiment::Group,
+        Experiment::Formation,
+    ];
+
+    /// The name on the command line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Experiment::Consistency => "consistency",
+            Experiment::ExtendedState => "extended-state",
+            Experiment::Anomalies => "anomalies",
+            Experiment::Outages => "outages",
+            Experiment::Group => "group",
+            Experiment::Formation => "formation",
+        }
+    }
+
+    /// Whether its runs can be computed in chunks ([`Campaign::run_chunk`]);
+    /// the others run whole.
+    pub const fn splits(self) -> bool {
+        matches!(self, Experiment::Anomalies)
+    }
+}
+
+impl std::str::FromStr for Experiment {
+    type Err = JobError;
+
+    /// An experiment by its name (`extended_state` is taken for
+    /// `extended-state`); the error lists the names.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let s = s.replace('_', "-");
+        Experiment::ALL
+            .into_iter()
+            .find(|e| e.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Experiment::ALL.iter().map(|e| e.name()).collect();
+                JobError::Refused(format!(
+                    "unknown experiment {s:?}: one of {}",
+                    names.join(", ")
+                ))
+            })
+    }
+}
+
+/// An experiment with its scenario: the TOML text of a scenario (None: the
+/// defaults) with the overrides applied, validated.
+#[derive(Debug, Clone)]
+pub struct Campaign {
+    experiment: Experiment,
+    scenario: Scenario,
+}
+
+/// The scenario of each experiment.
+#[derive(Debug, Clone)]
+enum Scenario {
+    Consistency(ConsistencyScenario),
+    ExtendedState(ExtendedStateScenario),
+    Anomalies(AnomaliesScenario),
+    Outages(OutagesScenario),
+    Group(GroupScenario),
+    Formation(FormationScenario),
+}
+
+/// Parse (or default), override, validate.
+fn scenario<S>(text: Option<(&str, &Path)>, overrides: &ScenarioOverrides) -> JobResult<S>
+where
+    S: Default + serde::de::DeserializeOwned + aidnav_io::Validate + MonteCarloScenario,
+{
+    let mut s = match text {
+        Some((text, origin)) => aidnav_io::config::parse_toml::<S>(text, origin)?,
+        None => S::default(),
+    };
+    overrides.apply(&mut s);
+    validated(s)
+}
+
+impl Campaign {
+    /// `experiment` under the scenario `text` (TOML; `origin` names it in
+    /// errors; None: the defaults), with `overrides` (runs, seed) applied.
+    /// Errors name the file, line and key as `aidnav reproduce --scenario`
+    /// does.
+    pub fn new(
+        experiment: Experiment,
+        text: Option<(&str, &Path)>,
+        overrides: &ScenarioOverrides,
+    ) -> JobResult<Self> {
+        let scenario = match experiment {
+            Experiment::Consistency => Scenario::Consistency(scenario(text, overrides)?),
+            Experiment::ExtendedState => Scenario::ExtendedState(scenario(text, overrides)?),
+            Experiment::Anomalies => Scenario::Anomalies(scenario(text, overrides)?),
+            Experiment::Outages => Scenario::Outages(scenario(text, overrides)?),
+            Experiment::Group => Scenario::Group(scenario(text, overrides)?),
+            Experiment::Formation => Scenario::Formation(scenario(text, overrides)?),
+        };
+        Ok(Self {
+            experiment,
+            scenario,
+        })
+    }
+
+    /// The experiment.
+    pub fn experiment(&self) -> Experiment {
+        self.experiment
+    }
+
+    /// Number of runs of the scenario.
+    pub fn runs(&self) -> usize {
+        self.monte_carlo().runs
+    }
+
+    /// The campaign's Monte Carlo settings (no progress bar).
+    fn monte_carlo(&self) -> MonteCarlo {
+        let (runs, seed) = match &self.scenario {
+            Scenario::Consistency(s) => (s.runs, s.seed),
+            Scenario::ExtendedState(s) => (s.runs, s.seed),
+            Scenario::Anomalies(s) => (s.runs, s.seed),
+            Scenario::Outages(s) => (s.runs, s.seed),
+            Scenario::Group(s) => (s.runs, s.seed),
+            Scenario::Formation(s) => (s.runs, s.seed),
+        };
+        MonteCarlo::new(runs, seed).quiet()
+    }
+
+    /// Run the whole campaign here and return its `summary.json` (what
+    /// `aidnav reproduce NAME` writes; no file is written).
+    pub fn summary(&self) -> JobResult<Summary> {
+        let mc = self.monte_carlo();
+        Ok(match &self.scenario {
+            Scenario::Consistency(s) => {
+                let r = aidnav_reproduce::consistency::run(s, &mc)
+                    .map_err(estimation("consistency demo"))?;
+                consistency_summary(s, &r)
+            }
+            Scenario::ExtendedState(s) => {
+                extended_state_summary(s, &aidnav_reproduce::extended_state::run(s, &mc)?)
+            }
+            Scenario::Anomalies(s) => {
+                let r = aidnav_reproduce::anomalies::run(s, &mc)
+                    .map_err(estimation("anomalies experiment"))?;
+                anomalies_summary(s, &r)
+            }
+            Scenario::Outages(s) => outages_summary(s, &aidnav_reproduce::outages::run(s, &mc)?),
+            Scenario::Group(s) => {
+                let r =
+                    aidnav_reproduce::group::run(s, &mc).map_err(estimation("group experiment"))?;
+                group_summary(s, &r)
+            }
+            Scenario::Formation(s) => {
+                let r = aidnav_reproduce::formation::run(s, &mc)
+                    .map_err(estimation("formation flight"))?;
+                formation_summary(s, "reproduce formation", &r)
+            }
+        })
+    }
+
+    /// The runs in `range` (within `0..runs()`), as bytes for
+    /// [`finish`](Self::finish). Refused for an experiment that does not
+    /// split ([`Experiment::splits`]).
+    pub fn run_chunk(&self, range: Range<usize>) -> JobResult<Vec<u8>> {
+        let mc = self.monte_carlo();
+        if range.start > range.end || range.end > mc.runs {
+            return Err(JobError::Refused(format!(
+                "runs {}..{} are not within the campaign's {} runs",
+                range.start, range.end, mc.runs
+            )));
+        }
+        match &self.scenario {
+            Scenario::Anomalies(s) => {
+                let runs = aidnav_reproduce::anomalies::run_range(s, &mc, range)
+                    .map_err(estimation("anomalies experiment"))?;
+                postcard::to_allocvec(&runs)
+                    .map_err(|e| JobError::Refused(format!("encoding a chunk: {e}")))
+            }
+            _ => Err(self.does_not_split()),
+        }
+    }
+
+    /// The `summary.json` of the whole campaign from its chunks (the bytes
+    /// of [`run_chunk`](Self::run_chunk)) in run order, covering every run
+    /// once: the same value, bit for bit, as [`summary`](Self::summary).
+    pub fn finish(&self, chunks: &[Vec<u8>]) -> JobResult<Summary> {
+        match &self.scenario {
+            Scenario::Anomalies(s) => {
+                let mut runs = Vec::with_capacity(s.runs);
+                for (i, c) in chunks.iter().enumerate() {
+                    let part: Vec<aidnav_reproduce::anomalies::RunOut> = postcard::from_bytes(c)
+                        .map_err(|e| {
+                            JobError::Refused(format!(
+                                "chunk {i}: not a chunk of this campaign: {e}"
+                            ))
+                        })?;
+                    runs.extend(part);
+                }
+                if runs.len() != s.runs {
+                    return Err(JobError::Refused(format!(
+                        "the chunks hold {} runs, the campaign has {}",
+                        runs.len(),
+                        s.runs
+                    )));
+                }
+                let r = aidnav_reproduce::anomalies::finish(s, runs)
+                    .map_err(estimation("anomalies experiment"))?;
+                Ok(anomalies_summary(s, &r))
+            }
+            _ => Err(self.does_not_split()),
+        }
+    }
+
+    fn does_not_split(&self) -> JobError {
+        JobError::Refused(format!(
+            "the {} experiment runs whole: its runs cannot be computed in chunks yet",
+            self.experiment.name()
+        ))
+    }
+}
+
+/// Run `experiment` (scenario TOML `text`, or the defaults; `overrides`
+/// applied) and return its `summary.json` without writing a file.
+pub fn reproduce_summary(
+    experiment: Experiment,
+    text: Option<(&str, &Path)>,
+    overrides: &ScenarioOverrides,
+) -> JobResult<Summary> {
+    Campaign::new(experiment, text, overrides)?.summary()
+}

@@ -1,0 +1,143 @@
+"""Type stubs of the extension module ``aidnav._aidnav`` (see the package's
+docstrings for the user-facing API)."""
+
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+import os
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_Path = Union[str, "os.PathLike[str]"]
+_F64 = npt.NDArray[np.float64]
+
+class AidnavError(Exception):
+    """Base class of aidnav's errors; the message names the file, line, column or key."""
+
+class ConfigError(AidnavError):
+    """A configuration or scenario is malformed or out of range: ``path:line: key: message``."""
+
+class DataError(AidnavError):
+    """A data file or in-memory data cannot be used: ``path:line: column `name`: message``."""
+
+class FilterError(AidnavError):
+    """The engine refused a step, naming the step, the matrix and the epoch."""
+
+class Policy:
+    """A measurement policy (χ² gate, Huber, or a scheme of the registry); keeps its state across updates."""
+    @staticmethod
+    def scheme(
+        name: str,
+        *,
+        chi2_probability: float = 0.999,
+        recovering_after: int = 20,
+        huber_k: float = 1.345,
+        anomaly_gamma: float = 9.0,
+        adaptive_window: int = 20,
+    ) -> "Policy": ...
+    @staticmethod
+    def chi2_gate(probability: float = 0.999) -> "Policy": ...
+    @staticmethod
+    def huber(k: float = 1.345) -> "Policy": ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def noise_rule(self) -> str: ...
+    @property
+    def parameters(self) -> Dict[str, float]: ...
+    def reset(self) -> None: ...
+
+class Update:
+    """What one measurement update did."""
+    @property
+    def residual(self) -> _F64: ...
+    @property
+    def S(self) -> _F64: ...
+    @property
+    def gain(self) -> _F64: ...
+    @property
+    def nis(self) -> float: ...
+    @property
+    def outcome(self) -> str: ...
+    @property
+    def log_likelihood(self) -> float: ...
+
+class KalmanFilter:
+    """A linear Kalman filter: Joseph-form update, Cholesky-solved gain, checked steps."""
+    def __init__(self, x0: npt.ArrayLike, P0: npt.ArrayLike, joseph: bool = True) -> None: ...
+    x: _F64
+    P: _F64
+    @property
+    def dim(self) -> int: ...
+    def predict(self, F: npt.ArrayLike, Q: npt.ArrayLike) -> None: ...
+    def update(self, z: npt.ArrayLike, H: npt.ArrayLike, R: npt.ArrayLike, policy: Optional[Policy] = None) -> Update: ...
+    def batch(
+        self,
+        zs: npt.ArrayLike,
+        F: npt.ArrayLike,
+        Q: npt.ArrayLike,
+        H: npt.ArrayLike,
+        R: npt.ArrayLike,
+        policy: Optional[Policy] = None,
+        predict_first: bool = True,
+        covariances: bool = False,
+        smooth: bool = False,
+    ) -> Dict[str, Any]: ...
+    def copy(self) -> "KalmanFilter": ...
+
+def rts_smooth(
+    x_filtered: npt.ArrayLike,
+    P_filtered: npt.ArrayLike,
+    x_predicted: npt.ArrayLike,
+    P_predicted: npt.ArrayLike,
+    F: npt.ArrayLike,
+) -> Dict[str, _F64]: ...
+def scheme_names() -> List[str]: ...
+def experiment_names() -> List[str]: ...
+def read_imu(
+    path: _Path, format: str = "generic_csv", tags: Optional[_Path] = None, units: Optional[Mapping[str, str]] = None
+) -> Tuple[Dict[str, _F64], List[str]]: ...
+def read_gnss(
+    path: _Path, format: str = "rtklib_pos", sigma_m: Optional[Tuple[float, float]] = None
+) -> Tuple[Dict[str, npt.NDArray[Any]], List[str]]: ...
+
+class ProcessResult:
+    """A processed log, before anything is written."""
+    def solution(self) -> Dict[str, _F64]: ...
+    def smoothed(self) -> Dict[str, _F64]: ...
+    def instruments(self) -> Dict[str, _F64]: ...
+    def summary(self) -> Dict[str, Any]: ...
+    def write(self, dir: _Path) -> List[str]: ...
+    @property
+    def scored(self) -> bool: ...
+
+def process_log(
+    config: Union[_Path, Mapping[str, Any]],
+    imu: Optional[Mapping[str, npt.ArrayLike]] = None,
+    gnss: Optional[Mapping[str, npt.ArrayLike]] = None,
+    base: Optional[_Path] = None,
+    score: bool = True,
+) -> ProcessResult: ...
+
+class Campaign:
+    """A reproduction's Monte Carlo campaign, whole or in chunks of runs."""
+    def __init__(
+        self,
+        name: str,
+        scenario: Optional[Union[_Path, Mapping[str, Any]]] = None,
+        runs: Optional[int] = None,
+        seed: Optional[int] = None,
+        *,
+        scenario_text: Optional[str] = None,
+        origin: Optional[_Path] = None,
+    ) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def runs(self) -> int: ...
+    @property
+    def splits(self) -> bool: ...
+    def summary(self) -> Dict[str, Any]: ...
+    def run_chunk(self, start: int, end: int) -> bytes: ...
+    def finish(self, chunks: Sequence[bytes]) -> Dict[str, Any]: ...

@@ -1,0 +1,35 @@
+"""A two-worker Dask LocalCluster gives the local results, bit for bit."""
+
+import pytest
+
+import aidnav
+
+from conftest import DRIVE
+
+distributed = pytest.importorskip("dask.distributed")
+
+
+@pytest.fixture(scope="module")
+def client():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as c:
+            yield c
+
+
+def test_anomalies_campaign_on_two_workers(client):
+    local = aidnav.reproduce("anomalies", runs=20, seed=11)
+    assert aidnav.monte_carlo("anomalies", 20, 11, client=client) == local
+    assert aidnav.monte_carlo("anomalies", 20, 11, client=client, chunks=7) == local
+
+
+def test_a_whole_experiment_and_a_list_of_configs(client):
+    local = aidnav.reproduce("consistency", runs=4, seed=3, scenario={"epochs": 40})
+    assert aidnav.monte_carlo("consistency", 4, 3, scenario={"epochs": 40}, client=client) == local
+    configs = [str(DRIVE), {"platform": "car"}]
+    # The second has no data: its error comes back from the worker as the exception.
+    with pytest.raises(aidnav.ConfigError, match="missing field `data`"):
+        aidnav.monte_carlo(configs, client=client, score=False)
+    summaries = aidnav.monte_carlo([DRIVE], client=client, score=False)
+    here = aidnav.process(DRIVE, score=False).summary
+    strip = lambda s: {k: v for k, v in s["result"].items() if k != "timing_s"}  # noqa: E731
+    assert strip(summaries[0]) == strip(here)
