@@ -213,7 +213,7 @@ impl Validate for FormationScenario {
                 ));
             }
             in_range(&format!("{key}.sigma_scale"), d.sigma_scale, 1.0, 1_000.0)?;
-            if let Some(&b) = d.bias_m.iter().find(|b| !(b.abs() <= 1e5)) {
+            if let Some(&b) = d.bias_m.iter().find(|b| !b.is_finite() || b.abs() > 1e5) {
                 return Err(Invalid::new(
                     format!("{key}.bias_m"),
                     b,
