@@ -18,9 +18,9 @@ pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &
         r.relative_per_epoch, s.sensor.range_limit_m
     );
     println!(
-        "{:<7} {:<7} {:>20} {:>20} {:>20} {:>27}",
+        "{:<7} {:<9} {:>20} {:>20} {:>20} {:>27}",
         "member",
-        "denied",
+        "GNSS",
         "GNSS/INS alone",
         "paper fusion",
         "EKF fusion",
@@ -29,9 +29,14 @@ pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &
     let cell = |rms: f64, sigma: f64| format!("{rms:.3} ({sigma:.3})");
     for m in &r.members {
         println!(
-            "{:<7} {:<7} {:>20} {:>20} {:>20} {:>27}",
+            "{:<7} {:<9} {:>20} {:>20} {:>20} {:>27}",
             m.member,
-            if m.denied { "yes" } else { "no" },
+            match (m.denied, m.degraded) {
+                (true, true) => "den+deg",
+                (true, false) => "denied",
+                (false, true) => "degraded",
+                (false, false) => "ok",
+            },
             cell(m.position_rms_m[0], m.position_sigma_m[0]),
             cell(m.position_rms_m[1], m.position_sigma_m[1]),
             cell(m.position_rms_m[2], m.position_sigma_m[2]),
@@ -41,12 +46,16 @@ pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &
             )
         );
     }
-    let kept: Vec<_> = r.members.iter().filter(|m| !m.denied).collect();
+    let kept: Vec<_> = r
+        .members
+        .iter()
+        .filter(|m| !m.denied && !m.degraded)
+        .collect();
     if !kept.is_empty() {
         let mean =
             |k: usize| kept.iter().map(|m| m.position_rms_m[k]).sum::<f64>() / kept.len() as f64;
         println!(
-            "mean over the members that keep GNSS: alone {:.3}, paper {:.3}, EKF {:.3} m (gain {:.2}× / {:.2}×)",
+            "mean over the members that keep undisturbed GNSS: alone {:.3}, paper {:.3}, EKF {:.3} m (gain {:.2}× / {:.2}×)",
             mean(0),
             mean(1),
             mean(2),
@@ -59,6 +68,14 @@ pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &
             println!(
                 "member {} during its GNSS denial: largest error alone {:.2} m, paper {:.2} m, EKF {:.2} m (mean over runs); at its end {:.2} / {:.2} / {:.2} m",
                 m.member, max[0], max[1], max[2], end[0], end[1], end[2]
+            );
+        }
+    }
+    for m in &r.members {
+        if let Some(e) = m.degradation_rms_error_m {
+            println!(
+                "member {} during its GNSS degradation: error RMS alone {:.2} m, paper {:.2} m, EKF {:.2} m (over runs and epochs)",
+                m.member, e[0], e[1], e[2]
             );
         }
     }

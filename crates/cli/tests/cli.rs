@@ -429,6 +429,39 @@ fn run_formation_example_prints_members_and_bounds_the_denied_one() {
     }
 }
 
+/// The silent-degradation example: member 2 (and only it) is scored over
+/// its degradation, and the group fusion reduces its error there.
+#[test]
+fn run_formation_degraded_example_scores_the_degraded_member() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = repo().join("examples/formation_degraded.toml");
+    let stdout = success(&[
+        "run",
+        example.to_str().unwrap(),
+        "--runs",
+        "2",
+        "--quiet",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("member 2 during its GNSS degradation"),
+        "{stdout}"
+    );
+    let summary = read_summary(dir.path());
+    for m in summary["members"].as_array().unwrap() {
+        let degraded = m["member"] == 2;
+        assert_eq!(m["degraded"], degraded, "{m}");
+        let e = &m["degradation_rms_error_m"];
+        if degraded {
+            let e: Vec<f64> = (0..3).map(|s| e[s].as_f64().unwrap()).collect();
+            assert!(e[1] < e[0] && e[2] < e[0], "{m}");
+        } else {
+            assert!(e.is_null(), "{m}");
+        }
+    }
+}
+
 #[test]
 fn run_names_file_line_and_key_of_a_bad_formation() {
     let dir = tempfile::tempdir().unwrap();
@@ -442,6 +475,12 @@ fn run_names_file_line_and_key_of_a_bad_formation() {
     std::fs::write(&f, "[formation]\nmembers = 3\n[[formation.denial]]\nmembers = [3]\nstart_s = 1.0\nend_s = 2.0\n").unwrap();
     let err = failure(&["run", f.to_str().unwrap()]);
     assert!(err.contains("formation.denial[0].members"), "{err}");
+    std::fs::write(&f, "[formation]\n[[formation.degradation]]\nmember = 1\nstart_s = 1.0\nend_s = 2.0\nsigma_scale = 0.5\n").unwrap();
+    let err = failure(&["run", f.to_str().unwrap()]);
+    assert!(
+        err.contains("formation.degradation[0].sigma_scale"),
+        "{err}"
+    );
     std::fs::write(&f, "[formaton]\n").unwrap();
     let err = failure(&["run", f.to_str().unwrap()]);
     assert!(

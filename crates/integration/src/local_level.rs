@@ -121,12 +121,25 @@ impl LooselyCoupled {
         position: &Vector3<f64>,
         velocity: &Vector3<f64>,
     ) -> Result<(), EstimationError> {
+        let (_, r) = self.model.measurement();
+        self.gnss_update_with_noise(position, velocity, &r)
+    }
+
+    /// A GNSS fix whose white-noise covariance `r` (position, velocity; 6×6)
+    /// is given instead of the model's — e.g. a receiver reporting degraded
+    /// accuracy. The correlated GNSS errors keep their model.
+    pub fn gnss_update_with_noise(
+        &mut self,
+        position: &Vector3<f64>,
+        velocity: &Vector3<f64>,
+        r: &Matrix6,
+    ) -> Result<(), EstimationError> {
         self.time_update()?;
-        let (h, r) = self.model.measurement();
+        let (h, _) = self.model.measurement();
         let dp = position - self.ins.position;
         let dv = velocity - self.ins.velocity;
         let z = SVector::<f64, 6>::from([dp.x, dp.y, dp.z, dv.x, dv.y, dv.z]);
-        self.kf.update(&z, &h, &r)?;
+        self.kf.update(&z, &h, r)?;
         self.feedback()
     }
 

@@ -198,7 +198,7 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
 /// Run the spec-30 formation pipeline (stage-1 INS/GNSS per member, stage-2
 /// group fusion in the paper's and the EKF form) and write `formation.csv`
 /// (per epoch and member: RMS over runs of the 3-D position error of each
-/// solution), `formation_errors.svg` (each GNSS-denied member alone and in
+/// solution), `formation_errors.svg` (each GNSS-denied or -degraded member alone and in
 /// the group, and the mean of the others) and `summary.json` (list `members`)
 /// into `out`.
 pub fn formation(

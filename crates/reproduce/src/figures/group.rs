@@ -50,8 +50,8 @@ pub fn group_figure(
     .write_svg(&out.join("group_errors.svg"))
 }
 
-/// `formation_errors.svg`: each GNSS-denied member alone and in the group
-/// (both stage-2 forms), and the mean of the other members.
+/// `formation_errors.svg`: each GNSS-denied or -degraded member alone and in
+/// the group (both stage-2 forms), and the mean of the other members.
 pub fn formation_figure(
     scenario: &FormationScenario,
     result: &FormationResult,
@@ -70,13 +70,18 @@ pub fn formation_figure(
     let denied: Vec<usize> = result
         .members
         .iter()
-        .filter(|m| m.denied)
+        .filter(|m| m.denied || m.degraded)
         .map(|m| m.member)
         .collect();
     for &l in &denied {
+        let what = match (result.members[l].denied, result.members[l].degraded) {
+            (true, true) => "GNSS denied and degraded",
+            (true, false) => "GNSS denied",
+            _ => "GNSS degraded",
+        };
         for (s, label) in labels.iter().enumerate() {
             series.push(Series {
-                label: format!("member {l} (GNSS denied): {label}"),
+                label: format!("member {l} ({what}): {label}"),
                 points: trace(&|e, s| e[l][s], s),
                 style: LineStyle::Solid,
                 color: s,

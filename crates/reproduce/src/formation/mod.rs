@@ -25,6 +25,17 @@
 //! the interval; their stage-1 INS runs free (its σ grows) while the group
 //! keeps measuring them.
 //!
+//! Partial GNSS failure: a member listed in `[[formation.degradation]]` keeps
+//! its fixes over the interval, but their errors are degraded — the receiver's
+//! Gauss–Markov and white errors multiplied by `sigma_scale` (≥ 1) and a
+//! constant `bias_m` (north, east, down) added to the position. With
+//! `reported = false` (default) the failure is silent: the stage-1 filter
+//! weighs the fixes as usual and its covariance (which stage 2 sees) does not
+//! grow. With `reported = true` the receiver reports the inflation: the
+//! filter's fix noise is raised so that the total σ it assumes per axis
+//! (correlated plus white) is `sigma_scale` times the nominal one; the bias
+//! stays unreported.
+//!
 //! The flight: the leader flies east at `speed_mps`, weaving left and right
 //! (`weave_amplitude_m`, `weave_period_s`) and climbing and descending; the
 //! others hold a V behind it (`spacing_m`, rotated with the leader's heading).
@@ -54,6 +65,29 @@ pub struct Denial {
     pub start_s: f64,
     /// End of the denial \[s\].
     pub end_s: f64,
+}
+
+/// One interval of degraded (not denied) GNSS for one member.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Degradation {
+    /// Member (0-based) whose fixes degrade.
+    pub member: usize,
+    /// Start of the degradation \[s\].
+    pub start_s: f64,
+    /// End of the degradation \[s\].
+    pub end_s: f64,
+    /// Factor (1 … 1000) on the receiver's position and velocity errors
+    /// (correlated and white parts).
+    pub sigma_scale: f64,
+    /// Constant bias added to the position fixes, \[north, east, down\] \[m\]
+    /// (each within ±100 000). Default zero.
+    #[serde(default)]
+    pub bias_m: [f64; 3],
+    /// Whether the receiver reports the inflation (`sigma_scale`) to the
+    /// stage-1 filter. Default false: a silent failure.
+    #[serde(default)]
+    pub reported: bool,
 }
 
 /// Initial INS errors (σ).
@@ -133,6 +167,8 @@ pub struct FormationScenario {
     pub sensor: RelativeSensor,
     /// GNSS denials. Default: member 2 from 200 s to 500 s.
     pub denial: Vec<Denial>,
+    /// GNSS degradations (inflated and biased fixes). Default none.
+    pub degradation: Vec<Degradation>,
 }
 
 impl Default for FormationScenario {
@@ -163,6 +199,7 @@ impl Default for FormationScenario {
                 start_s: 200.0,
                 end_s: 500.0,
             }],
+            degradation: Vec::new(),
         }
     }
 }
@@ -199,6 +236,11 @@ pub struct MemberScore {
     pub denial_max_error_m: Option<[f64; 3]>,
     /// At the end of its denial: RMS over runs of the 3-D position error \[m\].
     pub denial_end_error_m: Option<[f64; 3]>,
+    /// Whether the member's GNSS is degraded at some time.
+    pub degraded: bool,
+    /// During its degradations: RMS over runs and epochs of the 3-D position
+    /// error \[m\], per solution.
+    pub degradation_rms_error_m: Option<[f64; 3]>,
 }
 
 /// The experiment's result.

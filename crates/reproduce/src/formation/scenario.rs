@@ -6,7 +6,7 @@ use aidnav_integration::group::FusionParams;
 use aidnav_io::config::{Invalid, Validate, all_in_range, count_in_range, in_range};
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::{Denial, FormationScenario};
+use super::{Degradation, Denial, FormationScenario};
 
 /// Stage 2's prior σ of each position coordinate around the first stage-1
 /// solution \[m\] (a few times the GNSS σ).
@@ -17,6 +17,18 @@ const STAGE2_INITIAL_VELOCITY_SIGMA_MPS: f64 = 1.0;
 impl Denial {
     pub(super) fn denies(&self, member: usize, t: f64) -> bool {
         t >= self.start_s && t < self.end_s && self.members.contains(&member)
+    }
+}
+
+impl Degradation {
+    pub(super) fn degrades(&self, member: usize, t: f64) -> bool {
+        t >= self.start_s && t < self.end_s && self.member == member
+    }
+
+    /// The bias in the formation's ENU frame.
+    pub(super) fn bias_enu(&self) -> Vector3<f64> {
+        let [n, e, d] = self.bias_m;
+        Vector3::new(e, n, -d)
     }
 }
 
@@ -183,6 +195,32 @@ impl Validate for FormationScenario {
                 ));
             }
         }
+        count_in_range("degradation", self.degradation.len(), 0, 1_000)?;
+        for (i, d) in self.degradation.iter().enumerate() {
+            let key = format!("degradation[{i}]");
+            if d.member >= self.members {
+                return Err(Invalid::new(
+                    format!("{key}.member"),
+                    d.member,
+                    format!("a member index 0 … {}", self.members - 1),
+                ));
+            }
+            if !(d.start_s >= 0.0 && d.end_s > d.start_s && d.end_s.is_finite()) {
+                return Err(Invalid::new(
+                    format!("{key}.end_s"),
+                    d.end_s,
+                    "0 ≤ start_s < end_s, finite",
+                ));
+            }
+            in_range(&format!("{key}.sigma_scale"), d.sigma_scale, 1.0, 1_000.0)?;
+            if let Some(&b) = d.bias_m.iter().find(|b| !b.is_finite() || b.abs() > 1e5) {
+                return Err(Invalid::new(
+                    format!("{key}.bias_m"),
+                    b,
+                    "each component within ±100000",
+                ));
+            }
+        }
         Ok(())
     }
 }
@@ -211,6 +249,11 @@ impl FormationScenario {
 
     pub(super) fn denied(&self, member: usize, t: f64) -> bool {
         self.denial.iter().any(|d| d.denies(member, t))
+    }
+
+    /// The degradation of member l's fixes at t, if any (the first listed).
+    pub(super) fn degradation_at(&self, member: usize, t: f64) -> Option<&Degradation> {
+        self.degradation.iter().find(|d| d.degrades(member, t))
     }
 
     /// Leader position.

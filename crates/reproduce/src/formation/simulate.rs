@@ -7,6 +7,7 @@ use aidnav_ins::local_level::{LocalLevelState, ideal_imu};
 use aidnav_integration::group::{OwnSolution, RelativeMeasurement};
 use aidnav_integration::local_level::LooselyCoupled;
 use aidnav_models::GaussMarkov;
+use aidnav_models::local_ins::Matrix6;
 use aidnav_models::relative_sensor::{Polar, wrap_angle};
 use aidnav_sim::rng::{RunRng, channel_rng, standard_normal};
 use nalgebra::{UnitQuaternion, Vector3};
@@ -27,6 +28,23 @@ fn gauss3(rng: &mut RunRng, sigma: &Vector3<f64>) -> Vector3<f64> {
         sigma.y * standard_normal(rng),
         sigma.z * standard_normal(rng),
     )
+}
+
+/// The fix noise a receiver reports when its errors are `k` times nominal:
+/// the model's white noise plus (k² − 1) times the nominal total variance
+/// (correlated and white) per axis, so that the total σ the filter assumes
+/// is k times the nominal one (the correlated part keeps its state model).
+fn reported_noise(sc: &FormationScenario, k: f64) -> Matrix6 {
+    let gnss = &sc.model.gnss;
+    let (_, mut r) = sc.model.measurement();
+    let extra = k * k - 1.0;
+    let pos = gnss.position_sigmas();
+    for i in 0..3 {
+        r[(i, i)] += extra * (pos[i].powi(2) + gnss.position_white_sigma_m.powi(2));
+        r[(3 + i, 3 + i)] +=
+            extra * (gnss.velocity_sigma_mps.powi(2) + gnss.velocity_white_sigma_mps.powi(2));
+    }
+    r
 }
 
 /// Per epoch, per member: stage-1 solutions and the truth.
@@ -105,6 +123,15 @@ pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, Es
             let white_v = gauss3(&mut rng, &Vector3::repeat(gnss.velocity_white_sigma_mps));
             if sc.denied(l, t) {
                 lc.propagate()?;
+            } else if let Some(d) = sc.degradation_at(l, t) {
+                let k = d.sigma_scale;
+                let position = prev.position + (e.gnss_position + white_p) * k + d.bias_enu();
+                let velocity = prev.velocity + (e.gnss_velocity + white_v) * k;
+                if d.reported {
+                    lc.gnss_update_with_noise(&position, &velocity, &reported_noise(sc, k))?;
+                } else {
+                    lc.gnss_update(&position, &velocity)?;
+                }
             } else {
                 lc.gnss_update(
                     &(prev.position + e.gnss_position + white_p),
