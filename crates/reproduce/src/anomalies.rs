@@ -798,10 +798,7 @@ pub fn finish(
     per_run: Vec<RunOut>,
 ) -> Result<AnomaliesResult, EstimationError> {
     let n = sc.epochs as f64;
-    let total = per_run.len() as f64 * n;
-    let rms: Vec<f64> = (0..ESTIMATORS.len())
-        .map(|i| (per_run.iter().map(|r| r.sq[i]).sum::<f64>() / total).sqrt())
-        .collect();
+    let rms = rms_per_estimator(&per_run, sc.epochs);
     let scores = (0..ESTIMATORS.len())
         .map(|i| {
             let mut per: Vec<f64> = per_run.iter().map(|r| (r.sq[i] / n).sqrt()).collect();
@@ -816,11 +813,7 @@ pub fn finish(
             }
         })
         .collect();
-    let anomaly_fraction = per_run
-        .iter()
-        .map(|r| r.anomalous_epochs as f64)
-        .sum::<f64>()
-        / total;
+    let anomaly_fraction = epoch_fraction(&per_run, sc.epochs, |r| r.anomalous_epochs);
     let example = per_run
         .into_iter()
         .find_map(|r| r.example)
@@ -839,6 +832,20 @@ pub fn finish(
         burst: illustrate(sc, &[fixed(il.burst_length)], il.epochs)?,
         per_type: per_type(sc)?,
     })
+}
+
+/// RMS of each estimator's δV error over every run and epoch (order of
+/// [`ESTIMATORS`]).
+fn rms_per_estimator(per_run: &[RunOut], epochs: usize) -> Vec<f64> {
+    let total = (per_run.len() * epochs) as f64;
+    (0..ESTIMATORS.len())
+        .map(|i| (per_run.iter().map(|r| r.sq[i]).sum::<f64>() / total).sqrt())
+        .collect()
+}
+
+/// The fraction of all runs' epochs that `count` counts in each run.
+fn epoch_fraction(per_run: &[RunOut], epochs: usize, count: fn(&RunOut) -> usize) -> f64 {
+    per_run.iter().map(count).sum::<usize>() as f64 / (per_run.len() * epochs) as f64
 }
 
 /// The per-type table: for each of [`ANOMALY_TYPES`], `per_type.runs` runs
@@ -864,18 +871,13 @@ fn per_type(sc: &AnomaliesScenario) -> Result<Vec<TypeScores>, EstimationError> 
             let faults = plan(&specs, &outages, sc.epochs, sigma, &mut fault_rng);
             one_run(sc, (&setup, &wrong), &faults, sc.epochs, rng, false)
         })?;
-        let total = (per_run.len() * sc.epochs) as f64;
-        let rms: Vec<f64> = (0..ESTIMATORS.len())
-            .map(|i| (per_run.iter().map(|r| r.sq[i]).sum::<f64>() / total).sqrt())
-            .collect();
-        let fraction =
-            |f: fn(&RunOut) -> usize| per_run.iter().map(f).sum::<usize>() as f64 / total;
+        let rms = rms_per_estimator(&per_run, sc.epochs);
         table.push(TypeScores {
             anomaly_type: (*name).to_string(),
             paper: crate::published::ANOMALY_TYPE_STATEMENTS[t].to_string(),
             runs: pt.runs,
-            anomaly_fraction: fraction(|r| r.anomalous_epochs),
-            lost_fraction: fraction(|r| r.lost_epochs),
+            anomaly_fraction: epoch_fraction(&per_run, sc.epochs, |r| r.anomalous_epochs),
+            lost_fraction: epoch_fraction(&per_run, sc.epochs, |r| r.lost_epochs),
             rms_mps: ESTIMATORS
                 .iter()
                 .zip(&rms)

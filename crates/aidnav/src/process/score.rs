@@ -14,11 +14,17 @@ pub fn outage_windows(
     last_gnss_s: f64,
     length_s: f64,
 ) -> Vec<(f64, f64)> {
+    periodic_windows(first_imu_s + cfg.lead_s, length_s, cfg.gap_s, last_gnss_s)
+}
+
+/// Windows [a, a + `length_s`) from `start_s`, one every `length_s +
+/// gap_s`, each ending before `last_s`.
+pub fn periodic_windows(start_s: f64, length_s: f64, gap_s: f64, last_s: f64) -> Vec<(f64, f64)> {
     let mut out = Vec::new();
     for k in 0.. {
-        let a = first_imu_s + cfg.lead_s + k as f64 * (length_s + cfg.gap_s);
+        let a = start_s + k as f64 * (length_s + gap_s);
         let b = a + length_s;
-        if b >= last_gnss_s {
+        if b >= last_s {
             break;
         }
         out.push((a, b));

@@ -221,15 +221,13 @@ fn gnss_speed_evidence(gnss: &[GnssFix], k: usize, until: f64, max: f64) -> Gnss
         _ => after,
     };
     // The displacement over the window, less 3 σ of each end, at most
-    // `max` on average.
     // `max` on average; when 3 σ alone exceed `max` over that time, the
     // fixes cannot tell a standstill from a crawl at `max`.
     match end {
         Some(l) if l.time_s > gnss[k].time_s => {
             let dt = l.time_s - gnss[k].time_s;
-            let d = gnss[k].position.ned_to(&l.position).norm();
-            let noise = 3.0 * (gnss[k].position_sigma_neu.norm() + l.position_sigma_neu.norm());
-            if (d - noise).max(0.0) / dt > max {
+            let (d, noise) = displacement_and_noise(&gnss[k], l);
+            if (d.norm() - noise).max(0.0) / dt > max {
                 GnssEvidence::Moving
             } else if noise / dt > max {
                 GnssEvidence::None
@@ -253,12 +251,20 @@ fn velocity_of(gnss: &[GnssFix], k: usize) -> Option<Vector3<f64>> {
             .take_while(|g| g.time_s <= t + 5.0)
             .filter(|g| g.time_s >= t + 1.0)
             .find_map(|next| {
-                let d = gnss[k].position.ned_to(&next.position).raw();
-                let noise =
-                    3.0 * (gnss[k].position_sigma_neu.norm() + next.position_sigma_neu.norm());
+                let (d, noise) = displacement_and_noise(&gnss[k], next);
                 (d.norm() > noise).then(|| d / (next.time_s - t))
             })
     })
+}
+
+/// The displacement from fix `a` to fix `b` (NED) \[m\] and 3 σ of the
+/// two fixes' position noise together \[m\]: a displacement within it may
+/// be noise alone.
+fn displacement_and_noise(a: &GnssFix, b: &GnssFix) -> (Vector3<f64>, f64) {
+    (
+        a.position.ned_to(&b.position).raw(),
+        3.0 * (a.position_sigma_neu.norm() + b.position_sigma_neu.norm()),
+    )
 }
 
 /// The start at fix `g` (antenna) and IMU sample `index`.

@@ -455,13 +455,9 @@ pub fn tuning_windows(cfg: &ProcessConfig, inputs: &Inputs) -> Vec<(f64, f64)> {
     let Some(length) = cfg.tune_outage_s() else {
         return Vec::new();
     };
-    let period = length + cfg.tune_gap_s();
-    let start = first.time_s + cfg.score.lead_s + 0.5 * period;
-    (0..)
-        .map(|k| start + k as f64 * period)
-        .map(|a| (a, a + length))
-        .take_while(|&(_, b)| b < last.time_s)
-        .collect()
+    let gap = cfg.tune_gap_s();
+    let start = first.time_s + cfg.score.lead_s + 0.5 * (length + gap);
+    super::score::periodic_windows(start, length, gap, last.time_s)
 }
 
 /// ln N(e; 0, C) of a 3-vector, by Cholesky (None: C not positive
