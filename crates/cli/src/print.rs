@@ -361,9 +361,9 @@ fn paper_outages(long: bool, name: &str) -> String {
     match (long, name) {
         (false, "apriori") => percent(published::OUTAGES_SHORT_APRIORI_PERCENT),
         (false, "trend") => percent(published::OUTAGES_SHORT_TREND_PERCENT),
-        (false, "gmdh") => percent(published::OUTAGES_SHORT_GMDH_PERCENT),
+        (false, "gmdh" | "gmdh_reselected") => percent(published::OUTAGES_SHORT_GMDH_PERCENT),
         (true, "apriori") | (true, "trend") => published::OUTAGES_LONG_APRIORI_AND_TREND.into(),
-        (true, "gmdh") => percent(published::OUTAGES_LONG_GMDH_PERCENT),
+        (true, "gmdh" | "gmdh_reselected") => percent(published::OUTAGES_LONG_GMDH_PERCENT),
         (true, "combined_trend") => published::OUTAGES_LONG_COMBINED_TREND.into(),
         (_, "relay") => published::OUTAGES_RELAY.into(),
         _ => "—".into(),

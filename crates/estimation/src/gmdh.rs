@@ -572,6 +572,39 @@ fn refine_frequencies(
 
 /// Select and fit the best structure for samples `y` at times `t`.
 pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection, GmdhError> {
+    let mut one = select_for_horizons(t, y, config, &[config.horizon_s])?;
+    Ok(one.remove(0))
+}
+
+/// Least-squares fits of one candidate structure that every horizon's
+/// criterion shares: the regularity on the checking part, and the fits to
+/// the earlier and later halves for the balance of forecasts.
+struct SharedFits {
+    regularity: f64,
+    halves: Option<(GmdhModel, GmdhModel)>,
+}
+
+/// [`select`] once per forecast horizon (`None`: regularity alone), as if
+/// each were [`GmdhConfig::horizon_s`], with identical results, but every
+/// least-squares fit done once and shared by the horizons: a model
+/// re-selected for several prediction lengths costs little more than one.
+/// `config.horizon_s` is ignored.
+///
+/// ```
+/// use aidnav_estimation::gmdh::{GmdhConfig, select, select_for_horizons};
+/// let t: Vec<f64> = (0..100).map(f64::from).collect();
+/// let y: Vec<f64> = t.iter().map(|t| 0.3 * t + (0.2 * t).sin()).collect();
+/// let config = GmdhConfig { frequencies: vec![0.2], ..GmdhConfig::default() };
+/// let both = select_for_horizons(&t, &y, &config, &[Some(10.0), Some(300.0)]).unwrap();
+/// let alone = select(&t, &y, &GmdhConfig { horizon_s: Some(300.0), ..config }).unwrap();
+/// assert_eq!(both[1], alone);
+/// ```
+pub fn select_for_horizons(
+    t: &[f64],
+    y: &[f64],
+    config: &GmdhConfig,
+    horizons: &[Option<f64>],
+) -> Result<Vec<GmdhSelection>, GmdhError> {
     if t.len() != y.len() {
         return Err(GmdhError::LengthMismatch {
             times: t.len(),
@@ -658,44 +691,16 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
         half_span,
     };
     let (early, late): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| i < n / 2);
-    let horizon_grid: Vec<f64> = match config.horizon_s {
-        Some(h) => {
-            if !(h.is_finite() && h > 0.0) {
-                return Err(GmdhError::Config(format!("horizon_s {h} must be > 0")));
-            }
-            (1..=BALANCE_POINTS)
-                .map(|k| t[n - 1] + h * k as f64 / BALANCE_POINTS as f64)
-                .collect()
+    for h in horizons.iter().flatten() {
+        if !(h.is_finite() && *h > 0.0) {
+            return Err(GmdhError::Config(format!("horizon_s {h} must be > 0")));
         }
-        None => Vec::new(),
-    };
+    }
+    let needs_halves = horizons.iter().any(Option::is_some);
     let check_variance = {
         let mean = check.iter().map(|&i| y[i]).sum::<f64>() / check.len() as f64;
         (check.iter().map(|&i| (y[i] - mean).powi(2)).sum::<f64>() / check.len() as f64)
             .max(f64::MIN_POSITIVE)
-    };
-    let score = |units: &[Unit]| -> Option<f64> {
-        let coef = fit(units, &window, &train)?;
-        let regularity = criterion(units, &coef, &window, &check);
-        if horizon_grid.is_empty() {
-            return Some(regularity);
-        }
-        let model = |idx: &[usize]| {
-            fit(units, &window, idx).map(|coefficients| GmdhModel {
-                units: units.to_vec(),
-                coefficients,
-                t_mid,
-                half_span,
-            })
-        };
-        let (a, b) = (model(&early)?, model(&late)?);
-        let balance = horizon_grid
-            .iter()
-            .map(|&t| (a.predict(t) - b.predict(t)).powi(2))
-            .sum::<f64>()
-            / horizon_grid.len() as f64
-            / check_variance;
-        Some(regularity + balance)
     };
     if config.refine && grid_ratio > 1.0 {
         let mut searched = candidates.split_off(given);
@@ -712,74 +717,121 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
         .min_improvement
         .max(config.noise_guard / check.len() as f64);
 
-    // Complexity 1 and 2 exhaustively, then beam extension.
-    let mut layer: Vec<(f64, Vec<usize>)> = (0..candidates.len())
-        .filter_map(|i| score(&[candidates[i]]).map(|c| (c, vec![i])))
-        .collect();
-    let mut best_by_complexity = Vec::new();
-    let mut best: Option<(f64, Vec<usize>)> = None;
-    for complexity in 1..=config.max_units {
-        if complexity > 1 {
-            let parents: Vec<Vec<usize>> = if complexity == 2 {
-                (0..candidates.len()).map(|i| vec![i]).collect()
-            } else {
-                layer.iter().map(|(_, s)| s.clone()).collect()
+    let mut cache: std::collections::HashMap<Vec<usize>, Option<SharedFits>> =
+        std::collections::HashMap::new();
+    let mut shared = |set: &[usize]| -> Option<(f64, Option<(GmdhModel, GmdhModel)>)> {
+        let fits = cache.entry(set.to_vec()).or_insert_with(|| {
+            let units: Vec<Unit> = set.iter().map(|&k| candidates[k]).collect();
+            let coef = fit(&units, &window, &train)?;
+            let regularity = criterion(&units, &coef, &window, &check);
+            let model = |idx: &[usize]| {
+                fit(&units, &window, idx).map(|coefficients| GmdhModel {
+                    units: units.clone(),
+                    coefficients,
+                    t_mid,
+                    half_span,
+                })
             };
-            let mut next: Vec<(f64, Vec<usize>)> = Vec::new();
-            for p in parents {
-                let last = *p.last().unwrap_or(&0);
-                for i in 0..candidates.len() {
-                    if p.contains(&i) || (complexity == 2 && i <= last) {
-                        continue;
-                    }
-                    let mut s = p.clone();
-                    s.push(i);
-                    s.sort_unstable();
-                    if next.iter().any(|(_, q)| *q == s) {
-                        continue;
-                    }
-                    let units: Vec<Unit> = s.iter().map(|&k| candidates[k]).collect();
-                    if let Some(c) = score(&units) {
-                        next.push((c, s));
+            let halves = if needs_halves {
+                model(&early).zip(model(&late))
+            } else {
+                None
+            };
+            Some(SharedFits { regularity, halves })
+        });
+        fits.as_ref().map(|f| (f.regularity, f.halves.clone()))
+    };
+    let mut selections = Vec::with_capacity(horizons.len());
+    for horizon in horizons {
+        let horizon_grid: Vec<f64> = match horizon {
+            Some(h) => (1..=BALANCE_POINTS)
+                .map(|k| t[n - 1] + h * k as f64 / BALANCE_POINTS as f64)
+                .collect(),
+            None => Vec::new(),
+        };
+        let mut score = |set: &[usize]| -> Option<f64> {
+            let (regularity, halves) = shared(set)?;
+            if horizon_grid.is_empty() {
+                return Some(regularity);
+            }
+            let (a, b) = halves?;
+            let balance = horizon_grid
+                .iter()
+                .map(|&t| (a.predict(t) - b.predict(t)).powi(2))
+                .sum::<f64>()
+                / horizon_grid.len() as f64
+                / check_variance;
+            Some(regularity + balance)
+        };
+        // Complexity 1 and 2 exhaustively, then beam extension.
+        let mut layer: Vec<(f64, Vec<usize>)> = (0..candidates.len())
+            .filter_map(|i| score(&[i]).map(|c| (c, vec![i])))
+            .collect();
+        let mut best_by_complexity = Vec::new();
+        let mut best: Option<(f64, Vec<usize>)> = None;
+        for complexity in 1..=config.max_units {
+            if complexity > 1 {
+                let parents: Vec<Vec<usize>> = if complexity == 2 {
+                    (0..candidates.len()).map(|i| vec![i]).collect()
+                } else {
+                    layer.iter().map(|(_, s)| s.clone()).collect()
+                };
+                let mut next: Vec<(f64, Vec<usize>)> = Vec::new();
+                for p in parents {
+                    let last = *p.last().unwrap_or(&0);
+                    for i in 0..candidates.len() {
+                        if p.contains(&i) || (complexity == 2 && i <= last) {
+                            continue;
+                        }
+                        let mut s = p.clone();
+                        s.push(i);
+                        s.sort_unstable();
+                        if next.iter().any(|(_, q)| *q == s) {
+                            continue;
+                        }
+                        if let Some(c) = score(&s) {
+                            next.push((c, s));
+                        }
                     }
                 }
+                layer = next;
             }
-            layer = next;
+            layer.sort_by(|a, b| a.0.total_cmp(&b.0));
+            layer.truncate(config.beam);
+            let Some(top) = layer.first().cloned() else {
+                break;
+            };
+            best_by_complexity.push(top.0);
+            // An exactly fitted structure (criterion at rounding level) cannot be
+            // improved by more units, only made to look so by rounding.
+            const EXACT_FIT: f64 = 1e-20;
+            match &best {
+                Some((c, _)) if top.0 >= c * (1.0 - required) || *c < EXACT_FIT => break,
+                _ => best = Some(top),
+            }
         }
-        layer.sort_by(|a, b| a.0.total_cmp(&b.0));
-        layer.truncate(config.beam);
-        let Some(top) = layer.first().cloned() else {
-            break;
-        };
-        best_by_complexity.push(top.0);
-        // An exactly fitted structure (criterion at rounding level) cannot be
-        // improved by more units, only made to look so by rounding.
-        const EXACT_FIT: f64 = 1e-20;
-        match &best {
-            Some((c, _)) if top.0 >= c * (1.0 - required) || *c < EXACT_FIT => break,
-            _ => best = Some(top),
-        }
+        let (crit, set) = best.ok_or(GmdhError::TooFewSamples {
+            samples: n,
+            needed: MIN_SAMPLES,
+        })?;
+        let units: Vec<Unit> = set.iter().map(|&k| candidates[k]).collect();
+        let all: Vec<usize> = (0..n).collect();
+        let coefficients = fit(&units, &window, &all).ok_or(GmdhError::TooFewSamples {
+            samples: n,
+            needed: MIN_SAMPLES,
+        })?;
+        selections.push(GmdhSelection {
+            model: GmdhModel {
+                units,
+                coefficients,
+                t_mid,
+                half_span,
+            },
+            criterion: crit,
+            best_by_complexity,
+        });
     }
-    let (crit, set) = best.ok_or(GmdhError::TooFewSamples {
-        samples: n,
-        needed: MIN_SAMPLES,
-    })?;
-    let units: Vec<Unit> = set.iter().map(|&k| candidates[k]).collect();
-    let all: Vec<usize> = (0..n).collect();
-    let coefficients = fit(&units, &window, &all).ok_or(GmdhError::TooFewSamples {
-        samples: n,
-        needed: MIN_SAMPLES,
-    })?;
-    Ok(GmdhSelection {
-        model: GmdhModel {
-            units,
-            coefficients,
-            t_mid,
-            half_span,
-        },
-        criterion: crit,
-        best_by_complexity,
-    })
+    Ok(selections)
 }
 
 #[cfg(test)]

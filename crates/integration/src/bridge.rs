@@ -169,8 +169,10 @@ mod tests {
                 t1_s: 1.0,
                 t2_s: 10.0,
                 t3_s: 30.0,
+                t4_s: None,
             },
             gmdh: GmdhConfig::default(),
+            reselect_ratio: None,
         };
         let (a, dt) = (0.01, 0.25);
         let mut state = BridgeState::default();

@@ -50,7 +50,7 @@ pub struct LineChart {
 }
 
 /// Colours by index; the last one (black) is [`TRUTH_COLOR`].
-const PALETTE: [RGBColor; 8] = [
+const PALETTE: [RGBColor; 9] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
@@ -58,11 +58,12 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(148, 103, 189),
     RGBColor(140, 86, 75),
     RGBColor(23, 190, 207),
+    RGBColor(188, 189, 34),
     RGBColor(0, 0, 0),
 ];
 
 /// Palette index of black, for truth curves and references.
-pub const TRUTH_COLOR: usize = 7;
+pub const TRUTH_COLOR: usize = 8;
 
 impl LineChart {
     /// Render to an SVG file at `path` (800×500 px), atomically (under a

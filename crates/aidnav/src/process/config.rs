@@ -725,6 +725,7 @@ impl Default for OutageBridgeConfig {
                 t1_s: 1.0,
                 t2_s: 10.0,
                 t3_s: 30.0,
+                t4_s: None,
             },
             gmdh: GmdhConfig::default(),
         }
@@ -739,6 +740,7 @@ impl OutageBridgeConfig {
             model_decimation: self.model_decimation,
             relay: self.relay,
             gmdh: self.gmdh.clone(),
+            reselect_ratio: None,
         }
     }
 }

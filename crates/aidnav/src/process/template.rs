@@ -359,6 +359,10 @@ pub const OPTIONAL_KEYS: &[(&str, &str)] = &[
         "# velocity_sigma_mps = 0.1         # prior σ of velocity [m/s] (default: standstill max speed / fix's σ)",
     ),
     (
+        "outage_bridge.relay",
+        "# t4_s = 60.0                      # relay: the model until T4 [s], its correction held after (default none: no end)",
+    ),
+    (
         "outage_bridge.gmdh",
         "# horizon_s = 30.0                 # forecast horizon of the combined criterion [s] (default none)",
     ),

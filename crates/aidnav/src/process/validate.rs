@@ -325,6 +325,15 @@ fn validate_supervision_and_scores(cfg: &ProcessConfig) -> Result<(), Invalid> {
             "0 < t1_s < t2_s < t3_s",
         ));
     }
+    if let Some(t4) = b.relay.t4_s
+        && !(t4 > b.relay.t3_s && t4.is_finite())
+    {
+        return Err(Invalid::new(
+            "outage_bridge.relay.t4_s",
+            t4,
+            format!("t3_s = {} < t4_s, finite", b.relay.t3_s),
+        ));
+    }
     count_in_range("model_decimation", b.model_decimation, 1, 1000)
         .map_err(|e| e.within("outage_bridge"))?;
     validate_gmdh(&b.gmdh)?;

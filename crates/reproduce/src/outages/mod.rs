@@ -32,13 +32,14 @@ const ADAPTIVE_VARIANCE_WINDOW: usize = 10;
 const CHANNEL_RECOVERY_FAULTS: u64 = 1;
 
 /// Predictor keys, in table order (`summary.json` uses these).
-pub const PREDICTORS: [&str; 7] = [
+pub const PREDICTORS: [&str; 8] = [
     "apriori",
     "hold",
     "moving_average",
     "trend",
     "combined_trend",
     "gmdh",
+    "gmdh_reselected",
     "relay",
 ];
 
@@ -96,6 +97,9 @@ impl Default for OutagesScenario {
                     t1_s: 10.0,
                     t2_s: 150.0,
                     t3_s: 600.0,
+                    // The longest outage the bridge is designed to cover,
+                    // the model's horizon below.
+                    t4_s: Some(3000.0),
                 },
                 gmdh: GmdhConfig {
                     frequencies: vec![schuler],
@@ -111,6 +115,8 @@ impl Default for OutagesScenario {
                     horizon_s: Some(3000.0),
                     ..GmdhConfig::default()
                 },
+                // Re-selected for horizons doubling from T2 to T4.
+                reselect_ratio: Some(2.0),
             },
             recovery_s: 600.0,
             recovery_faults: vec![FaultSpec::AfterOutage {
@@ -240,6 +246,22 @@ impl Validate for OutagesScenario {
                 "bridge.relay",
                 format!("{}, {}, {}", r.t1_s, r.t2_s, r.t3_s),
                 format!("0 ≤ t1_s ≤ t2_s ≤ t3_s ≤ {MAX_TIME_S}"),
+            ));
+        }
+        if let Some(t4) = r.t4_s
+            && !(r.t3_s < t4 && t4 <= MAX_TIME_S)
+        {
+            return Err(Invalid::new(
+                "bridge.relay.t4_s",
+                t4,
+                format!("t3_s = {} < t4_s ≤ {MAX_TIME_S}", r.t3_s),
+            ));
+        }
+        if let Err(e) = self.bridge.reselect_horizons() {
+            return Err(Invalid::new(
+                "bridge.reselect_ratio",
+                format!("{:?}", self.bridge.reselect_ratio),
+                e.to_string(),
             ));
         }
         crate::validate_gmdh("bridge.gmdh", &self.bridge.gmdh)?;

@@ -30,6 +30,7 @@ const BRIDGE_PREDICTORS: [Predictor; PREDICTORS.len() - 1] = [
     Predictor::Trend,
     Predictor::CombinedTrend,
     Predictor::Gmdh,
+    Predictor::GmdhReselected,
     Predictor::Relay,
 ];
 
