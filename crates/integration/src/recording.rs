@@ -5,8 +5,9 @@
 //! step into the backward map, a few 21³ products) inline, which made the
 //! smoother about as expensive as the forward pass it records. None of it
 //! feeds back into the filter, so [`Recording`] runs it on a second thread:
-//! the filter sends the recorder's calls through a bounded channel and goes
-//! on, and the worker calls the same recorder in the same order — the
+//! the filter sends the recorder's calls, in batches (a wake-up per call
+//! cost more than the call on a busy machine), through a bounded channel
+//! and goes on, and the worker calls the same recorder in the same order — the
 //! arithmetic, hence every smoothed number, is the engine's, bit for bit.
 //! What the filter asks back (the marks, the open epoch's predicted state)
 //! is mirrored on the filter's side by the recorder's own rules, so a call
@@ -19,9 +20,12 @@ use std::thread::JoinHandle;
 use aidnav_estimation::{EstimationError, RtsRecorder};
 use nalgebra::{SMatrix, SVector};
 
-/// Calls queued before the filter waits for the worker: the worker may
-/// lag by this many covariance epochs (≈ 7 kB each for 21 states).
-const QUEUE: usize = 64;
+/// Calls sent to the worker at once.
+const BATCH: usize = 32;
+
+/// Batches queued before the filter waits for the worker: the worker may
+/// lag by `QUEUE · BATCH` calls (≈ 7 kB each for 21 states).
+const QUEUE: usize = 4;
 
 /// A recorder call for the worker.
 enum Call<const N: usize> {
@@ -34,7 +38,10 @@ enum Call<const N: usize> {
 
 /// The worker thread and the filter's mirror of the recorder's marks.
 pub(crate) struct Worker<const N: usize> {
-    calls: Option<SyncSender<Call<N>>>,
+    calls: Option<SyncSender<Vec<Call<N>>>>,
+    /// Calls not yet sent (behind a lock only so that the backward pass,
+    /// which takes `&self`, can send them).
+    batch: Mutex<Vec<Call<N>>>,
     thread: Option<JoinHandle<()>>,
     recorder: Arc<Mutex<RtsRecorder<N>>>,
     x_predicted: SVector<f64, N>,
@@ -64,6 +71,7 @@ impl<const N: usize> Recording<N> {
         {
             Ok(thread) => Self::Background(Box::new(Worker {
                 calls: Some(calls),
+                batch: Mutex::new(Vec::with_capacity(BATCH)),
                 thread: Some(thread),
                 recorder,
                 x_predicted: *x,
@@ -185,8 +193,8 @@ fn lock<const N: usize>(r: &Mutex<RtsRecorder<N>>) -> std::sync::MutexGuard<'_, 
 }
 
 /// The worker: the calls, in order, until the filter drops its end.
-fn work<const N: usize>(recorder: &Mutex<RtsRecorder<N>>, calls: &Receiver<Call<N>>) {
-    for call in calls {
+fn work<const N: usize>(recorder: &Mutex<RtsRecorder<N>>, batches: &Receiver<Vec<Call<N>>>) {
+    for call in batches.iter().flatten() {
         match call {
             Call::Predict(a) => lock(recorder).predict(&a.0, &a.1, &a.2),
             Call::Filtered(a) => lock(recorder).filtered(&a.0, &a.1, &a.2),
@@ -201,18 +209,32 @@ fn work<const N: usize>(recorder: &Mutex<RtsRecorder<N>>, calls: &Receiver<Call<
 }
 
 impl<const N: usize> Worker<N> {
+    /// Queue a call; send the batch when full.
     fn send(&self, call: Call<N>) {
+        let mut batch = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+        batch.push(call);
+        if batch.len() >= BATCH {
+            self.send_batch(&mut batch);
+        }
+    }
+
+    fn send_batch(&self, batch: &mut Vec<Call<N>>) {
+        let batch = std::mem::replace(batch, Vec::with_capacity(BATCH));
         if let Some(calls) = &self.calls
-            && calls.send(call).is_err()
+            && calls.send(batch).is_err()
         {
             self.worker_died();
         }
     }
 
-    /// Wait until the worker has done every call sent so far.
+    /// Wait until the worker has done every call queued so far.
     fn flush(&self) {
         let (done, wait) = sync_channel(1);
-        self.send(Call::Flush(done));
+        {
+            let mut batch = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+            batch.push(Call::Flush(done));
+            self.send_batch(&mut batch);
+        }
         if wait.recv().is_err() {
             self.worker_died();
         }
@@ -227,7 +249,8 @@ impl<const N: usize> Worker<N> {
 
 impl<const N: usize> Drop for Worker<N> {
     fn drop(&mut self) {
-        // Closing the channel ends the worker's loop.
+        // Closing the channel ends the worker's loop (calls not sent are
+        // dropped with it: nothing will smooth them).
         self.calls = None;
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
