@@ -19,3 +19,4 @@ pub mod group;
 pub mod local_level;
 pub mod ned;
 pub mod ned_loop;
+mod recording;

@@ -85,10 +85,11 @@ pub const BYTES_PER_SMOOTHED_EPOCH: usize = RtsRecorder::<STATES>::BYTES_PER_MAR
 /// *after* the epoch's feedback, so the filtered error is 0 and the
 /// predicted one is minus the feedback δ applied at the epoch. The engine's
 /// [`RtsRecorder`] keeps only what the backward pass needs at the marked
-/// epochs (the GNSS epochs of the epoch loop).
+/// epochs (the GNSS epochs of the epoch loop); it runs on a worker thread
+/// beside the filter (`recording`: same calls, same numbers).
 #[derive(Debug, Clone)]
 struct ForwardRecord {
-    rts: Box<RtsRecorder<STATES>>,
+    rts: crate::recording::Recording<STATES>,
     /// The open epoch's nominal state (after its feedback so far).
     open_state: NedState,
     /// The nominal state of every marked epoch.
@@ -504,7 +505,7 @@ impl NedFilter {
     pub fn start_recording(&mut self, max_epochs: usize) {
         let p = *self.kf.covariance();
         self.record = Some(ForwardRecord {
-            rts: Box::new(RtsRecorder::new(&Vector21::zeros(), &p, max_epochs.max(1))),
+            rts: crate::recording::Recording::new(&Vector21::zeros(), &p, max_epochs.max(1)),
             open_state: *self.ins.state(),
             states: Vec::new(),
         });

@@ -5,8 +5,11 @@
 //! three angle increments `dθx dθy dθz [rad]`, three velocity increments
 //! `dvx dvy dvz [m/s]`, body frame forward–right–down; each row holds the
 //! increments over the interval that ends at its time. KF-GINS GNSS file:
-//! `time [s] latitude [deg] longitude [deg] height [m] σN σE σD [m]`
-//! (optionally followed by `vN vE vD σvN σvE σvD`).
+//! `time [s] latitude [deg] longitude [deg] height [m] σN σE σD [m]`, or
+//! 13 columns with the velocity between position and σ: `time lat lon h vN
+//! vE vD [m/s] σN σE σD [m] σvN σvE σvD [m/s]` — KF-GINS's own loader
+//! (`src/fileio/gnssfileloader.h`) takes the position σ of a 13-column
+//! row from its columns 7–9 (0-based).
 //!
 //! Generic IMU CSV (header required, column order free, extra columns
 //! ignored): `time_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2,
@@ -48,35 +51,37 @@ use crate::text::{decode, excerpt, num, read_bytes};
 /// Parsed rows (line number, values) and the warnings.
 type Rows = (Vec<(usize, Vec<f64>)>, Vec<String>);
 
-/// The numeric rows of `bytes` with exactly one of `counts` fields each.
-fn rows(bytes: &[u8], path: &Path, counts: &[usize], names: &[&str]) -> Result<Rows> {
+/// The numeric rows of `bytes`, each with the field count of one of
+/// `layouts` (the column names of each accepted layout, in order).
+fn rows(bytes: &[u8], path: &Path, layouts: &[&[&str]]) -> Result<Rows> {
     let text = decode(bytes, path)?;
     let lines: Vec<(usize, String)> = crate::text::lines(text)
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim().to_string()))
         .collect();
-    parse_rows(path, lines, counts, names)
+    parse_rows(path, lines, layouts)
 }
 
-/// The row checks on (line number, text) pairs: each row has one of
-/// `counts` fields (a last row with fewer than the least is skipped with a
-/// warning).
-fn parse_rows(
-    path: &Path,
-    lines: Vec<(usize, String)>,
-    counts: &[usize],
-    names: &[&str],
-) -> Result<Rows> {
-    let min = counts.iter().copied().min().unwrap_or(1);
+/// The row checks on (line number, text) pairs: each row has the field
+/// count of one of `layouts` (the column names of each accepted layout, in
+/// order; errors name a field by the layout of its row), and a last row
+/// with fewer fields than the shortest layout is skipped with a warning.
+fn parse_rows(path: &Path, lines: Vec<(usize, String)>, layouts: &[&[&str]]) -> Result<Rows> {
+    let shortest = layouts
+        .iter()
+        .copied()
+        .min_by_key(|l| l.len())
+        .unwrap_or(&[]);
+    let min = shortest.len().max(1);
     let lines: Vec<(usize, String)> = lines
         .into_iter()
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#') && !l.starts_with('%'))
         .collect();
     let mut out: Vec<(usize, Vec<f64>)> = Vec::with_capacity(lines.len());
     let mut warnings = Vec::new();
-    let expected = counts
+    let expected = layouts
         .iter()
-        .map(usize::to_string)
+        .map(|l| l.len().to_string())
         .collect::<Vec<_>>()
         .join(" or ");
     for (k, (line, l)) in lines.iter().enumerate() {
@@ -93,7 +98,7 @@ fn parse_rows(
             ));
             continue;
         }
-        if !counts.contains(&fields.len()) {
+        let Some(names) = layouts.iter().find(|l| l.len() == fields.len()) else {
             return Err(data_error(
                 path,
                 line,
@@ -101,13 +106,13 @@ fn parse_rows(
                 format!(
                     "{} fields, expected {expected} ({})",
                     fields.len(),
-                    names[..min.min(names.len())].join(" ")
+                    shortest.join(" ")
                 ),
             ));
-        }
+        };
         let mut v = Vec::with_capacity(fields.len());
         for (i, f) in fields.iter().enumerate() {
-            let name = names.get(i).copied().unwrap_or("(extra)");
+            let name = names[i];
             let x: f64 = f.parse().map_err(|_| {
                 data_error(
                     path,
@@ -144,17 +149,21 @@ fn parse_rows(
 }
 
 const KF_IMU: [&str; 7] = ["time", "dθx", "dθy", "dθz", "dvx", "dvy", "dvz"];
-const KF_GNSS: [&str; 13] = [
+/// A 7-column KF-GINS GNSS row.
+const KF_GNSS: [&str; 7] = ["time", "latitude", "longitude", "height", "σN", "σE", "σD"];
+/// A 13-column KF-GINS GNSS row: the velocity comes before the position σ
+/// (KF-GINS reads the position σ from columns 7–9 of such a row).
+const KF_GNSS_VELOCITY: [&str; 13] = [
     "time",
     "latitude",
     "longitude",
     "height",
-    "σN",
-    "σE",
-    "σD",
     "vN",
     "vE",
     "vD",
+    "σN",
+    "σE",
+    "σD",
     "σvN",
     "σvE",
     "σvD",
@@ -187,7 +196,7 @@ pub fn read_kfgins_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
 /// [`read_kfgins_imu`] on the file's bytes; `path` names the origin in
 /// messages.
 pub fn read_kfgins_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
-    let (rows, warnings) = rows(bytes, path, &[7], &KF_IMU)?;
+    let (rows, warnings) = rows(bytes, path, &[&KF_IMU])?;
     let mut out = Vec::with_capacity(rows.len());
     for w in rows.windows(2) {
         let (line, v) = (w[1].0, &w[1].1);
@@ -246,17 +255,19 @@ pub fn read_kfgins_gnss(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
 }
 
 /// [`read_kfgins_gnss`] on the file's bytes; `path` names the origin in
-/// messages. Rows have 7 columns, or 13 with velocity and its σ.
+/// messages. Rows have 7 columns (`time lat lon h σN σE σD`), or 13 (`time
+/// lat lon h vN vE vD σN σE σD σvN σvE σvD`: KF-GINS's layout, whose loader
+/// takes the position σ from columns 7–9).
 pub fn read_kfgins_gnss_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
-    let (rows, warnings) = rows(bytes, path, &[7, 13], &KF_GNSS)?;
+    let (rows, warnings) = rows(bytes, path, &[&KF_GNSS, &KF_GNSS_VELOCITY])?;
     let fixes = rows
         .iter()
         .map(|(line, v)| {
             check_position(path, *line, v[1], v[2], v[3])?;
-            let sigma = sigma_checked(path, *line, &KF_GNSS[4..7], &v[4..7])?;
-            let (velocity_ned, velocity_sigma_neu) = if v.len() >= 13 {
-                let s = sigma_checked(path, *line, &KF_GNSS[10..13], &v[10..13])?;
-                let velocity = Vector3::new(v[7], v[8], v[9]);
+            let (sigma, velocity_ned, velocity_sigma_neu) = if v.len() == KF_GNSS_VELOCITY.len() {
+                let sigma = sigma_checked(path, *line, &KF_GNSS_VELOCITY[7..10], &v[7..10])?;
+                let s = sigma_checked(path, *line, &KF_GNSS_VELOCITY[10..13], &v[10..13])?;
+                let velocity = Vector3::new(v[4], v[5], v[6]);
                 crate::rtklib::in_range(
                     path,
                     *line,
@@ -267,9 +278,10 @@ pub fn read_kfgins_gnss_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>,
                     "m/s",
                     "faster than any vehicle a receiver reports",
                 )?;
-                (Some(velocity), Some(s))
+                (sigma, Some(velocity), Some(s))
             } else {
-                (None, None)
+                let sigma = sigma_checked(path, *line, &KF_GNSS[4..7], &v[4..7])?;
+                (sigma, None, None)
             };
             Ok(GnssFix {
                 time_s: v[0],
@@ -606,7 +618,7 @@ pub fn read_generic_imu_with_from(
             (i + 1, picked.join(","))
         })
         .collect();
-    let (rows, warnings) = parse_rows(path, lines, &[7], &wanted)?;
+    let (rows, warnings) = parse_rows(path, lines, &[&wanted])?;
     let units = options.units.unwrap_or(ImuUnits {
         gyro: GyroUnit::RadPerS,
         accel: AccelUnit::MPerS2,
@@ -980,6 +992,53 @@ mod tests {
             e.starts_with("g.csv:3: column `ax_m_s2`: |f| = 9800 m/s²"),
             "{e}"
         );
+    }
+
+    /// A 13-column row in KF-GINS's layout (`time lat lon h vN vE vD σN σE
+    /// σD σvN σvE σvD`, the position σ in columns 7–9 as KF-GINS's
+    /// `GnssFileLoader` reads it): distinct values in every column land
+    /// where KF-GINS puts them; a zero position σ is named by its column.
+    #[test]
+    fn kfgins_gnss_13_columns_hold_velocity_before_the_position_sigma() {
+        let (f, w) = kf_gnss(
+            "100.0 30.5 114.3 20.0 1.5 -2.5 0.25 0.01 0.02 0.03 0.1 0.2 0.3
+",
+        )
+        .unwrap();
+        assert!(w.is_empty());
+        assert_eq!(f[0].position_sigma_neu, Vector3::new(0.01, 0.02, 0.03));
+        assert_eq!(f[0].velocity_ned, Some(Vector3::new(1.5, -2.5, 0.25)));
+        assert_eq!(f[0].velocity_sigma_neu, Some(Vector3::new(0.1, 0.2, 0.3)));
+        assert_eq!(f[0].position.height_m, 20.0);
+        // A velocity of zero is valid; a position σ of zero is not.
+        let (f, _) = kf_gnss(
+            "100.0 30.5 114.3 20.0 0 0 0 0.01 0.02 0.03 0.1 0.2 0.3
+",
+        )
+        .unwrap();
+        assert_eq!(f[0].velocity_ned, Some(Vector3::zeros()));
+        let e = kf_gnss(
+            "100.0 30.5 114.3 20.0 1 2 3 0.01 0 0.03 0.1 0.2 0.3
+",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("gnss.txt:1: column `σE`: σ = 0"), "{e}");
+        let e = kf_gnss(
+            "100.0 30.5 114.3 20.0 x 2 3 0.01 0.02 0.03 0.1 0.2 0.3
+",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("column `vN`"), "{e}");
+        // Seven columns keep the σ in columns 4–6.
+        let e = kf_gnss(
+            "100.0 30.5 114.3 20.0 x 0.02 0.03
+",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("column `σN`"), "{e}");
     }
 
     #[test]
