@@ -33,8 +33,13 @@ filter='predict_update/(fixed|dyn)/[0-9]+x6$'
 criterion_args=(--warm-up-time 1 --measurement-time 3 "$filter")
 
 echo "== building (Eigen twice, aidnav default and native)"
-g++ -O3 -march=native -DNDEBUG -I"$EIGEN" bench/cpp/kf_step.cpp -o "$out/kf_eigen"
-g++ -O3 -march=native -DNDEBUG -DCHECKS -I"$EIGEN" bench/cpp/kf_step.cpp -o "$out/kf_eigen_checks"
+# (Eigen takes minutes to compile on a loaded machine: only when the source is newer.)
+for variant in kf_eigen kf_eigen_checks; do
+  if [ ! "$out/$variant" -nt bench/cpp/kf_step.cpp ]; then
+    checks=; [ $variant = kf_eigen_checks ] && checks=-DCHECKS
+    g++ -O3 -march=native -DNDEBUG $checks -I"$EIGEN" bench/cpp/kf_step.cpp -o "$out/$variant"
+  fi
+done
 CARGO_TARGET_DIR=$target cargo bench -q -p aidnav-estimation --bench kalman_step --no-run
 RUSTFLAGS="-C target-cpu=native" CARGO_TARGET_DIR=$target/native \
   cargo bench -q -p aidnav-estimation --bench kalman_step --no-run
@@ -51,7 +56,7 @@ criterion_median() { # criterion_dir bench_dir
 }
 # "name: median X ns ..." lines of the Eigen and FilterPy programs → results.
 record_lines() { # label
-  sed -nE "s/.*([0-9]+x6): median ([0-9.]+) ns.*/$1 \1 \2/p" >>"$results"
+  sed -nE "s/.* ([0-9]+x6): median ([0-9.]+) ns.*/$1 \1 \2/p" >>"$results"
 }
 
 for round in $(seq 1 "$ROUNDS"); do
