@@ -64,14 +64,25 @@ pub(crate) fn shape<R: Dim, C: Dim, S: RawStorage<f64, R, C>>(
     }
 }
 
-/// Error unless the square matrix is symmetric to [`SYMMETRY_RTOL`] of its largest element.
-/// Exactly symmetric matrices (the common case) skip the scale computation.
+/// Error unless the square matrix is symmetric to [`SYMMETRY_RTOL`] of its
+/// largest element; `Ok(true)` when it is exactly symmetric (the common case,
+/// tested first by a branch-free comparison that vectorises; only an inexact
+/// matrix pays for the largest asymmetry and the scale).
 pub(crate) fn symmetric<D: Dim, S: RawStorage<f64, D, D>>(
     m: &NaMatrix<f64, D, D, S>,
     step: Step,
     matrix: Matrix,
-) -> Result<()> {
+) -> Result<bool> {
     let n = m.nrows();
+    let mut exact = true;
+    for j in 0..n {
+        for i in (j + 1)..n {
+            exact &= m[(i, j)] == m[(j, i)];
+        }
+    }
+    if exact {
+        return Ok(true);
+    }
     let mut worst = 0.0_f64;
     for j in 0..n {
         for i in (j + 1)..n {
@@ -79,11 +90,11 @@ pub(crate) fn symmetric<D: Dim, S: RawStorage<f64, D, D>>(
         }
     }
     if worst == 0.0 {
-        return Ok(());
+        return Ok(true);
     }
     let scale = m.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
     if worst <= SYMMETRY_RTOL * scale.max(f64::MIN_POSITIVE) {
-        Ok(())
+        Ok(false)
     } else {
         Err(EstimationError::NotSymmetric {
             step,

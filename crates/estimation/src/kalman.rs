@@ -226,13 +226,17 @@ where
         check::shape(q, (n, n), step, Matrix::Q)?;
         check::finite(phi, step, Matrix::Phi)?;
         check::finite(q, step, Matrix::Q)?;
-        check::symmetric(q, step, Matrix::Q)?;
+        let q_exactly_symmetric = check::symmetric(q, step, Matrix::Q)?;
         let (nd, _) = self.p.shape_generic();
         let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
         dense::gemm(&mut phi_p, 1.0, phi, &self.p, 0.0);
+        // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
         let mut p = q.clone();
-        dense::gemm_nt(&mut p, 1.0, &phi_p, phi, 1.0);
-        check::symmetrize(&mut p);
+        if !q_exactly_symmetric {
+            check::symmetrize(&mut p);
+        }
+        dense::gemm_nt_lower(&mut p, 1.0, &phi_p, phi, 1.0);
+        dense::mirror_lower(&mut p);
         check::finite(&p, step, Matrix::P)?;
         self.p = p;
         Ok(())
@@ -258,10 +262,14 @@ where
         check::symmetric(r, step, Matrix::R)?;
         let residual = z - h * &self.x;
         let (md, nd) = h.shape_generic();
+        // Only H's nonzero columns enter H P and H P Hᵀ (a navigation
+        // filter's H touches a few states); the rest are exact zeros.
+        let mut listed = [0; dense::MAX_LISTED];
+        let columns = dense::nonzero_columns(h, &mut listed);
         let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
-        dense::gemm(&mut hp, 1.0, h, &self.p, 0.0);
+        dense::h_times_symmetric(&mut hp, h, &self.p, columns);
         let mut hph = OMatrix::<f64, M, M>::zeros_generic(md, md);
-        dense::gemm_nt(&mut hph, 1.0, &hp, h, 0.0);
+        dense::times_h_transpose(&mut hph, &hp, h, columns);
         check::symmetrize(&mut hph);
         let s = &hph + r;
         let chol = Cholesky::new(s.clone()).ok_or(EstimationError::NotPositiveDefinite {
@@ -318,14 +326,14 @@ where
             Decision::Reject => (Outcome::Rejected, OMatrix::zeros_generic(nrows, ncols)),
             Decision::Accept => {
                 let gain = Self::gain(&innov.chol, &innov.hp);
-                self.apply(&gain, &innov.residual, &innov.hp, h, r, step)?;
+                self.apply(&gain, &innov.residual, &innov.hp, &innov.s, step)?;
                 (Outcome::Accepted, gain)
             }
             Decision::ReplaceResidual(limited) => {
                 check::shape(&limited, (z.len(), 1), step, Matrix::Innovation)?;
                 check::finite(&limited, step, Matrix::Innovation)?;
                 let gain = Self::gain(&innov.chol, &innov.hp);
-                self.apply(&gain, &limited, &innov.hp, h, r, step)?;
+                self.apply(&gain, &limited, &innov.hp, &innov.s, step)?;
                 (Outcome::Limited, gain)
             }
             Decision::InflateR(factor) => {
@@ -335,20 +343,19 @@ where
                         matrix: Matrix::R,
                     });
                 }
-                let r_used = r * factor;
-                let chol = Cholesky::new(&innov.hph + &r_used).ok_or(
-                    EstimationError::NotPositiveDefinite {
+                let s_used = &innov.hph + r * factor;
+                let chol =
+                    Cholesky::new(s_used.clone()).ok_or(EstimationError::NotPositiveDefinite {
                         step,
                         matrix: Matrix::S,
-                    },
-                )?;
+                    })?;
                 let gain = Self::gain(&chol, &innov.hp);
-                self.apply(&gain, &innov.residual, &innov.hp, h, &r_used, step)?;
+                self.apply(&gain, &innov.residual, &innov.hp, &s_used, step)?;
                 (Outcome::Reweighted, gain)
             }
             Decision::GainCovariance(c) => {
                 let gain = Self::gain_from(c, &innov.hp, z.len(), step)?;
-                self.apply(&gain, &innov.residual, &innov.hp, h, r, step)?;
+                self.apply(&gain, &innov.residual, &innov.hp, &innov.s, step)?;
                 (Outcome::AdaptiveGain, gain)
             }
             Decision::LimitWithGainCovariance {
@@ -358,7 +365,7 @@ where
                 check::shape(&residual, (z.len(), 1), step, Matrix::Innovation)?;
                 check::finite(&residual, step, Matrix::Innovation)?;
                 let gain = Self::gain_from(covariance, &innov.hp, z.len(), step)?;
-                self.apply(&gain, &residual, &innov.hp, h, r, step)?;
+                self.apply(&gain, &residual, &innov.hp, &innov.s, step)?;
                 (Outcome::Limited, gain)
             }
         };
@@ -400,18 +407,23 @@ where
 
     /// x += K ν; P by the configured form; symmetrise and check.
     ///
-    /// The Joseph form `(I − K H) P (I − K H)ᵀ + K R Kᵀ` is evaluated in the
-    /// association that exploits the rank-m structure of K H, never forming
-    /// I − K H: `A = P − K (H P)` is `(I − K H) P`, and
-    /// `A (I − K H)ᵀ + K R Kᵀ = A + (K R − A Hᵀ) Kᵀ`. The same Joseph
-    /// expression, grouped so it costs O(n²m) instead of O(n³).
+    /// `s_used` is H P⁻ Hᵀ + R with the R the update uses. The Joseph form
+    /// `(I − K H) P (I − K H)ᵀ + K R Kᵀ` is evaluated expanded, which it
+    /// equals term by term for *any* gain K (optimal or not; P symmetric, so
+    /// P Hᵀ = (H P)ᵀ = Uᵀ):
+    /// `P − K U − Uᵀ Kᵀ + K (H P Hᵀ + R) Kᵀ = P + V Kᵀ + K Vᵀ`
+    /// with `V = ½ K S − Uᵀ`. It is the same polynomial in K as the product
+    /// form, so a gain error still changes P only at second order, and it is a
+    /// symmetric rank-2m update: one n × m product for V and the lower
+    /// triangle of V Kᵀ + K Vᵀ, n²m multiply-adds instead of the 3n²m of
+    /// `A = P − K U`, `A + (K R − A Hᵀ) Kᵀ`, with P exactly symmetric by
+    /// construction. The sequential update expands it the same way.
     fn apply<M: Dim>(
         &mut self,
         gain: &OMatrix<f64, N, M>,
         residual: &OVector<f64, M>,
         hp: &OMatrix<f64, M, N>,
-        h: &OMatrix<f64, M, N>,
-        r: &OMatrix<f64, M, M>,
+        s_used: &OMatrix<f64, M, M>,
         step: Step,
     ) -> Result<()>
     where
@@ -419,23 +431,22 @@ where
     {
         check::finite(gain, step, Matrix::K)?;
         self.x += gain * residual;
-        // A = (I − K H) P
-        let mut a = self.p.clone();
-        dense::gemm(&mut a, -1.0, gain, hp, 1.0);
-        let mut p = match self.covariance_update {
+        let mut p = self.p.clone();
+        match self.covariance_update {
             CovarianceUpdate::Joseph => {
-                // A (I − K H)ᵀ + K R Kᵀ = A + (K R − A Hᵀ) Kᵀ
-                let (nd, md) = gain.shape_generic();
-                let mut d = OMatrix::<f64, N, M>::zeros_generic(nd, md);
-                dense::gemm(&mut d, 1.0, gain, r, 0.0);
-                dense::gemm_nt(&mut d, -1.0, &a, h, 1.0);
-                let mut p = a;
-                dense::gemm_nt(&mut p, 1.0, &d, gain, 1.0);
-                p
+                // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
+                let mut v = hp.transpose();
+                dense::gemm(&mut v, 0.5, gain, s_used, -1.0);
+                dense::gemm_nt_lower(&mut p, 1.0, &v, gain, 1.0);
+                dense::gemm_nt_lower(&mut p, 1.0, gain, &v, 1.0);
+                dense::mirror_lower(&mut p);
             }
-            CovarianceUpdate::Standard => a,
-        };
-        check::symmetrize(&mut p);
+            CovarianceUpdate::Standard => {
+                // (I − K H) P = P − K (H P)
+                dense::gemm(&mut p, -1.0, gain, hp, 1.0);
+                check::symmetrize(&mut p);
+            }
+        }
         check::finite(&self.x, step, Matrix::X)?;
         check::finite(&p, step, Matrix::P)?;
         self.p = p;

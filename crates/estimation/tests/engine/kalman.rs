@@ -3,7 +3,7 @@
 use aidnav_estimation::nalgebra::{
     Const, DMatrix, DVector, Dyn, Matrix1, SMatrix, SVector, Vector1,
 };
-use aidnav_estimation::{CovarianceUpdate, KalmanFilter};
+use aidnav_estimation::{CovarianceUpdate, Decision, InnovationView, KalmanFilter};
 
 use crate::common::*;
 
@@ -191,4 +191,120 @@ fn fixed_size_update_allocates_nothing_and_is_deterministic() {
         kf
     };
     assert_eq!(run(), run());
+}
+
+/// One predict + update as the textbook writes it, dense and unfused:
+/// P⁻ = Φ P Φᵀ + Q, S = H P⁻ Hᵀ + R_used, K = P⁻ Hᵀ C⁻¹ (C = S unless a
+/// policy gives another), P = (I − K H) P⁻ (I − K H)ᵀ + K R_used Kᵀ.
+#[allow(clippy::too_many_arguments)]
+fn dense_joseph_reference(
+    x: &DVector<f64>,
+    p: &DMatrix<f64>,
+    (phi, q): (&DMatrix<f64>, &DMatrix<f64>),
+    (z, h, r_used): (&DVector<f64>, &DMatrix<f64>, &DMatrix<f64>),
+    gain_covariance: Option<&DMatrix<f64>>,
+) -> (DVector<f64>, DMatrix<f64>, DMatrix<f64>) {
+    let n = x.len();
+    let xp = phi * x;
+    let pp = phi * p * phi.transpose() + q;
+    let s = h * &pp * h.transpose() + r_used;
+    let c = gain_covariance.unwrap_or(&s).clone();
+    let k = (c.cholesky().unwrap().solve(&(h * &pp))).transpose();
+    let xu = &xp + &k * (z - h * &xp);
+    let ikh = DMatrix::identity(n, n) - &k * h;
+    let pu = &ikh * &pp * ikh.transpose() + &k * r_used * k.transpose();
+    (xu, (&pu + pu.transpose()) * 0.5, k)
+}
+
+/// A measurement matrix touching only some states, as a navigation
+/// filter's does: every third column nonzero (one exactly selecting).
+fn sparse_measurement(g: &mut rand_chacha::ChaCha8Rng, m: usize, n: usize) -> DMatrix<f64> {
+    let mut h = random_matrix(g, m, n);
+    for j in 0..n {
+        if j % 3 != 0 {
+            h.column_mut(j).fill(0.0);
+        }
+    }
+    h.row_mut(0).fill(0.0);
+    h[(0, 0)] = 1.0;
+    h
+}
+
+/// The fused, triangle-only step (fixed and run-time sizes, dense and
+/// sparse H, the gain of S and a policy's other gain, an inflated R) against
+/// the straightforward dense Joseph reference, to 1e-12 of the covariance.
+fn check_against_reference<const N: usize, const M: usize>(seed: u64) {
+    let mut g = rng(seed);
+    for draw in 0..12 {
+        let phi = random_transition(&mut g, N);
+        let q = random_spd(&mut g, N, 1e-3) * 0.01;
+        let h = if draw % 2 == 0 {
+            random_matrix(&mut g, M, N)
+        } else {
+            sparse_measurement(&mut g, M, N)
+        };
+        let r = random_spd(&mut g, M, 0.1);
+        let p0 = random_spd(&mut g, N, 0.5);
+        let x0 = random_vector(&mut g, N);
+        let z = random_vector(&mut g, M);
+        let other = random_spd(&mut g, M, 0.2) * 3.0;
+        // 0: accept; 1: a policy's gain covariance; 2: R inflated 2.5×.
+        let case = draw % 3;
+        let r_used = if case == 2 { &r * 2.5 } else { r.clone() };
+        let (x_ref, p_ref, k_ref) = dense_joseph_reference(
+            &x0,
+            &p0,
+            (&phi, &q),
+            (&z, &h, &r_used),
+            (case == 1).then_some(&other),
+        );
+        let decide = |_: &InnovationView<'_, Dyn>| match case {
+            1 => Decision::GainCovariance(other.clone()),
+            2 => Decision::InflateR(2.5),
+            _ => Decision::Accept,
+        };
+        let mut dynf = KalmanFilter::<Dyn>::new(x0.clone(), p0.clone()).unwrap();
+        dynf.predict(&phi, &q).unwrap();
+        let mut decide = decide;
+        let rec = dynf.update_with(&z, &h, &r, &mut decide).unwrap();
+        let scale = p_ref.abs().max();
+        let tol = SAME_ARITHMETIC_TOL * scale;
+        assert!(
+            max_abs_diff(dynf.covariance(), &p_ref) <= tol,
+            "dyn P, draw {draw}"
+        );
+        assert!((dynf.state() - &x_ref).abs().max() <= SAME_ARITHMETIC_TOL * x_ref.abs().max());
+        assert!((&rec.gain - &k_ref).abs().max() <= SAME_ARITHMETIC_TOL * k_ref.abs().max());
+        assert_eq!(dynf.covariance(), &dynf.covariance().transpose());
+
+        let fixed = |m: &DMatrix<f64>| m.fixed_view::<N, N>(0, 0).into_owned();
+        let mut fix =
+            KalmanFilter::<Const<N>>::new(x0.fixed_rows::<N>(0).into_owned(), fixed(&p0)).unwrap();
+        fix.predict(&fixed(&phi), &fixed(&q)).unwrap();
+        let other_f: SMatrix<f64, M, M> = other.fixed_view::<M, M>(0, 0).into_owned();
+        let decide_f = |_: &InnovationView<'_, Const<M>>| match case {
+            1 => Decision::GainCovariance(other_f),
+            2 => Decision::InflateR(2.5),
+            _ => Decision::Accept,
+        };
+        let h_f: SMatrix<f64, M, N> = h.fixed_view::<M, N>(0, 0).into_owned();
+        let r_f: SMatrix<f64, M, M> = r.fixed_view::<M, M>(0, 0).into_owned();
+        let z_f: SVector<f64, M> = z.fixed_rows::<M>(0).into_owned();
+        let mut decide_f = decide_f;
+        fix.update_with(&z_f, &h_f, &r_f, &mut decide_f).unwrap();
+        let p_fix = DMatrix::from_column_slice(N, N, fix.covariance().as_slice());
+        assert!(max_abs_diff(&p_fix, &p_ref) <= tol, "fixed P, draw {draw}");
+        assert_eq!(fix.covariance(), &fix.covariance().transpose());
+        for i in 0..N {
+            assert!((fix.state()[i] - x_ref[i]).abs() <= SAME_ARITHMETIC_TOL * x_ref.abs().max());
+        }
+    }
+}
+
+#[test]
+fn fused_step_matches_the_dense_joseph_reference() {
+    check_against_reference::<15, 6>(101);
+    check_against_reference::<21, 6>(102);
+    check_against_reference::<8, 3>(103);
+    check_against_reference::<1, 1>(104);
 }
