@@ -104,7 +104,10 @@ pub(crate) fn print_extended_state(s: &ExtendedStateScenario, r: &ExtendedStateR
     );
     println!(
         "switch rules: armed = δ non-increasing {} s then ≤ δ_thr for {} epochs; literal = first δ(n) ≤ δ_thr; forecast = the filter's t_B position-error variance falls by less than the threshold per second ({} fixes in a row, after the transient); share = the instrument states' share of that variance ≤ the threshold ({} fixes in a row)",
-        s.switch.falling_s, s.switch.confirm_epochs, s.switch.confirm_epochs, s.switch.confirm_epochs
+        s.switch.falling_s,
+        s.switch.confirm_epochs,
+        s.switch.confirm_epochs,
+        s.switch.confirm_epochs
     );
     println!(
         "{:>5} {:>4} {:>8} {:>6} {:>8} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>7} {:>13} {:>6}",
@@ -130,7 +133,11 @@ pub(crate) fn print_extended_state(s: &ExtendedStateScenario, r: &ExtendedStateR
             SwitchKind::Forecast => "forecast",
             SwitchKind::ForecastShare => "share",
         };
-        let unit = if c.rule == SwitchKind::Forecast { "/s" } else { "" };
+        let unit = if c.rule == SwitchKind::Forecast {
+            "/s"
+        } else {
+            ""
+        };
         println!(
             "{:>5.0} {:>4.0} {:>8} {:>4.1}%{:<2}{:>7.1}s {:>9.1} {:>9.1} {:>9.2} {:>9.3} {:>7.0}m {:>7.0}m {:>7.2} {:>6.2}–{:<6.2} {:>6}",
             c.t_b_s,

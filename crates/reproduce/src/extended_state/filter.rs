@@ -523,8 +523,7 @@ pub(super) fn replay(
             }
         }
         n += 1;
-        if out.at_switch.iter().all(Option::is_some) && out.at_forced.iter().all(Option::is_some)
-        {
+        if out.at_switch.iter().all(Option::is_some) && out.at_forced.iter().all(Option::is_some) {
             break;
         }
     }

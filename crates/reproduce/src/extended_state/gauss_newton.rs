@@ -21,10 +21,12 @@ use nalgebra::Matrix3;
 
 /// The result of a Gauss–Newton estimate.
 #[derive(Debug, Clone)]
+#[cfg_attr(not(test), allow(dead_code))] // θ and J are read by the tests
 pub(super) struct BatchEstimate {
     /// θ = (INS error at the first fix, instrument errors).
     pub(super) parameters: SVector<f64, STATES>,
-    /// J(θ) at every iterate, starting with the initial guess.
+    /// J(θ) at every iterate, starting with the initial guess (the last
+    /// only when asked for).
     pub(super) costs: Vec<f64>,
     /// |Δx(t_B)| of the INS flown with the estimate to t_B \[m\].
     pub(super) error_m: f64,
@@ -71,29 +73,33 @@ fn linearise(
     let mut cost = (theta.transpose() * prior_information * theta)[0];
     let mut normal = *prior_information;
     let mut rhs = -(prior_information * theta);
-    let mut add_fix = |fix: &Fix, ins: &LaunchIns, jr: &SMatrix<f64, 3, STATES>, jv: &SMatrix<f64, 3, STATES>| {
-        let mut nu = SVector::<f64, NAVIGATION>::zeros();
-        let mut h = SMatrix::<f64, NAVIGATION, STATES>::zeros();
-        for i in 0..3 {
-            nu[i] = ins.position[i] - fix.measured[i];
-            nu[3 + i] = ins.velocity[i] - fix.measured[3 + i];
-        }
-        h.fixed_rows_mut::<3>(0).copy_from(jr);
-        h.fixed_rows_mut::<3>(3).copy_from(jv);
-        let ht_r = h.transpose() * r_inv;
-        cost += (nu.transpose() * r_inv * nu)[0];
-        normal += ht_r * h;
-        rhs -= ht_r * nu;
-    };
+    let mut add_fix =
+        |fix: &Fix, ins: &LaunchIns, jr: &SMatrix<f64, 3, STATES>, jv: &SMatrix<f64, 3, STATES>| {
+            let mut nu = SVector::<f64, NAVIGATION>::zeros();
+            let mut h = SMatrix::<f64, NAVIGATION, STATES>::zeros();
+            for i in 0..3 {
+                nu[i] = ins.position[i] - fix.measured[i];
+                nu[3 + i] = ins.velocity[i] - fix.measured[3 + i];
+            }
+            h.fixed_rows_mut::<3>(0).copy_from(jr);
+            h.fixed_rows_mut::<3>(3).copy_from(jv);
+            let ht_r = h.transpose() * r_inv;
+            cost += (nu.transpose() * r_inv * nu)[0];
+            normal += ht_r * h;
+            rhs -= ht_r * nu;
+        };
     let (first, rest) = fixes.split_first().expect("at least one fix");
     add_fix(first, &ins, &jr, &jv);
-    let mut next = rest.iter().peekable();
     let mut k = first.step;
-    while let Some(fix) = next.peek() {
-        let thrust = flight.live_thrust(Correction::Estimate(&correction), k);
-        // The Jacobian over the step: A at the midpoint's corrected outputs.
-        let tau = (k as f64 + 0.5) * dt;
-        let (att, f) = &flight.outputs[k][1];
+    for fix in rest {
+        // The Jacobian over the interval between fixes, with A at its
+        // midpoint's corrected outputs (stored at the RK4 times) and the
+        // gravity gradient at the mean of its end positions: a step of
+        // 0.15 s, far below the time A and G change on.
+        let span = fix.step - k;
+        let (mid, half) = (k + (span - 1) / 2, span % 2);
+        let tau = (mid as f64 + 0.5 * half as f64) * dt;
+        let (att, f) = &flight.outputs[mid][half];
         let (att, f) = correction.correct(tau, att, f);
         let a = ExtendedStateModel::continuous(tau, &att, &f);
         // The INS acceleration's derivative by θ_M: −(the error model's
@@ -105,18 +111,20 @@ fn linearise(
                 b[(i, NAVIGATION + j)] = -a[(3 + i, NAVIGATION + j)] * factor;
             }
         }
-        let g = gravity_gradient(&ins.position);
+        let from = ins.position;
+        while k < fix.step {
+            let thrust = flight.live_thrust(Correction::Estimate(&correction), k);
+            ins.step_with_thrust(dt, &thrust);
+            k += 1;
+        }
+        let g = gravity_gradient(&((from + ins.position) * 0.5));
+        let h = span as f64 * dt;
         let accel = g * jr + b;
-        let new_jr = jr + jv * dt + accel * (dt * dt / 2.0);
-        let new_jv = jv + accel * dt + g * jv * (dt * dt / 2.0);
+        let new_jr = jr + jv * h + accel * (h * h / 2.0);
+        let new_jv = jv + accel * h + g * jv * (h * h / 2.0);
         jr = new_jr;
         jv = new_jv;
-        ins.step_with_thrust(dt, &thrust);
-        k += 1;
-        if k == fix.step {
-            add_fix(fix, &ins, &jr, &jv);
-            next.next();
-        }
+        add_fix(fix, &ins, &jr, &jv);
     }
     (cost, normal, rhs)
 }
@@ -125,7 +133,8 @@ fn linearise(
 /// `start`, before any update), from the instrument errors `initial` (the
 /// filter's estimate), at most `max_iterations` steps; stops when a step
 /// changes J by less than 1e-6 (its predicted decrease, Δᵀ N Δ). Then flies
-/// the estimate to t_B.
+/// the estimate to t_B. `final_cost`: also evaluate J at the final
+/// estimate (one more flight over the interval; the tests read it).
 pub(super) fn gauss_newton(
     sc: &ExtendedStateScenario,
     flight: &Flight<'_>,
@@ -133,6 +142,7 @@ pub(super) fn gauss_newton(
     fixes: &[Fix],
     initial: &[f64; ESTIMATED],
     max_iterations: usize,
+    final_cost: bool,
 ) -> Result<BatchEstimate, EstimationError> {
     let (p0, r, _) = filter_matrices(sc);
     let not_pd = |matrix| EstimationError::NotPositiveDefinite {
@@ -165,7 +175,9 @@ pub(super) fn gauss_newton(
             break;
         }
     }
-    costs.push(linearise(flight, start, fixes, &theta, &prior_information, &r_inv).0);
+    if final_cost {
+        costs.push(linearise(flight, start, fixes, &theta, &prior_information, &r_inv).0);
+    }
     let m: [f64; ESTIMATED] = std::array::from_fn(|i| theta[NAVIGATION + i]);
     let correction = LaunchInstrumentErrors::from_estimate(&m);
     let mut ins = *start;

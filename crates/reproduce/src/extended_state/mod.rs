@@ -394,15 +394,24 @@ impl<'a> Flight<'a> {
 fn branches(flight: &Flight<'_>, snapshot: &Snapshot) -> ThresholdRun {
     let from = (snapshot.time_s / flight.traj.dt_s).round() as usize;
     let estimated = LaunchInstrumentErrors::from_estimate(&snapshot.estimate);
-    ThresholdRun {
-        switch_time_s: snapshot.time_s,
-        outputs_only_m: flight.fly(Correction::None, snapshot.ins, from, |_, _| {}),
-        proposed_m: flight.fly(
+    let outputs_only_m = flight.fly(Correction::None, snapshot.ins, from, |_, _| {});
+    // A zero estimate (the literal rule's switch at the first fix, where
+    // P_HM = 0 leaves x̂_M at 0) corrects nothing: the same flight, bit for
+    // bit ((f − 0)/(1 + 0) = f, b − 0 − 0·t = b).
+    let proposed_m = if snapshot.estimate == [0.0; ESTIMATED] {
+        outputs_only_m
+    } else {
+        flight.fly(
             Correction::Estimate(&estimated),
             snapshot.ins,
             from,
             |_, _| {},
-        ),
+        )
+    };
+    ThresholdRun {
+        switch_time_s: snapshot.time_s,
+        outputs_only_m,
+        proposed_m,
         oracle_m: flight.fly(Correction::Truth, snapshot.ins, from, |_, _| {}),
         gauss_newton_m: f64::NAN,
         bound_variance: f64::NAN,
@@ -485,7 +494,8 @@ pub fn run(
                     Some(s) => {
                         let mut b = branches(flight, s);
                         b.bound_variance = path.bound_variance[s.fix];
-                        if run < gauss_newton_runs {
+                        // At the first fix the batch has nothing to add.
+                        if run < gauss_newton_runs && s.fix > 0 {
                             b.gauss_newton_m = gauss_newton(
                                 sc,
                                 flight,
@@ -493,6 +503,7 @@ pub fn run(
                                 &replayed.fixes[..=s.fix],
                                 &s.estimate,
                                 sc.gauss_newton_iterations,
+                                false,
                             )?
                             .error_m;
                         }

@@ -2,10 +2,10 @@
 
 use aidnav_estimation::EstimationError;
 use aidnav_ins::launch::LaunchInstrumentErrors;
-use nalgebra::Vector3;
 use aidnav_io::config::{Invalid, Validate, count_in_range, in_range, positive};
 use aidnav_models::extended_state::TransitionForm;
 use aidnav_supervisors::convergence::SwitchRule;
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use aidnav_sim::trajectory::{LaunchProgram, LaunchTarget, TABLE1, TrajectoryError};

@@ -1,7 +1,7 @@
 //! Tests of the extended-state experiment.
 
-use super::*;
 use super::gauss_newton::gauss_newton;
+use super::*;
 use aidnav_sim::trajectory::{LaunchProgram, LaunchTarget, TABLE1};
 
 fn quick(targets: Vec<LaunchTarget>) -> ExtendedStateScenario {
@@ -263,7 +263,10 @@ fn the_literal_rule_fires_at_once_and_the_forecast_only_improves() {
         let (before, now) = (path.forecast_variance[n - 1], path.forecast_variance[n]);
         assert!(now <= before * (1.0 + 1e-9), "fix {n}: {before} → {now}");
         let bound = path.bound_variance[n];
-        assert!((now - bound).abs() <= 1e-3 * bound, "fix {n}: {now} vs {bound}");
+        assert!(
+            (now - bound).abs() <= 1e-3 * bound,
+            "fix {n}: {now} vs {bound}"
+        );
     }
 }
 
@@ -300,6 +303,7 @@ fn gauss_newton_recovers_the_parameters_from_exact_fixes() {
         &rep.fixes[..=s.fix],
         &s.estimate,
         10,
+        true,
     )
     .unwrap();
     for i in 0..ESTIMATED {
@@ -340,6 +344,7 @@ fn gauss_newton_with_noisy_fixes_beats_the_linear_filter() {
         &rep.fixes[..=s.fix],
         &s.estimate,
         10,
+        true,
     )
     .unwrap();
     assert!(
@@ -350,8 +355,16 @@ fn gauss_newton_with_noisy_fixes_beats_the_linear_filter() {
     // Here (seed 4, switch at 150 s): 629 m against 3218 m, CRB σ 662 m.
     let proposed = branches(&flight, &s).proposed_m;
     let bound = path.bound_variance[s.fix].sqrt();
-    assert!(est.error_m < 0.5 * proposed, "{} vs {proposed}", est.error_m);
-    assert!(est.error_m < 3.0 * bound, "{} vs CRB σ {bound}", est.error_m);
+    assert!(
+        est.error_m < 0.5 * proposed,
+        "{} vs {proposed}",
+        est.error_m
+    );
+    assert!(
+        est.error_m < 3.0 * bound,
+        "{} vs CRB σ {bound}",
+        est.error_m
+    );
 }
 
 #[test]
@@ -411,13 +424,27 @@ fn delta_split_by_state_and_scale() {
         }
         Matrix14::identity() + a * dt
     };
-    let table2 = [5.01e-2, 5.01e-2, 5.01e-2, 2.46e-2, 5.25e-2, 5.25e-2, 2.33e-4, 2.33e-4];
+    let table2 = [
+        5.01e-2, 5.01e-2, 5.01e-2, 2.46e-2, 5.25e-2, 5.25e-2, 2.33e-4, 2.33e-4,
+    ];
     let names = ["Δẍ10", "Δÿ10", "Δz̈10", "K_ẍ1", "Δψ0", "Δϑ0", "ω_ψ", "ω_ϑ"];
     for (label, prior, paper) in [
         ("paper P_M(0) = 1e3 I (SI), exact Φ", [1e3; 8], false),
-        ("P_M(0) = diag(Table 2²), exact Φ", table2.map(|v| v * v), false),
-        ("paper P_M(0), the paper's printed A (Δt factors)", [1e3; 8], true),
-        ("P_M(0) = diag(Table 2²), printed A", table2.map(|v| v * v), true),
+        (
+            "P_M(0) = diag(Table 2²), exact Φ",
+            table2.map(|v| v * v),
+            false,
+        ),
+        (
+            "paper P_M(0), the paper's printed A (Δt factors)",
+            [1e3; 8],
+            true,
+        ),
+        (
+            "P_M(0) = diag(Table 2²), printed A",
+            table2.map(|v| v * v),
+            true,
+        ),
     ] {
         println!("\n{label}");
         println!(
@@ -447,7 +474,8 @@ fn delta_split_by_state_and_scale() {
             let k = p * c.transpose() * s.cholesky().unwrap().inverse();
             let i_kc = Matrix14::identity() - k * c;
             let updated = i_kc * p * i_kc.transpose() + k * r * k.transpose();
-            let reduction: [f64; 8] = std::array::from_fn(|i| p[(6 + i, 6 + i)] - updated[(6 + i, 6 + i)]);
+            let reduction: [f64; 8] =
+                std::array::from_fn(|i| p[(6 + i, 6 + i)] - updated[(6 + i, 6 + i)]);
             p = (updated + updated.transpose()) * 0.5;
             let trace: f64 = (0..8).map(|i| p[(6 + i, 6 + i)]).sum();
             let delta = reduction.iter().sum::<f64>() / trace;
@@ -463,7 +491,13 @@ fn delta_split_by_state_and_scale() {
             }
             if [1, 3, 7, 33, 67, 133, 300, 433, 467, 667, 1000, 1333].contains(&n) {
                 let share: Vec<String> = (0..8)
-                    .map(|i| format!("{:.1}/{:.2}", 100.0 * p[(6 + i, 6 + i)] / trace, 100.0 * reduction[i] / p[(6 + i, 6 + i)]))
+                    .map(|i| {
+                        format!(
+                            "{:.1}/{:.2}",
+                            100.0 * p[(6 + i, 6 + i)] / trace,
+                            100.0 * reduction[i] / p[(6 + i, 6 + i)]
+                        )
+                    })
                     .collect();
                 println!("{:>7.2} {:>8.3}  {}", tau, 100.0 * delta, share.join(" "));
             }
