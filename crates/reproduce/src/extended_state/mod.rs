@@ -488,8 +488,17 @@ pub fn run(
             };
             let replayed = replay(sc, flight, path, &mut rng, &[])?;
             let t_b = traj.target.t_b_s;
-            let mut out = Vec::with_capacity(switch_cases.len());
-            for s in &replayed.at_switch {
+            let mut out: Vec<(ThresholdRun, bool)> = Vec::with_capacity(switch_cases.len());
+            for (k, s) in replayed.at_switch.iter().enumerate() {
+                // Cases switching at the same fix (the literal rule's
+                // thresholds) share one snapshot, so one result.
+                let same = replayed.at_switch[..k]
+                    .iter()
+                    .position(|p| p.is_some_and(|p| s.is_some_and(|s| p.fix == s.fix)));
+                if let Some(j) = same {
+                    out.push(out[j]);
+                    continue;
+                }
                 out.push(match s {
                     Some(s) => {
                         let mut b = branches(flight, s);
