@@ -11,12 +11,13 @@
 //!   the filter's estimate x̂_M from the switch on;
 //! - `oracle`: instruments corrected with their true errors at the switch;
 //! - `Gauss–Newton` (beyond the paper): the same fixes estimated as a batch
-//!   with the nonlinear INS ([`gauss_newton`]), flown with its estimate.
+//!   with the nonlinear INS (module `gauss_newton`), flown with its estimate.
 //!
-//! The switch is decided three ways ([`SwitchKind`]): the paper's δ(n) ≤
-//! δ_thr taken literally, the same armed by the scenario's `switch`, and the
-//! forecast of the position error at t_B that the filter's covariance gives
-//! (see [`ExtendedStateScenario::forecast_reduction_per_s`]).
+//! The switch is decided several ways ([`SwitchKind`]): the paper's δ(n) ≤
+//! δ_thr taken literally, the same armed by the scenario's `switch`, and
+//! from the forecast of the position error at t_B that the filter's
+//! covariance gives (see
+//! [`ExtendedStateScenario::forecast_instrument_share`]).
 //!
 //! The INS runs at `imu_dt_s` (RK4, the same scheme as the truth, so an
 //! error-free INS reproduces the truth); its position and velocity are reset

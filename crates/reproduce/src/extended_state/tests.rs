@@ -306,8 +306,8 @@ fn gauss_newton_recovers_the_parameters_from_exact_fixes() {
         true,
     )
     .unwrap();
-    for i in 0..ESTIMATED {
-        let e = (est.parameters[NAVIGATION + i] - truth[i]) / truth[i];
+    for (i, t) in truth.iter().enumerate() {
+        let e = (est.parameters[NAVIGATION + i] - t) / t;
         assert!(e.abs() < 1e-4, "component {i}: relative error {e:e}");
     }
     let first = rep.fixes[0].step;
@@ -315,9 +315,9 @@ fn gauss_newton_recovers_the_parameters_from_exact_fixes() {
         rep.ins_at_first_fix.position - traj.positions[first],
         rep.ins_at_first_fix.velocity - traj.velocities[first],
     ];
-    for i in 0..3 {
-        assert!((est.parameters[i] - nav_error[0][i]).abs() < 1e-3);
-        assert!((est.parameters[3 + i] - nav_error[1][i]).abs() < 1e-4);
+    for (i, (dr, dv)) in nav_error[0].iter().zip(nav_error[1].iter()).enumerate() {
+        assert!((est.parameters[i] - dr).abs() < 1e-3);
+        assert!((est.parameters[3 + i] - dv).abs() < 1e-4);
     }
     assert!(est.costs.windows(2).all(|w| w[1] < w[0]), "{:?}", est.costs);
     assert!(est.costs.len() >= 3, "{:?}", est.costs);
@@ -464,10 +464,10 @@ fn delta_split_by_state_and_scale() {
         let r = SMatrix::<f64, 6, 6>::identity() * 100.0;
         let mut crossed = None;
         let mut peak: (f64, f64) = (0.0, 0.0);
-        for n in 0..phis.len() {
+        for (n, exact) in phis.iter().enumerate() {
             let tau = n as f64 * dt;
             if n > 0 {
-                let phi = if paper { paper_phi(n) } else { phis[n] };
+                let phi = if paper { paper_phi(n) } else { *exact };
                 p = phi * p * phi.transpose();
             }
             let s = c * p * c.transpose() + r;
