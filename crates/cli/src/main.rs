@@ -10,7 +10,7 @@ use aidnav::jobs::{self, FilterJob};
 use aidnav::reproduce::MonteCarloScenario;
 use aidnav::reproduce::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
-use aidnav::reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
+use aidnav::reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario, SwitchKind};
 use aidnav::reproduce::formation::{FormationResult, FormationScenario};
 use aidnav::reproduce::group::{GroupResult, GroupScenario};
 use aidnav::reproduce::outages::{OutageScores, OutagesResult, OutagesScenario};

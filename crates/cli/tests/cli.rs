@@ -506,8 +506,22 @@ fn reproduce_extended_state_writes_the_case_keys_other_tools_read() {
     );
     let summary = read_summary(&out);
     let cases = summary["cases"].as_array().unwrap();
-    assert_eq!(cases.len(), 18);
+    // Per trajectory: δ armed and δ literal per threshold, the share rule.
+    assert_eq!(cases.len(), 45);
     for c in cases {
+        let rule = c["rule"].as_str().unwrap();
+        assert!(
+            ["delta_armed", "delta_literal", "forecast_share"].contains(&rule),
+            "{rule}"
+        );
+        assert!(
+            c["bound_sigma_m"].as_f64().is_some_and(f64::is_finite),
+            "{c}"
+        );
+        if rule != "delta_literal" {
+            let e = c["error_gauss_newton_m"].as_f64();
+            assert!(e.is_some_and(|e| e.is_finite() && e > 0.0), "{c}");
+        }
         for key in [
             "t_b_s",
             "course_deg",

@@ -7,13 +7,15 @@ use aidnav_estimation::Step;
 
 /// The filter's prior covariance, fix noise R and process noise Q.
 #[allow(clippy::type_complexity)]
-fn filter_matrices(
+pub(super) fn filter_matrices(
     sc: &ExtendedStateScenario,
 ) -> (Matrix14, SMatrix<f64, NAVIGATION, NAVIGATION>, Matrix14) {
     let mut p0 = SMatrix::<f64, STATES, STATES>::zeros();
     for i in 0..STATES {
         p0[(i, i)] = if i < NAVIGATION {
             sc.prior_navigation_variance
+        } else if let Some(s) = sc.prior_instrument_sigmas.get(i - NAVIGATION) {
+            s * s
         } else {
             sc.prior_instrument_variance
         };
@@ -95,12 +97,14 @@ fn feed_back_navigation(
 }
 
 /// Filter pass: from launch to the last snapshot needed (or t_B when
-/// `history` is requested). Returns, per threshold, the snapshot at its
-/// switch (None: never), and the snapshots at the forced times.
+/// `history` is requested), the switches at the fixes `path` decided for
+/// this flight. Returns, per switch case, the snapshot at its switch (None:
+/// never), and the snapshots at the forced times.
 #[allow(clippy::type_complexity)]
 pub(super) fn filter_pass(
     sc: &ExtendedStateScenario,
     flight: &Flight<'_>,
+    path: &CovariancePath,
     rng: &mut RunRng,
     forced: &[f64],
     mut history: Option<&mut FilterHistory>,
@@ -115,50 +119,27 @@ pub(super) fn filter_pass(
     let mut fisher = FisherInformation::from_prior_covariance(&p0)?;
     let c = ExtendedStateModel::measurement();
     let truth_m = errors.estimated_components();
-    let mut switches: Vec<ConvergenceSwitch> = sc
-        .thresholds
-        .iter()
-        .map(|&threshold| {
-            ConvergenceSwitch::new(SwitchRule {
-                threshold,
-                ..sc.switch
-            })
-        })
-        .collect();
-    let mut at_switch: Vec<Option<Snapshot>> = vec![None; switches.len()];
+    let mut at_switch: Vec<Option<Snapshot>> = vec![None; path.switch_at.len()];
     let mut at_forced: Vec<Option<Snapshot>> = vec![None; forced.len()];
     let mut ins = LaunchIns::default();
-    let mut phi = Matrix14::identity();
-    let mut first_fix = true;
+    let mut n = 0;
     for k in 0..last {
-        let t = k as f64 * dt;
-        if k >= start_step && sc.transition == TransitionForm::Exact {
-            let (att, f) = raw_outputs(traj, errors, t + dt / 2.0);
-            let a = ExtendedStateModel::continuous(t + dt / 2.0, &att, &f);
-            phi = ExtendedStateModel::transition(&a, dt, TransitionForm::Exact) * phi;
-        }
         ins.step_with_thrust(dt, &flight.raw[k]);
         let step = k + 1;
         if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
             continue;
         }
         let t_fix = step as f64 * dt;
-        if !first_fix {
-            if sc.transition == TransitionForm::FirstOrder {
-                let t0 = t_fix - sc.fix_interval_s;
-                let (att, f) = raw_outputs(traj, errors, t0);
-                let a = ExtendedStateModel::continuous(t0, &att, &f);
-                phi = ExtendedStateModel::transition(
-                    &a,
-                    sc.fix_interval_s,
-                    TransitionForm::FirstOrder,
-                );
-            }
-            kf.predict(&phi, &q)?;
-            fisher.propagate(&phi)?;
+        let Some(fix) = path.fixes.get(n) else {
+            return Err(path
+                .error
+                .clone()
+                .expect("a path shorter than the flight ended in an error"));
+        };
+        if n > 0 {
+            kf.predict(&fix.phi, &q)?;
+            fisher.propagate(&fix.phi)?;
         }
-        first_fix = false;
-        phi = Matrix14::identity();
         let predicted = *kf.covariance();
         let truth_r = traj.positions[step];
         let truth_v = traj.velocities[step];
@@ -172,12 +153,12 @@ pub(super) fn filter_pass(
         let x_m: [f64; ESTIMATED] = std::array::from_fn(|i| x[NAVIGATION + i]);
         let snapshot = Snapshot {
             time_s: t_fix,
+            fix: n,
             ins,
             estimate: x_m,
         };
-        let fusion_s = t_fix - sc.fusion_start_s;
-        for (s, slot) in switches.iter_mut().zip(at_switch.iter_mut()) {
-            if s.observe(fusion_s, delta) {
+        for (at, slot) in path.switch_at.iter().zip(at_switch.iter_mut()) {
+            if *at == Some(n) {
                 *slot = Some(snapshot);
             }
         }
@@ -197,37 +178,148 @@ pub(super) fn filter_pass(
                 &bound,
                 position_error_m,
             );
+            h.forecast_sigma_m.push(path.forecast_variance[n].sqrt());
+            h.forecast_reduction.push(path.forecast_reduction[n]);
+            h.forecast_share.push(path.forecast_share[n]);
         } else if at_switch.iter().all(Option::is_some) && at_forced.iter().all(Option::is_some) {
             break;
         }
+        n += 1;
     }
     Ok((at_switch, at_forced))
 }
 
 /// One fix of a [`CovariancePath`].
 #[derive(Debug, Clone)]
-struct PathFix {
+pub(super) struct PathFix {
     /// Transition from the previous fix (unused at the first).
-    phi: Matrix14,
+    pub(super) phi: Matrix14,
     /// Kalman gain of the fix's update.
     gain: SMatrix<f64, STATES, NAVIGATION>,
+}
+
+/// The transitions of a flight's filter: Φ from each fix to the next (the
+/// first: identity, unused) and from the last fix to t_B.
+fn fix_transitions(sc: &ExtendedStateScenario, flight: &Flight<'_>) -> (Vec<Matrix14>, Matrix14) {
+    let (traj, errors) = (flight.traj, &flight.errors);
+    let dt = traj.dt_s;
+    let per_fix = (sc.fix_interval_s / dt).round() as usize;
+    let start_step = (sc.fusion_start_s / dt).round() as usize;
+    let last = traj.samples() - 1;
+    let first_order = |t0: f64, span: f64| {
+        let (att, f) = raw_outputs(traj, errors, t0);
+        let a = ExtendedStateModel::continuous(t0, &att, &f);
+        ExtendedStateModel::transition(&a, span, TransitionForm::FirstOrder)
+    };
+    let mut phis = Vec::new();
+    let mut phi = Matrix14::identity();
+    let mut last_fix_s = f64::NAN;
+    for k in 0..last {
+        let t = k as f64 * dt;
+        if k >= start_step && sc.transition == TransitionForm::Exact {
+            let (att, f) = raw_outputs(traj, errors, t + dt / 2.0);
+            let a = ExtendedStateModel::continuous(t + dt / 2.0, &att, &f);
+            phi = ExtendedStateModel::transition(&a, dt, TransitionForm::Exact) * phi;
+        }
+        let step = k + 1;
+        if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
+            continue;
+        }
+        let t_fix = step as f64 * dt;
+        if !phis.is_empty() && sc.transition == TransitionForm::FirstOrder {
+            phi = first_order(t_fix - sc.fix_interval_s, sc.fix_interval_s);
+        }
+        phis.push(phi);
+        phi = Matrix14::identity();
+        last_fix_s = t_fix;
+    }
+    let t_b = last as f64 * dt;
+    if sc.transition == TransitionForm::FirstOrder && t_b > last_fix_s {
+        phi = first_order(last_fix_s, t_b - last_fix_s);
+    }
+    (phis, phi)
+}
+
+/// [`fix_transitions`] for the tests.
+#[cfg(test)]
+pub(super) fn fix_transitions_for_tests(
+    sc: &ExtendedStateScenario,
+    flight: &Flight<'_>,
+) -> (Vec<Matrix14>, Matrix14) {
+    fix_transitions(sc, flight)
 }
 
 /// What the filter pass does not take from the run. Q, R and H are fixed
 /// and Φ is built from the true instrument outputs, the same in every run
 /// when the error signs are fixed; so are the covariance, the gains, the
-/// Fisher information, δ(n) and the fixes at which the switches fire. One
-/// filter pass computes them per trajectory ([`CovariancePath::new`]); a
-/// run then replays only its state ([`replay`]): `x⁻ = Φ x`,
-/// `x = x⁻ + K (z − H x⁻)`, the feedback into its INS. The same
-/// operations on the same numbers as [`filter_pass`], so the same results.
+/// Fisher information, δ(n), the forecast of the position error at t_B
+/// and the fixes at which the switches fire. One filter pass computes them
+/// per flight ([`CovariancePath::new`]); a run then replays only its state
+/// ([`replay`]): `x⁻ = Φ x`, `x = x⁻ + K (z − H x⁻)`, the feedback into its
+/// INS. The same operations on the same numbers as [`filter_pass`], so the
+/// same results.
 pub(super) struct CovariancePath {
-    fixes: Vec<PathFix>,
-    /// Per threshold, the fix at which its switch fires (None: never).
-    switch_at: Vec<Option<usize>>,
+    pub(super) fixes: Vec<PathFix>,
+    /// Per switch case ([`switch_cases`]), the fix at which it fires (None:
+    /// never).
+    pub(super) switch_at: Vec<Option<usize>>,
+    /// δ(n) per fix.
+    pub(super) delta: Vec<f64>,
+    /// Per fix, the filter's predicted variance of the 3-D position error
+    /// at t_B if the instruments were corrected there (tr of the position
+    /// block of Φ(t_B, t_n) P(n) Φ(t_B, t_n)ᵀ) \[m²\].
+    pub(super) forecast_variance: Vec<f64>,
+    /// The same from the Cramér–Rao bound P_Γ(n) \[m²\].
+    pub(super) bound_variance: Vec<f64>,
+    /// Per fix, the relative reduction of `forecast_variance` that the fix
+    /// achieved, per second of fusion (0 at the first fix).
+    pub(super) forecast_reduction: Vec<f64>,
+    /// Per fix, the instrument states' share of the forecast variance:
+    /// `V_M / (V_M + V_H)`, V_M from P_M and V_H from P_H alone.
+    pub(super) forecast_share: Vec<f64>,
     /// The error that ended the path before t_B (a run needing a later fix
     /// meets it as [`filter_pass`] would).
-    error: Option<EstimationError>,
+    pub(super) error: Option<EstimationError>,
+}
+
+/// A switch for each case ([`switch_cases`]); the forecast rule's input is
+/// the per-second reduction, the δ rules' δ(n).
+fn case_switches(sc: &ExtendedStateScenario) -> Vec<(SwitchKind, ConvergenceSwitch)> {
+    switch_cases(sc)
+        .iter()
+        .map(|case| {
+            let rule = match case.kind {
+                SwitchKind::DeltaArmed => SwitchRule {
+                    threshold: case.threshold,
+                    ..sc.switch
+                },
+                SwitchKind::DeltaLiteral => SwitchRule {
+                    threshold: case.threshold,
+                    arm_after_s: 0.0,
+                    require_rise: false,
+                    falling_s: 0.0,
+                    confirm_epochs: 1,
+                },
+                // Not in the transient of the diffuse prior (the reduction
+                // first rises above the threshold), confirmed as the δ rule.
+                SwitchKind::ForecastShare => SwitchRule {
+                    threshold: case.threshold,
+                    arm_after_s: 0.0,
+                    require_rise: false,
+                    falling_s: 0.0,
+                    confirm_epochs: sc.switch.confirm_epochs,
+                },
+                SwitchKind::Forecast => SwitchRule {
+                    threshold: case.threshold,
+                    arm_after_s: 0.0,
+                    require_rise: true,
+                    falling_s: 0.0,
+                    confirm_epochs: sc.switch.confirm_epochs,
+                },
+            };
+            (case.kind, ConvergenceSwitch::new(rule))
+        })
+        .collect()
 }
 
 impl CovariancePath {
@@ -235,7 +327,12 @@ impl CovariancePath {
     pub(super) fn new(sc: &ExtendedStateScenario, flight: &Flight<'_>) -> Self {
         let mut path = Self {
             fixes: Vec::new(),
-            switch_at: vec![None; sc.thresholds.len()],
+            switch_at: vec![None; switch_cases(sc).len()],
+            delta: Vec::new(),
+            forecast_variance: Vec::new(),
+            bound_variance: Vec::new(),
+            forecast_reduction: Vec::new(),
+            forecast_share: Vec::new(),
             error: None,
         };
         if let Err(e) = path.compute(sc, flight) {
@@ -249,53 +346,28 @@ impl CovariancePath {
         sc: &ExtendedStateScenario,
         flight: &Flight<'_>,
     ) -> Result<(), EstimationError> {
-        let (traj, errors) = (flight.traj, &flight.errors);
-        let dt = traj.dt_s;
-        let per_fix = (sc.fix_interval_s / dt).round() as usize;
-        let start_step = (sc.fusion_start_s / dt).round() as usize;
-        let last = traj.samples() - 1;
+        let (phis, tail) = fix_transitions(sc, flight);
+        // Position rows of Φ(t_B, t_n), from the last fix backwards.
+        let mut weights = vec![SMatrix::<f64, 3, STATES>::zeros(); phis.len()];
+        let mut w: SMatrix<f64, 3, STATES> = tail.fixed_rows::<3>(0).into_owned();
+        for n in (0..phis.len()).rev() {
+            weights[n] = w;
+            w *= phis[n];
+        }
         let (p0, r, q) = filter_matrices(sc);
         let mut kf = FixedKalmanFilter::<STATES>::new(SVector::zeros(), p0)?;
         let mut fisher = FisherInformation::from_prior_covariance(&p0)?;
         let c = ExtendedStateModel::measurement();
-        let mut switches: Vec<ConvergenceSwitch> = sc
-            .thresholds
-            .iter()
-            .map(|&threshold| {
-                ConvergenceSwitch::new(SwitchRule {
-                    threshold,
-                    ..sc.switch
-                })
-            })
-            .collect();
-        let mut phi = Matrix14::identity();
+        let mut switches = case_switches(sc);
         let z = SVector::<f64, NAVIGATION>::zeros();
-        for k in 0..last {
-            let t = k as f64 * dt;
-            if k >= start_step && sc.transition == TransitionForm::Exact {
-                let (att, f) = raw_outputs(traj, errors, t + dt / 2.0);
-                let a = ExtendedStateModel::continuous(t + dt / 2.0, &att, &f);
-                phi = ExtendedStateModel::transition(&a, dt, TransitionForm::Exact) * phi;
-            }
-            let step = k + 1;
-            if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
-                continue;
-            }
-            let t_fix = step as f64 * dt;
-            let first = self.fixes.is_empty();
-            if !first {
-                if sc.transition == TransitionForm::FirstOrder {
-                    let t0 = t_fix - sc.fix_interval_s;
-                    let (att, f) = raw_outputs(traj, errors, t0);
-                    let a = ExtendedStateModel::continuous(t0, &att, &f);
-                    phi = ExtendedStateModel::transition(
-                        &a,
-                        sc.fix_interval_s,
-                        TransitionForm::FirstOrder,
-                    );
-                }
-                kf.predict(&phi, &q)?;
-                fisher.propagate(&phi)?;
+        let dt = flight.traj.dt_s;
+        let per_fix = (sc.fix_interval_s / dt).round() as usize;
+        let start_step = (sc.fusion_start_s / dt).round() as usize;
+        for (n, (phi, w)) in phis.iter().zip(&weights).enumerate() {
+            let t_fix = (start_step + n * per_fix) as f64 * dt;
+            if n > 0 {
+                kf.predict(phi, &q)?;
+                fisher.propagate(phi)?;
             }
             let predicted = *kf.covariance();
             // The gain does not depend on z: the state is the run's.
@@ -303,15 +375,44 @@ impl CovariancePath {
             fisher.add_measurement(&c, &r)?;
             let bound = fisher.cramer_rao_bound()?;
             let delta = cramer_rao_ratio(&rec.gain, &predicted, &bound, NAVIGATION);
-            let n = self.fixes.len();
+            let forecast = (w * kf.covariance() * w.transpose()).trace();
+            let reduction = match self.forecast_variance.last() {
+                Some(&before) => (before - forecast) / forecast / sc.fix_interval_s,
+                None => 0.0,
+            };
+            self.delta.push(delta);
+            self.forecast_variance.push(forecast);
+            self.bound_variance
+                .push((w * bound * w.transpose()).trace());
+            self.forecast_reduction.push(reduction);
+            let p = kf.covariance();
+            let (wh, wm) = (
+                w.fixed_columns::<NAVIGATION>(0),
+                w.fixed_columns::<INSTRUMENTS>(NAVIGATION),
+            );
+            let nav = (wh * p.fixed_view::<NAVIGATION, NAVIGATION>(0, 0) * wh.transpose()).trace();
+            let inst = (wm
+                * p.fixed_view::<INSTRUMENTS, INSTRUMENTS>(NAVIGATION, NAVIGATION)
+                * wm.transpose())
+            .trace();
+            let share = inst / (inst + nav);
+            self.forecast_share.push(share);
             self.fixes.push(PathFix {
-                phi,
+                phi: *phi,
                 gain: rec.gain,
             });
-            phi = Matrix14::identity();
             let fusion_s = t_fix - sc.fusion_start_s;
-            for (s, at) in switches.iter_mut().zip(self.switch_at.iter_mut()) {
-                if s.observe(fusion_s, delta) {
+            for ((kind, s), at) in switches.iter_mut().zip(self.switch_at.iter_mut()) {
+                let input = match kind {
+                    SwitchKind::Forecast => reduction,
+                    SwitchKind::ForecastShare => share,
+                    _ => delta,
+                };
+                // The forecast has no reduction at the first fix.
+                if *kind == SwitchKind::Forecast && n == 0 {
+                    continue;
+                }
+                if s.observe(fusion_s, input) {
                     *at = Some(n);
                 }
             }
@@ -320,24 +421,48 @@ impl CovariancePath {
     }
 }
 
+/// One fix as a run received it.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Fix {
+    /// Step index of the fix.
+    pub(super) step: usize,
+    /// Fixed position and velocity (truth plus noise).
+    pub(super) measured: SVector<f64, NAVIGATION>,
+}
+
+/// What [`replay`] returns.
+pub(super) struct Replay {
+    /// Per switch case, the snapshot at its switch (None: never).
+    pub(super) at_switch: Vec<Option<Snapshot>>,
+    /// The snapshots at the forced times.
+    pub(super) at_forced: Vec<Option<Snapshot>>,
+    /// The fixes received, up to the last snapshot.
+    pub(super) fixes: Vec<Fix>,
+    /// The INS at the first fix, before its update.
+    pub(super) ins_at_first_fix: LaunchIns,
+}
+
 /// [`filter_pass`] of one run on a shared [`CovariancePath`] (no history):
-/// the snapshots at the switches and at the forced times.
-#[allow(clippy::type_complexity)]
+/// the snapshots at the switches and at the forced times, and the fixes.
 pub(super) fn replay(
     sc: &ExtendedStateScenario,
     flight: &Flight<'_>,
     path: &CovariancePath,
     rng: &mut RunRng,
     forced: &[f64],
-) -> Result<(Vec<Option<Snapshot>>, Vec<Option<Snapshot>>), EstimationError> {
+) -> Result<Replay, EstimationError> {
     let traj = flight.traj;
     let dt = traj.dt_s;
     let per_fix = (sc.fix_interval_s / dt).round() as usize;
     let start_step = (sc.fusion_start_s / dt).round() as usize;
     let last = traj.samples() - 1;
     let c = ExtendedStateModel::measurement();
-    let mut at_switch: Vec<Option<Snapshot>> = vec![None; path.switch_at.len()];
-    let mut at_forced: Vec<Option<Snapshot>> = vec![None; forced.len()];
+    let mut out = Replay {
+        at_switch: vec![None; path.switch_at.len()],
+        at_forced: vec![None; forced.len()],
+        fixes: Vec::new(),
+        ins_at_first_fix: LaunchIns::default(),
+    };
     let mut ins = LaunchIns::default();
     let mut x = SVector::<f64, STATES>::zeros();
     let mut n = 0;
@@ -359,10 +484,18 @@ pub(super) fn replay(
             // KalmanFilter::predict_state.
             x = fix.phi * x;
             check_finite(&x, Step::Predict)?;
+        } else {
+            out.ins_at_first_fix = ins;
         }
         let truth_r = traj.positions[step];
         let truth_v = traj.velocities[step];
         let z = fix_residual(sc, &ins, &truth_r, &truth_v, rng);
+        let mut measured = SVector::<f64, NAVIGATION>::zeros();
+        for i in 0..3 {
+            measured[i] = ins.position[i] - z[i];
+            measured[3 + i] = ins.velocity[i] - z[3 + i];
+        }
+        out.fixes.push(Fix { step, measured });
         // KalmanFilter::update: ν = z − H x, x += K ν.
         let residual = z - c * x;
         x += fix.gain * residual;
@@ -375,25 +508,26 @@ pub(super) fn replay(
         x.rows_mut(0, NAVIGATION).fill(0.0);
         let snapshot = Snapshot {
             time_s: t_fix,
+            fix: n,
             ins,
             estimate: std::array::from_fn(|i| x[NAVIGATION + i]),
         };
-        for (at, slot) in path.switch_at.iter().zip(at_switch.iter_mut()) {
+        for (at, slot) in path.switch_at.iter().zip(out.at_switch.iter_mut()) {
             if *at == Some(n) {
                 *slot = Some(snapshot);
             }
         }
-        for (f, slot) in forced.iter().zip(at_forced.iter_mut()) {
+        for (f, slot) in forced.iter().zip(out.at_forced.iter_mut()) {
             if slot.is_none() && t_fix >= *f {
                 *slot = Some(snapshot);
             }
         }
         n += 1;
-        if at_switch.iter().all(Option::is_some) && at_forced.iter().all(Option::is_some) {
+        if out.at_switch.iter().all(Option::is_some) && out.at_forced.iter().all(Option::is_some) {
             break;
         }
     }
-    Ok((at_switch, at_forced))
+    Ok(out)
 }
 
 /// The engine's check of a state after a step.

@@ -9,7 +9,15 @@
 //!   corrected, instruments not; autonomous afterwards (the paper's baseline);
 //! - `proposed`: as outputs only, plus the instrument outputs corrected with
 //!   the filter's estimate x̂_M from the switch on;
-//! - `oracle`: instruments corrected with their true errors at the switch.
+//! - `oracle`: instruments corrected with their true errors at the switch;
+//! - `Gauss–Newton` (beyond the paper): the same fixes estimated as a batch
+//!   with the nonlinear INS (module `gauss_newton`), flown with its estimate.
+//!
+//! The switch is decided several ways ([`SwitchKind`]): the paper's δ(n) ≤
+//! δ_thr taken literally, the same armed by the scenario's `switch`, and
+//! from the forecast of the position error at t_B that the filter's
+//! covariance gives (see
+//! [`ExtendedStateScenario::forecast_instrument_share`]).
 //!
 //! The INS runs at `imu_dt_s` (RK4, the same scheme as the truth, so an
 //! error-free INS reproduces the truth); its position and velocity are reset
@@ -32,17 +40,21 @@ use aidnav_sim::rng::{RngExt, RunRng, channel_rng, standard_normal};
 use aidnav_sim::trajectory::LaunchTrajectory;
 
 mod filter;
+mod gauss_newton;
 mod scenario;
 
 pub use scenario::*;
 
 use filter::{CovariancePath, filter_pass, replay};
+use gauss_newton::gauss_newton;
 
 /// What the filter pass keeps at a switch.
 #[derive(Debug, Clone, Copy)]
 struct Snapshot {
     /// Flight time [s].
     time_s: f64,
+    /// Index of the fix (0: the first).
+    fix: usize,
     ins: LaunchIns,
     estimate: [f64; ESTIMATED],
 }
@@ -65,6 +77,90 @@ pub struct FilterHistory {
     /// Smallest eigenvalue of P − P_Γ after each fix, in the basis scaled by
     /// P's σ (≥ 0 up to rounding: the bound holds).
     pub bound_gap: Vec<f64>,
+    /// The filter's forecast of the 3-D position error at t_B if the
+    /// instruments were corrected at this fix (σ, from P carried to t_B by
+    /// Φ) \[m\].
+    pub forecast_sigma_m: Vec<f64>,
+    /// Relative reduction of the forecast's variance achieved by this fix,
+    /// per second.
+    pub forecast_reduction: Vec<f64>,
+    /// The instrument states' share of the forecast's variance.
+    pub forecast_share: Vec<f64>,
+}
+
+/// How a switch time is decided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SwitchKind {
+    /// δ(n) ≤ δ_thr, armed by the scenario's `switch` rule.
+    DeltaArmed,
+    /// The paper's rule taken literally: the first fix with δ(n) ≤ δ_thr.
+    DeltaLiteral,
+    /// The forecast of the position error at t_B stops improving: its
+    /// variance falls by less than the threshold per second of fusion
+    /// (after the reduction has once exceeded the threshold, for
+    /// `switch.confirm_epochs` fixes in a row).
+    Forecast,
+    /// The instrument errors' share of the forecast: the part of the
+    /// predicted t_B position-error variance that the instrument states'
+    /// covariance P_M contributes, over that part plus the navigation
+    /// states' (P_H), has fallen to the threshold (for
+    /// `switch.confirm_epochs` fixes in a row).
+    ForecastShare,
+}
+
+impl SwitchKind {
+    /// Number written to the CSV's `rule` column.
+    pub fn code(self) -> f64 {
+        match self {
+            SwitchKind::DeltaArmed => 0.0,
+            SwitchKind::DeltaLiteral => 1.0,
+            SwitchKind::Forecast => 2.0,
+            SwitchKind::ForecastShare => 3.0,
+        }
+    }
+}
+
+/// One switch rule with its threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SwitchCase {
+    /// The rule.
+    pub kind: SwitchKind,
+    /// δ_thr for the δ rules; the reduction per second for the forecast.
+    pub threshold: f64,
+}
+
+/// The switch cases every trajectory is run with: the armed δ rule per
+/// threshold, then (if `literal_rule`) the literal one per threshold, then
+/// the forecast rule per `forecast_reduction_per_s`, then the share rule
+/// per `forecast_instrument_share`.
+pub fn switch_cases(sc: &ExtendedStateScenario) -> Vec<SwitchCase> {
+    let delta = |kind| {
+        sc.thresholds
+            .iter()
+            .map(move |&threshold| SwitchCase { kind, threshold })
+    };
+    let mut cases: Vec<SwitchCase> = delta(SwitchKind::DeltaArmed).collect();
+    if sc.literal_rule {
+        cases.extend(delta(SwitchKind::DeltaLiteral));
+    }
+    cases.extend(
+        sc.forecast_reduction_per_s
+            .iter()
+            .map(|&threshold| SwitchCase {
+                kind: SwitchKind::Forecast,
+                threshold,
+            }),
+    );
+    cases.extend(
+        sc.forecast_instrument_share
+            .iter()
+            .map(|&threshold| SwitchCase {
+                kind: SwitchKind::ForecastShare,
+                threshold,
+            }),
+    );
+    cases
 }
 
 /// One run's numbers for one threshold.
@@ -74,6 +170,11 @@ struct ThresholdRun {
     outputs_only_m: f64,
     proposed_m: f64,
     oracle_m: f64,
+    /// The Gauss–Newton estimate's |Δx(t_B)| (NaN: not computed).
+    gauss_newton_m: f64,
+    /// The Cramér–Rao bound's variance of the 3-D position error at t_B
+    /// for a switch at this fix \[m²\].
+    bound_variance: f64,
 }
 
 /// Result per (trajectory, threshold), medians over runs.
@@ -83,7 +184,10 @@ pub struct CaseResult {
     pub t_b_s: f64,
     /// Course \[deg\].
     pub course_deg: f64,
-    /// δ_thr.
+    /// The switch rule.
+    pub rule: SwitchKind,
+    /// The rule's threshold: δ_thr for the δ rules, the reduction of the
+    /// forecast variance per second for `forecast`.
     pub delta_threshold: f64,
     /// Switch time (flight time) \[s\], median.
     pub switch_time_s: f64,
@@ -99,6 +203,16 @@ pub struct CaseResult {
     pub error_proposed_m: f64,
     /// Oracle \[m\], median.
     pub error_oracle_m: f64,
+    /// Gauss–Newton \[m\], median over the runs that computed it.
+    pub error_gauss_newton_m: f64,
+    /// Runs that computed the Gauss–Newton estimate.
+    pub gauss_newton_runs: usize,
+    /// RMS over runs of |Δx(t_B)|: proposed, Gauss–Newton, oracle \[m\].
+    pub rms_proposed_gauss_newton_oracle_m: [f64; 3],
+    /// The Cramér–Rao bound on that RMS for a switch at the case's switch
+    /// fix: √(mean over runs of tr of the position block of
+    /// Φ(t_B, t_s) P_Γ Φ(t_B, t_s)ᵀ) \[m\].
+    pub bound_sigma_m: f64,
     /// Ratio outputs-only / proposed, median over runs.
     pub ratio_median: f64,
     /// 10 % quantile of the ratio.
@@ -140,7 +254,7 @@ pub struct ExtendedStateResult {
 /// per run).
 fn fixed_errors(sc: &ExtendedStateScenario) -> Option<LaunchInstrumentErrors> {
     match sc.error_signs {
-        ErrorSigns::Positive => Some(LaunchInstrumentErrors::table2(1.0)),
+        ErrorSigns::Positive => Some(sc.error_magnitudes.errors(&[1.0; 12])),
         ErrorSigns::Random => None,
     }
 }
@@ -148,13 +262,13 @@ fn fixed_errors(sc: &ExtendedStateScenario) -> Option<LaunchInstrumentErrors> {
 /// The truth's instrument errors for one run.
 fn true_errors(sc: &ExtendedStateScenario, rng: &mut RunRng) -> LaunchInstrumentErrors {
     match sc.error_signs {
-        ErrorSigns::Positive => LaunchInstrumentErrors::table2(1.0),
+        ErrorSigns::Positive => sc.error_magnitudes.errors(&[1.0; 12]),
         ErrorSigns::Random => {
             let mut signs = [1.0; 12];
             for s in &mut signs {
                 *s = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             }
-            LaunchInstrumentErrors::table2_signed(&signs)
+            sc.error_magnitudes.errors(&signs)
         }
     }
 }
@@ -281,17 +395,33 @@ impl<'a> Flight<'a> {
 fn branches(flight: &Flight<'_>, snapshot: &Snapshot) -> ThresholdRun {
     let from = (snapshot.time_s / flight.traj.dt_s).round() as usize;
     let estimated = LaunchInstrumentErrors::from_estimate(&snapshot.estimate);
-    ThresholdRun {
-        switch_time_s: snapshot.time_s,
-        outputs_only_m: flight.fly(Correction::None, snapshot.ins, from, |_, _| {}),
-        proposed_m: flight.fly(
+    let outputs_only_m = flight.fly(Correction::None, snapshot.ins, from, |_, _| {});
+    // A zero estimate (the literal rule's switch at the first fix, where
+    // P_HM = 0 leaves x̂_M at 0) corrects nothing: the same flight, bit for
+    // bit ((f − 0)/(1 + 0) = f, b − 0 − 0·t = b).
+    let proposed_m = if snapshot.estimate == [0.0; ESTIMATED] {
+        outputs_only_m
+    } else {
+        flight.fly(
             Correction::Estimate(&estimated),
             snapshot.ins,
             from,
             |_, _| {},
-        ),
+        )
+    };
+    ThresholdRun {
+        switch_time_s: snapshot.time_s,
+        outputs_only_m,
+        proposed_m,
         oracle_m: flight.fly(Correction::Truth, snapshot.ins, from, |_, _| {}),
+        gauss_newton_m: f64::NAN,
+        bound_variance: f64::NAN,
     }
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (sum, count) = v.fold((0.0, 0usize), |(s, c), x| (s + x * x, c + 1));
+    (sum / count as f64).sqrt()
 }
 
 fn quantile(sorted: &[f64], q: f64) -> f64 {
@@ -332,6 +462,8 @@ pub fn run(
     mc: &MonteCarlo,
 ) -> Result<ExtendedStateResult, ExtendedStateError> {
     let trajs = trajectories(sc)?;
+    let switch_cases = switch_cases(sc);
+    let gauss_newton_runs = sc.gauss_newton_runs.min(sc.runs);
     let mut cases = Vec::new();
     for (ti, traj) in trajs.iter().enumerate() {
         // With fixed error signs every run flies the same errors: their
@@ -345,49 +477,82 @@ pub fn run(
         });
         let per_run = mc.try_run(|run, _| {
             let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
-            let own;
-            let (flight, free, switches) = match &fixed {
-                Some((flight, free, path)) => {
-                    let (switches, _) = replay(sc, flight, path, &mut rng, &[])?;
-                    (flight, *free, switches)
-                }
+            let (own, own_path);
+            let (flight, free, path) = match &fixed {
+                Some((flight, free, path)) => (flight, *free, path),
                 None => {
                     own = Flight::new(traj, true_errors(sc, &mut rng));
                     let free = own.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-                    let (switches, _) = filter_pass(sc, &own, &mut rng, &[], None)?;
-                    (&own, free, switches)
+                    own_path = CovariancePath::new(sc, &own);
+                    (&own, free, &own_path)
                 }
             };
+            let replayed = replay(sc, flight, path, &mut rng, &[])?;
             let t_b = traj.target.t_b_s;
-            let out: Vec<(ThresholdRun, bool)> = switches
-                .iter()
-                .map(|s| match s {
-                    Some(s) => (branches(flight, s), false),
+            let mut out: Vec<(ThresholdRun, bool)> = Vec::with_capacity(switch_cases.len());
+            for (k, s) in replayed.at_switch.iter().enumerate() {
+                // Cases switching at the same fix (the literal rule's
+                // thresholds) share one snapshot, so one result.
+                let same = replayed.at_switch[..k]
+                    .iter()
+                    .position(|p| p.is_some_and(|p| s.is_some_and(|s| p.fix == s.fix)));
+                if let Some(j) = same {
+                    out.push(out[j]);
+                    continue;
+                }
+                out.push(match s {
+                    Some(s) => {
+                        let mut b = branches(flight, s);
+                        b.bound_variance = path.bound_variance[s.fix];
+                        // At the first fix the batch has nothing to add.
+                        if run < gauss_newton_runs && s.fix > 0 {
+                            b.gauss_newton_m = gauss_newton(
+                                sc,
+                                flight,
+                                &replayed.ins_at_first_fix,
+                                &replayed.fixes[..=s.fix],
+                                &s.estimate,
+                                sc.gauss_newton_iterations,
+                                false,
+                            )?
+                            .error_m;
+                        }
+                        (b, false)
+                    }
                     None => (
                         ThresholdRun {
                             switch_time_s: t_b,
                             outputs_only_m: f64::NAN,
                             proposed_m: f64::NAN,
                             oracle_m: f64::NAN,
+                            gauss_newton_m: f64::NAN,
+                            bound_variance: f64::NAN,
                         },
                         true,
                     ),
-                })
-                .collect();
+                });
+            }
             Ok::<_, EstimationError>((free, out))
         })?;
         let free = sorted(per_run.iter().map(|r| r.0).collect());
-        for (k, &threshold) in sc.thresholds.iter().enumerate() {
+        for (k, case) in switch_cases.iter().enumerate() {
             let runs: Vec<ThresholdRun> = per_run.iter().map(|r| r.1[k].0).collect();
             let never = per_run.iter().filter(|r| r.1[k].1).count();
             let ok: Vec<&ThresholdRun> = runs.iter().filter(|r| r.proposed_m.is_finite()).collect();
             let pick = |f: fn(&ThresholdRun) -> f64| sorted(ok.iter().map(|r| f(r)).collect());
             let ratio = pick(|r| r.outputs_only_m / r.proposed_m);
             let switch = sorted(runs.iter().map(|r| r.switch_time_s).collect());
+            let gauss: Vec<f64> = ok
+                .iter()
+                .map(|r| r.gauss_newton_m)
+                .filter(|e| e.is_finite())
+                .collect();
+            let bound_variance = ok.iter().map(|r| r.bound_variance).sum::<f64>() / ok.len() as f64;
             cases.push(CaseResult {
                 t_b_s: traj.target.t_b_s,
                 course_deg: traj.target.course_deg,
-                delta_threshold: threshold,
+                rule: case.kind,
+                delta_threshold: case.threshold,
                 switch_time_s: quantile(&switch, 0.5),
                 switch_time_p10_p90_s: [quantile(&switch, 0.1), quantile(&switch, 0.9)],
                 never_switched: never,
@@ -395,6 +560,14 @@ pub fn run(
                 error_outputs_only_m: quantile(&pick(|r| r.outputs_only_m), 0.5),
                 error_proposed_m: quantile(&pick(|r| r.proposed_m), 0.5),
                 error_oracle_m: quantile(&pick(|r| r.oracle_m), 0.5),
+                error_gauss_newton_m: quantile(&sorted(gauss.clone()), 0.5),
+                gauss_newton_runs: gauss.len(),
+                rms_proposed_gauss_newton_oracle_m: [
+                    rms(ok.iter().map(|r| r.proposed_m)),
+                    rms(gauss.iter().copied()),
+                    rms(ok.iter().map(|r| r.oracle_m)),
+                ],
+                bound_sigma_m: bound_variance.sqrt(),
                 ratio_median: quantile(&ratio, 0.5),
                 ratio_p10: quantile(&ratio, 0.1),
                 ratio_p90: quantile(&ratio, 0.9),
@@ -413,8 +586,9 @@ fn figures(
     let ti = sc.figure_target as u64;
     let mut rng = channel_rng(sc.seed, 0, ti);
     let flight = Flight::new(traj, true_errors(sc, &mut rng));
+    let path = CovariancePath::new(sc, &flight);
     let mut history = FilterHistory::default();
-    let (switches, _) = filter_pass(sc, &flight, &mut rng, &[], Some(&mut history))?;
+    let (switches, _) = filter_pass(sc, &flight, &path, &mut rng, &[], Some(&mut history))?;
     // |Δx(t)| every second: before the switch the closed-loop INS (run again
     // to record it), after it the autonomous branches.
     let stride = (1.0 / traj.dt_s).round().max(1.0) as usize;
@@ -499,14 +673,16 @@ fn forced_switch_sweep(
     });
     let sweep_runs = sweep_mc.try_run(|run, _| {
         let mut rng = channel_rng(sc.seed, run as u64, 1000 + ti);
-        let own;
-        let (flight, at) = match &fixed {
-            Some((flight, path)) => (flight, replay(sc, flight, path, &mut rng, &forced)?.1),
+        let (own, own_path);
+        let (flight, path) = match &fixed {
+            Some((flight, path)) => (flight, path),
             None => {
                 own = Flight::new(traj, true_errors(sc, &mut rng));
-                (&own, filter_pass(sc, &own, &mut rng, &forced, None)?.1)
+                own_path = CovariancePath::new(sc, &own);
+                (&own, &own_path)
             }
         };
+        let at = replay(sc, flight, path, &mut rng, &forced)?.at_forced;
         Ok::<_, EstimationError>(
             at.iter()
                 .map(|s| {

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use crate::extended_state::{ExtendedStateResult, ExtendedStateScenario};
+use crate::extended_state::{ExtendedStateResult, ExtendedStateScenario, SwitchKind};
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
 
@@ -84,12 +84,40 @@ fn fig2_delta(
         .filter(|&(_, &d)| d > 0.0)
         .map(|(&t, &d)| (t - sc.fusion_start_s, 100.0 * d))
         .collect();
-    let mut series = vec![Series {
-        label: "δ(n)".into(),
-        points: fusion,
-        style: LineStyle::Solid,
-        color: 0,
-    }];
+    // The forecast rule's input on the same scale: the relative reduction
+    // of the forecast t_B position-error variance per fix.
+    let forecast: Vec<(f64, f64)> = h
+        .time_s
+        .iter()
+        .zip(&h.forecast_reduction)
+        .filter(|&(_, &d)| d > 0.0)
+        .map(|(&t, &d)| (t - sc.fusion_start_s, 100.0 * d * sc.fix_interval_s))
+        .collect();
+    let mut series = vec![
+        Series {
+            label: "δ(n)".into(),
+            points: fusion,
+            style: LineStyle::Solid,
+            color: 0,
+        },
+        Series {
+            label: "t_B forecast: variance reduction per fix".into(),
+            points: forecast,
+            style: LineStyle::Solid,
+            color: 1 + sc.thresholds.len(),
+        },
+        Series {
+            label: "instrument share of the t_B forecast".into(),
+            points: h
+                .time_s
+                .iter()
+                .zip(&h.forecast_share)
+                .map(|(&t, &s)| (t - sc.fusion_start_s, 100.0 * s))
+                .collect(),
+            style: LineStyle::Dashed,
+            color: 2 + sc.thresholds.len(),
+        },
+    ];
     let span = (0.0, target.t_b_s - sc.fusion_start_s);
     for (i, thr) in sc.thresholds.iter().enumerate() {
         series.push(Series {
@@ -212,11 +240,28 @@ fn switch_sweep(
         .enumerate()
     {
         series.push(Series {
-            label: format!(
-                "criterion, δ_thr = {:.0} %: switch {:.0} s",
-                100.0 * c.delta_threshold,
-                c.switch_time_s
-            ),
+            label: match c.rule {
+                SwitchKind::ForecastShare => format!(
+                    "instrument share ≤ {:.0} %: switch {:.0} s",
+                    100.0 * c.delta_threshold,
+                    c.switch_time_s
+                ),
+                SwitchKind::Forecast => format!(
+                    "t_B forecast, {:.1} %/s: switch {:.0} s",
+                    100.0 * c.delta_threshold,
+                    c.switch_time_s
+                ),
+                SwitchKind::DeltaLiteral => format!(
+                    "δ ≤ {:.0} % literally: switch {:.0} s",
+                    100.0 * c.delta_threshold,
+                    c.switch_time_s
+                ),
+                SwitchKind::DeltaArmed => format!(
+                    "criterion, δ_thr = {:.0} %: switch {:.0} s",
+                    100.0 * c.delta_threshold,
+                    c.switch_time_s
+                ),
+            },
             points: vec![(c.switch_time_s, c.ratio_median)],
             style: LineStyle::Points,
             color: 1 + i,
