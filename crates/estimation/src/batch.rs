@@ -227,12 +227,10 @@ where
     DefaultAllocator: FilterAllocator<N, Const<C>>,
 {
     let (_, nd) = h.shape_generic();
-    let zc = OVector::<f64, Const<C>>::from_fn_generic(Const::<C>, nalgebra::U1, |i, _| {
-        row[present[i]]
-    });
-    let hc = OMatrix::<f64, Const<C>, N>::from_fn_generic(Const::<C>, nd, |i, j| {
-        h[(present[i], j)]
-    });
+    let zc =
+        OVector::<f64, Const<C>>::from_fn_generic(Const::<C>, nalgebra::U1, |i, _| row[present[i]]);
+    let hc =
+        OMatrix::<f64, Const<C>, N>::from_fn_generic(Const::<C>, nd, |i, j| h[(present[i], j)]);
     let rc = OMatrix::<f64, Const<C>, Const<C>>::from_fn_generic(Const::<C>, Const::<C>, |i, j| {
         r[(present[i], present[j])]
     });
@@ -509,7 +507,11 @@ mod tests {
         });
         let q = DMatrix::from_diagonal(&DVector::from_vec(vec![1e-3, 2e-3, 1e-3, 3e-3]));
         let h = DMatrix::from_fn(7, 4, |i, j| if i % 4 == j { 1.0 } else { 0.05 * i as f64 });
-        let r = DMatrix::from_fn(7, 7, |i, j| if i == j { 0.5 + 0.1 * i as f64 } else { 0.01 });
+        let r = DMatrix::from_fn(
+            7,
+            7,
+            |i, j| if i == j { 0.5 + 0.1 * i as f64 } else { 0.01 },
+        );
         let p0 = DMatrix::from_fn(4, 4, |i, j| if i == j { 2.0 } else { 0.1 });
         let x0 = DVector::from_vec(vec![0.1, -0.2, 0.3, 0.0]);
         let nan = f64::NAN;
@@ -519,7 +521,9 @@ mod tests {
             let row: Vec<f64> = match k % 4 {
                 0 => (0..7).map(v).collect(),
                 1 => (0..7).map(|i| if i == 3 { nan } else { v(i) }).collect(),
-                2 => (0..7).map(|i| if i == 1 || i == 5 { v(i) } else { nan }).collect(),
+                2 => (0..7)
+                    .map(|i| if i == 1 || i == 5 { v(i) } else { nan })
+                    .collect(),
                 _ => vec![nan; 7],
             };
             z.extend(row);
@@ -543,7 +547,13 @@ mod tests {
         let (states, nis, outcomes) = step_by_step(&x0, &p0, model, &z, &mut AcceptAll);
         assert_eq!(plain.states, states);
         assert_eq!(plain.outcomes, outcomes);
-        assert!(plain.nis.iter().zip(&nis).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(
+            plain
+                .nis
+                .iter()
+                .zip(&nis)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
         let gate = || Chi2Gate { probability: 0.99 };
         let gated = filter_batch(
             &mut fixed.clone(),
@@ -564,7 +574,8 @@ mod tests {
         // R of the wrong size is refused.
         let r6 = DMatrix::identity(6, 6);
         assert!(
-            filter_batch_plain(&mut fixed.clone(), &phi_s, &q_s, &h_d, &r6, &z, true, keep).is_err()
+            filter_batch_plain(&mut fixed.clone(), &phi_s, &q_s, &h_d, &r6, &z, true, keep)
+                .is_err()
         );
     }
 }
