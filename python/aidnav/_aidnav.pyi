@@ -83,7 +83,12 @@ class KalmanFilter:
         predict_first: bool = True,
         covariances: bool = False,
         smooth: bool = False,
-    ) -> Dict[str, Any]: ...
+    ) -> Dict[str, Any]:
+        """Every row of ``zs`` (epochs × m, NaN: missing) in one call, the
+        GIL released: predict with (F, Q), update with the components
+        present under ``policy``. Each epoch's update runs in fixed-size
+        matrices (≤ 6 components present; 1–6, 9, 12, 15, 18, 21, 24
+        states), allocating nothing without a policy."""
     def copy(self) -> "KalmanFilter": ...
 
 def rts_smooth(

@@ -664,6 +664,9 @@ impl KalmanFilter {
     /// arrays: `x` (epochs × n), `residual` (epochs × m), `nis`, `outcome`
     /// (strings); with `covariances=True` also `P` (epochs × n × n); with
     /// `smooth=True` also the RTS-smoothed `x_smooth` and `P_smooth`.
+    /// Each epoch's update runs in fixed-size matrices (the components
+    /// present, up to six, copied into stack matrices: no allocation per
+    /// epoch without a policy), with the GIL released.
     #[pyo3(signature = (zs, F, Q, H, R, policy=None, predict_first=true, covariances=false, smooth=false))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn batch<'py>(
