@@ -112,7 +112,7 @@ def batch_rows(missing=0.1):
                 if gap:
                     ok = ~np.isnan(z)
                     if ok.any():
-                        fp.update(z[ok], R=r[np.ix_(ok, ok)], H=h[ok])
+                        fp.update(z[ok].reshape(-1, 1), R=r[np.ix_(ok, ok)], H=h[ok])
                 else:
                     fp.update(z)
 
