@@ -2,13 +2,16 @@
 
     python bench/python_bench.py            # all rows
     python bench/python_bench.py --quick    # skip the 1000-run Dask campaign
+    python bench/python_bench.py --batch    # the batch table only
 
 1. one predict + update, 15 states / 6 measurements, called from Python:
    aidnav.KalmanFilter against FilterPy's KalmanFilter (same matrices as
    bench/filterpy_step.py);
 2. the batch call (a whole measurement array in one call) against
-   FilterPy's loop, per epoch, at 15/6 and at a 4-state / 2-measurement
-   constant-velocity model;
+   FilterPy's loop, per epoch, for 4/2 (constant velocity), 6/3, 9/3, 15/6
+   and 21/6 states/measurements and 15/6 with 10 % of the values missing,
+   with the step's flop count: the rate the batch reaches and the rate
+   50× FilterPy would need (the arithmetic floor);
 3. process on the drive from Python against the CLI binary (same build);
 4. reproduce anomalies at 1000 runs on a two-worker LocalCluster against
    one worker (each worker one thread and RAYON_NUM_THREADS=1: one core).
@@ -63,20 +66,42 @@ def step_rows():
     return rows
 
 
-def batch_rows():
+def step_flops(n, m):
+    """Floating-point operations of one predict + update as the engine
+    computes them (kalman.rs: P = Φ P Φᵀ + Q; H P, H P Hᵀ, Cholesky of S,
+    K from it, the Joseph form grouped as A = P − K H P, P = A + (K R − A
+    Hᵀ) Kᵀ; x updates): a multiply-add is two."""
+    predict = 4 * n**3 + 2 * n * n
+    update = 2 * m * n * n + 2 * m * m * n + m**3 / 3 + 2 * m * m * n + 6 * m * n * n + 2 * n * m * m + 6 * m * n
+    return predict + update
+
+
+def batch_models():
+    cv = np.array([[1.0, 1.0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.0], [0, 0, 0, 1.0]])
+    models = {"4/2 (constant velocity)": (cv, np.eye(4) * 1e-3, np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]]), np.eye(2), np.eye(4))}
+    for n, m in [(6, 3), (9, 3), (15, 6), (21, 6)]:
+        models[f"{n}/{m}"] = problem(n, m)[:5]
+    return models
+
+
+def batch_rows(missing=0.1):
+    """The batch call against FilterPy's loop, per epoch, for a table of
+    sizes; the last row with a fraction of the values missing (NaN; FilterPy
+    given the rows of H and R present at each epoch, as the batch selects
+    them)."""
     from filterpy.kalman import KalmanFilter as FpKf
 
     rows = []
-    cv = np.array([[1.0, 1.0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.0], [0, 0, 0, 1.0]])
-    models = {
-        "15/6": problem(15, 6)[:5],
-        "4/2 (constant velocity)": (cv, np.eye(4) * 1e-3, np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]]), np.eye(2), np.eye(4)),
-    }
     epochs = 2000
     rng = np.random.default_rng(1)
-    for name, (phi, q, h, r, p0) in models.items():
+    models = batch_models()
+    cases = [(name, model, 0.0) for name, model in models.items()]
+    cases.append((f"15/6, {missing:.0%} of the values missing", models["15/6"], missing))
+    for name, (phi, q, h, r, p0), gap in cases:
         n, m = phi.shape[0], h.shape[0]
         zs = rng.normal(size=(epochs, m))
+        if gap:
+            zs[rng.random(size=zs.shape) < gap] = np.nan
 
         def fp_loop():
             fp = FpKf(dim_x=n, dim_z=m)
@@ -84,14 +109,19 @@ def batch_rows():
             fp.x = np.zeros((n, 1))
             for z in zs:
                 fp.predict()
-                fp.update(z)
+                if gap:
+                    ok = ~np.isnan(z)
+                    if ok.any():
+                        fp.update(z[ok].reshape(-1, 1), R=r[np.ix_(ok, ok)], H=h[ok])
+                else:
+                    fp.update(z)
 
         def ours():
             aidnav.KalmanFilter(np.zeros(n), p0).batch(zs, phi, q, h, r)
 
         t_fp = median_per_call(fp_loop, 1, repeat=5) / epochs
         t_us = median_per_call(ours, 3, repeat=5) / epochs
-        rows.append((f"batch {name}, per epoch", t_fp, t_us))
+        rows.append((f"batch {name}, per epoch", t_fp, t_us, step_flops(n, m)))
     return rows
 
 
@@ -136,10 +166,21 @@ def dask_row(runs=1000):
 
 def main():
     quick = "--quick" in sys.argv
+    if "--batch" in sys.argv:
+        for label, ref, ours, flops in batch_rows():
+            print(f"{label:48} {ref * 1e6:9.2f} µs {ours * 1e6:9.2f} µs {ref / ours:6.1f}×  {flops / ours / 1e9:5.2f} Gflop/s, 50× needs {flops * 50 / ref / 1e9:5.2f}")
+        return
     print(f"aidnav {aidnav.__version__}, numpy {np.__version__}, python {sys.version.split()[0]}, {os.cpu_count()} cores")
     print(f"{'case':48} {'reference':>12} {'aidnav':>12} {'ratio':>7}")
-    for label, ref, ours in step_rows() + batch_rows():
+    for label, ref, ours in step_rows():
         print(f"{label:48} {ref * 1e6:9.2f} µs {ours * 1e6:9.2f} µs {ref / ours:6.1f}×   (FilterPy / aidnav)")
+    # The floor: 50× FilterPy leaves FilterPy/50 per epoch for the step's
+    # flops; "needs" is the rate that takes (one core).
+    for label, ref, ours, flops in batch_rows():
+        print(
+            f"{label:48} {ref * 1e6:9.2f} µs {ours * 1e6:9.2f} µs {ref / ours:6.1f}×   (FilterPy / aidnav)"
+            f"  {flops / ours / 1e9:5.2f} Gflop/s done, 50× needs {flops * 50 / ref / 1e9:5.2f}"
+        )
     row = process_row()
     if row:
         label, cli, py = row

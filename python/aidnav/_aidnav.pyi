@@ -83,7 +83,12 @@ class KalmanFilter:
         predict_first: bool = True,
         covariances: bool = False,
         smooth: bool = False,
-    ) -> Dict[str, Any]: ...
+    ) -> Dict[str, Any]:
+        """Every row of ``zs`` (epochs × m, NaN: missing) in one call, the
+        GIL released: predict with (F, Q), update with the components
+        present under ``policy``. Each epoch's update runs in fixed-size
+        matrices (≤ 6 components present; 1–6, 9, 12, 15, 18, 21, 24
+        states), allocating nothing without a policy."""
     def copy(self) -> "KalmanFilter": ...
 
 def rts_smooth(
@@ -137,7 +142,12 @@ class Campaign:
     @property
     def runs(self) -> int: ...
     @property
-    def splits(self) -> bool: ...
-    def summary(self) -> Dict[str, Any]: ...
+    def splits(self) -> bool:
+        """Whether the runs can be computed in chunks (every reproduction's can)."""
+    def summary(self) -> Dict[str, Any]:
+        """The whole campaign here (Ctrl-C stops it within a run)."""
     def run_chunk(self, start: int, end: int) -> bytes: ...
     def finish(self, chunks: Sequence[bytes]) -> Dict[str, Any]: ...
+
+def _running_calls() -> int:
+    """Long Rust calls whose work is still running (cancelled ones included)."""

@@ -4,8 +4,8 @@ A reproduction's campaign is split into chunks of runs. Run k always draws
 stream k of the master seed (ChaCha8, ``set_stream(k)``) whoever computes
 it, and the chunks are combined in run order by the same code that
 combines a local campaign, so the summary is bit-identical to the local one
-whatever the number of workers and the chunking. Experiments whose runs do
-not split yet (``Campaign.splits`` is False) run whole, on one worker.
+whatever the number of workers and the chunking. Every reproduction
+splits (the library's ``run_range`` and ``finish`` of each experiment).
 """
 
 from __future__ import annotations
@@ -20,8 +20,6 @@ Spec = Tuple[str, Optional[Union[str, Dict[str, Any]]], Optional[str], Optional[
 
 #: Chunks per worker on a cluster (a few, so a slow worker does not hold up the end).
 CHUNKS_PER_WORKER = 4
-#: Chunks of a local campaign (Ctrl-C is looked for between them).
-LOCAL_CHUNKS = 16
 
 
 def _campaign(spec: Spec) -> "_aidnav.Campaign":
@@ -34,11 +32,6 @@ def _campaign(spec: Spec) -> "_aidnav.Campaign":
 def _run_chunk(spec: Spec, start: int, end: int) -> bytes:
     """A worker's task: runs start..end of the campaign, as bytes."""
     return _campaign(spec).run_chunk(start, end)
-
-
-def _run_whole(spec: Spec) -> Dict[str, Any]:
-    """A worker's task: the whole campaign's summary."""
-    return _campaign(spec).summary()
 
 
 def _run_process(config: Any, score: bool) -> Dict[str, Any]:
@@ -97,7 +90,9 @@ def monte_carlo(
 
     ``client`` is a ``dask.distributed.Client`` (None: here, all cores);
     ``chunks`` the number of chunks the runs are split into (default: four
-    per worker, or 16 here). On a real cluster every worker needs this
+    per worker; here, one call for the whole campaign unless ``chunks`` is
+    given). Ctrl-C stops the work here (the Rust loops look at a
+    cancellation flag between runs) and cancels a cluster's futures. On a real cluster every worker needs this
     package installed (``pip install ./python``) and, for ``process``
     configurations, the data files at the same paths.
     """
@@ -109,12 +104,10 @@ def monte_carlo(
         return _gather(client, futures)
     spec = _spec(target, scenario, runs, seed)
     campaign = _campaign(spec)
-    if not campaign.splits:
-        if client is None:
-            return campaign.summary()
-        return _gather(client, [client.submit(_run_whole, spec, pure=False)])[0]
     if client is None:
-        bounds = chunk_bounds(campaign.runs, chunks or LOCAL_CHUNKS)
+        if chunks is None:
+            return campaign.summary()
+        bounds = chunk_bounds(campaign.runs, chunks)
         parts = [campaign.run_chunk(a, b) for a, b in bounds]
     else:
         bounds = chunk_bounds(campaign.runs, chunks or CHUNKS_PER_WORKER * _workers(client))

@@ -22,9 +22,17 @@ def test_anomalies_campaign_on_two_workers(client):
     assert aidnav.monte_carlo("anomalies", 20, 11, client=client, chunks=7) == local
 
 
-def test_a_whole_experiment_and_a_list_of_configs(client):
-    local = aidnav.reproduce("consistency", runs=4, seed=3, scenario={"epochs": 40})
-    assert aidnav.monte_carlo("consistency", 4, 3, scenario={"epochs": 40}, client=client) == local
+@pytest.mark.parametrize(
+    "name, runs, scenario",
+    [("consistency", 6, {"epochs": 40}), ("group", 5, {"epochs": 40}), ("formation", 3, None)],
+)
+def test_every_reproduction_splits_across_two_workers(client, name, runs, scenario):
+    local = aidnav.reproduce(name, runs=runs, seed=3, scenario=scenario)
+    assert aidnav.monte_carlo(name, runs, 3, scenario=scenario, client=client) == local
+    assert aidnav.monte_carlo(name, runs, 3, scenario=scenario, client=client, chunks=runs) == local
+
+
+def test_a_list_of_configs(client):
     configs = [str(DRIVE), {"platform": "car"}]
     # The second has no data: its error comes back from the worker as the exception.
     with pytest.raises(aidnav.ConfigError, match="missing field `data`"):

@@ -5,11 +5,14 @@
 //! Python package's batch call); [`LinearGaussianModel::run`](crate::LinearGaussianModel::run)
 //! is the same loop with records for observers.
 
-use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, allocator::Allocator};
+use nalgebra::{
+    Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, SMatrix, SVector,
+    allocator::Allocator,
+};
 
 use crate::error::{EstimationError, Matrix, Result, Step};
-use crate::kalman::KalmanFilter;
-use crate::policy::{MeasurementPolicy, Outcome};
+use crate::kalman::{FilterAllocator, KalmanFilter};
+use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
 use crate::smoother::ForwardEpoch;
 
 /// What to keep per epoch besides the state, the innovation, the NIS and
@@ -43,6 +46,13 @@ where
     pub forward: Vec<ForwardEpoch<N>>,
 }
 
+/// Largest number of measurement components an epoch's update runs in
+/// fixed-size code (`Const<c>` matrices for the c components present): the
+/// selected rows of H and R are copied into stack matrices, so an epoch
+/// allocates nothing when the filter is of fixed size. Larger updates take
+/// run-time sized matrices.
+pub const MAX_FIXED_MEASUREMENT: usize = 6;
+
 /// Run `kf` over `epochs` measurement rows of `m` values each (`z`,
 /// row-major, NaN marking a missing component): at every epoch predict
 /// with (Φ, Q) — except the first when `predict_first` is false, the prior
@@ -51,7 +61,10 @@ where
 /// none is a prediction only (`policy.missing()` is told). Errors carry the
 /// epoch.
 /// The filter may be of fixed size (`N = Const<n>`) or run-time sized;
-/// measurements are run-time sized.
+/// up to [`MAX_FIXED_MEASUREMENT`] components present, the update runs in
+/// fixed-size matrices (the policy sees the innovation as run-time sized
+/// copies, a few small allocations per epoch; [`filter_batch_plain`] has
+/// none).
 #[allow(clippy::too_many_arguments)]
 pub fn filter_batch<N: Dim, P: MeasurementPolicy<Dyn> + ?Sized>(
     kf: &mut KalmanFilter<N>,
@@ -65,7 +78,184 @@ pub fn filter_batch<N: Dim, P: MeasurementPolicy<Dyn> + ?Sized>(
     keep: BatchKeep,
 ) -> Result<BatchOutput<N>>
 where
-    DefaultAllocator: crate::kalman::FilterAllocator<N, Dyn>,
+    DefaultAllocator: FixedBatchAllocator<N>,
+{
+    run_batch(
+        kf,
+        phi,
+        q,
+        h,
+        r,
+        z,
+        predict_first,
+        &mut BatchPolicy::Given(policy),
+        keep,
+    )
+}
+
+/// [`filter_batch`] accepting every measurement (the plain Kalman filter):
+/// with a fixed-size filter and at most [`MAX_FIXED_MEASUREMENT`]
+/// components present, an epoch allocates nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn filter_batch_plain<N: Dim>(
+    kf: &mut KalmanFilter<N>,
+    phi: &OMatrix<f64, N, N>,
+    q: &OMatrix<f64, N, N>,
+    h: &OMatrix<f64, Dyn, N>,
+    r: &DMatrix<f64>,
+    z: &[f64],
+    predict_first: bool,
+    keep: BatchKeep,
+) -> Result<BatchOutput<N>>
+where
+    DefaultAllocator: FixedBatchAllocator<N>,
+{
+    run_batch::<N, AcceptAll>(
+        kf,
+        phi,
+        q,
+        h,
+        r,
+        z,
+        predict_first,
+        &mut BatchPolicy::Accept,
+        keep,
+    )
+}
+
+/// The allocations the batch needs for an n-state filter: every
+/// measurement size up to [`MAX_FIXED_MEASUREMENT`] and run-time sized.
+pub trait FixedBatchAllocator<N: Dim>:
+    FilterAllocator<N, Dyn>
+    + FilterAllocator<N, Const<1>>
+    + FilterAllocator<N, Const<2>>
+    + FilterAllocator<N, Const<3>>
+    + FilterAllocator<N, Const<4>>
+    + FilterAllocator<N, Const<5>>
+    + FilterAllocator<N, Const<6>>
+{
+}
+
+impl<N: Dim, A> FixedBatchAllocator<N> for A where
+    A: FilterAllocator<N, Dyn>
+        + FilterAllocator<N, Const<1>>
+        + FilterAllocator<N, Const<2>>
+        + FilterAllocator<N, Const<3>>
+        + FilterAllocator<N, Const<4>>
+        + FilterAllocator<N, Const<5>>
+        + FilterAllocator<N, Const<6>>
+{
+}
+
+/// The batch's policy: none (accept all, no conversion) or a run-time
+/// sized one, shown fixed-size innovations through [`AsDyn`].
+enum BatchPolicy<'a, P: ?Sized> {
+    Accept,
+    Given(&'a mut P),
+}
+
+/// A run-time sized policy deciding on a fixed-size update: the innovation
+/// is copied into run-time sized matrices for it (the same numbers), its
+/// decision copied back.
+struct AsDyn<'a, P: ?Sized>(&'a mut P);
+
+impl<const C: usize, P: MeasurementPolicy<Dyn> + ?Sized> MeasurementPolicy<Const<C>>
+    for AsDyn<'_, P>
+{
+    fn decide(&mut self, view: &InnovationView<'_, Const<C>>) -> Decision<Const<C>> {
+        let residual = DVector::from_column_slice(view.residual.as_slice());
+        let hph = DMatrix::from_column_slice(C, C, view.hph.as_slice());
+        let r = DMatrix::from_column_slice(C, C, view.r.as_slice());
+        let s = DMatrix::from_column_slice(C, C, view.s.as_slice());
+        let decision = self.0.decide(&InnovationView {
+            residual: &residual,
+            hph: &hph,
+            r: &r,
+            s: &s,
+            nis: view.nis,
+        });
+        // A decision of another size than the innovation's is refused by
+        // the update's shape check, as the run-time sized path refuses it:
+        // here it is passed on as a non-finite replacement, refused too.
+        let vector = |v: DVector<f64>| {
+            if v.len() == C {
+                SVector::<f64, C>::from_column_slice(v.as_slice())
+            } else {
+                SVector::<f64, C>::repeat(f64::NAN)
+            }
+        };
+        let square = |m: DMatrix<f64>| {
+            if m.shape() == (C, C) {
+                SMatrix::<f64, C, C>::from_column_slice(m.as_slice())
+            } else {
+                SMatrix::<f64, C, C>::repeat(f64::NAN)
+            }
+        };
+        match decision {
+            Decision::Accept => Decision::Accept,
+            Decision::Reject => Decision::Reject,
+            Decision::ReplaceResidual(v) => Decision::ReplaceResidual(vector(v)),
+            Decision::InflateR(f) => Decision::InflateR(f),
+            Decision::GainCovariance(c) => Decision::GainCovariance(square(c)),
+            Decision::LimitWithGainCovariance {
+                residual,
+                covariance,
+            } => Decision::LimitWithGainCovariance {
+                residual: vector(residual),
+                covariance: square(covariance),
+            },
+        }
+    }
+
+    fn missing(&mut self) {
+        self.0.missing();
+    }
+}
+
+/// The update of one epoch with its `c = present.len()` components in
+/// fixed-size matrices (`C = c`): z, the rows of H and the rows/columns
+/// of R selected by copying into stack matrices.
+fn update_fixed<N: Dim, const C: usize, P: MeasurementPolicy<Dyn> + ?Sized>(
+    kf: &mut KalmanFilter<N>,
+    row: &[f64],
+    present: &[usize],
+    h: &OMatrix<f64, Dyn, N>,
+    r: &DMatrix<f64>,
+    policy: &mut BatchPolicy<'_, P>,
+) -> Result<(OVector<f64, Const<C>>, f64, Outcome)>
+where
+    DefaultAllocator: FilterAllocator<N, Const<C>>,
+{
+    let (_, nd) = h.shape_generic();
+    let zc =
+        OVector::<f64, Const<C>>::from_fn_generic(Const::<C>, nalgebra::U1, |i, _| row[present[i]]);
+    let hc =
+        OMatrix::<f64, Const<C>, N>::from_fn_generic(Const::<C>, nd, |i, j| h[(present[i], j)]);
+    let rc = OMatrix::<f64, Const<C>, Const<C>>::from_fn_generic(Const::<C>, Const::<C>, |i, j| {
+        r[(present[i], present[j])]
+    });
+    let rec = match policy {
+        BatchPolicy::Accept => kf.update_with(&zc, &hc, &rc, &mut AcceptAll),
+        BatchPolicy::Given(p) => kf.update_with(&zc, &hc, &rc, &mut AsDyn(&mut **p)),
+    }?;
+    Ok((rec.residual, rec.nis, rec.outcome))
+}
+
+/// The batch loop behind [`filter_batch`] and [`filter_batch_plain`].
+#[allow(clippy::too_many_arguments)]
+fn run_batch<N: Dim, P: MeasurementPolicy<Dyn> + ?Sized>(
+    kf: &mut KalmanFilter<N>,
+    phi: &OMatrix<f64, N, N>,
+    q: &OMatrix<f64, N, N>,
+    h: &OMatrix<f64, Dyn, N>,
+    r: &DMatrix<f64>,
+    z: &[f64],
+    predict_first: bool,
+    policy: &mut BatchPolicy<'_, P>,
+    keep: BatchKeep,
+) -> Result<BatchOutput<N>>
+where
+    DefaultAllocator: FixedBatchAllocator<N>,
 {
     let n = kf.dim();
     let m = h.nrows();
@@ -79,6 +269,16 @@ where
             expected_cols: 1,
         });
     }
+    if r.shape() != (m, m) {
+        return Err(EstimationError::DimensionMismatch {
+            step: Step::Update,
+            matrix: Matrix::R,
+            rows: r.nrows(),
+            cols: r.ncols(),
+            expected_rows: m,
+            expected_cols: m,
+        });
+    }
     let epochs = z.len() / m;
     let mut out = BatchOutput {
         states: Vec::with_capacity(epochs * n),
@@ -88,6 +288,8 @@ where
         outcomes: Vec::with_capacity(epochs),
         forward: Vec::new(),
     };
+    // The indices of the components present, reused by every epoch.
+    let mut present: Vec<usize> = Vec::with_capacity(m);
     for (k, row) in z.chunks_exact(m).enumerate() {
         if k > 0 || predict_first {
             kf.predict(phi, q).map_err(|e| e.at_epoch(k))?;
@@ -95,28 +297,53 @@ where
         let predicted = keep
             .forward
             .then(|| (kf.state().clone(), kf.covariance().clone()));
-        let present: Vec<usize> = (0..m).filter(|&i| !row[i].is_nan()).collect();
+        present.clear();
+        present.extend((0..m).filter(|&i| !row[i].is_nan()));
         let first = out.residuals.len();
         out.residuals.resize(first + m, f64::NAN);
         if present.is_empty() {
-            policy.missing();
+            if let BatchPolicy::Given(p) = policy {
+                p.missing();
+            }
             out.nis.push(f64::NAN);
             out.outcomes.push(Outcome::Missing);
         } else {
-            let rec = if present.len() == m {
-                kf.update_with(&DVector::from_column_slice(row), h, r, policy)
-            } else {
-                let zv = DVector::from_iterator(present.len(), present.iter().map(|&i| row[i]));
-                let hs = h.select_rows(present.iter());
-                let rs = r.select_rows(present.iter()).select_columns(present.iter());
-                kf.update_with(&zv, &hs, &rs, policy)
+            let residuals = &mut out.residuals[first..];
+            macro_rules! fixed {
+                ($c:literal) => {{
+                    let (residual, nis, outcome) =
+                        update_fixed::<N, $c, P>(kf, row, &present, h, r, policy)
+                            .map_err(|e| e.at_epoch(k))?;
+                    for (j, &i) in present.iter().enumerate() {
+                        residuals[i] = residual[j];
+                    }
+                    (nis, outcome)
+                }};
             }
-            .map_err(|e| e.at_epoch(k))?;
-            for (j, &i) in present.iter().enumerate() {
-                out.residuals[first + i] = rec.residual[j];
-            }
-            out.nis.push(rec.nis);
-            out.outcomes.push(rec.outcome);
+            let (nis, outcome) = match present.len() {
+                1 => fixed!(1),
+                2 => fixed!(2),
+                3 => fixed!(3),
+                4 => fixed!(4),
+                5 => fixed!(5),
+                6 => fixed!(6),
+                c => {
+                    let zv = DVector::from_iterator(c, present.iter().map(|&i| row[i]));
+                    let hs = h.select_rows(present.iter());
+                    let rs = r.select_rows(present.iter()).select_columns(present.iter());
+                    let rec = match policy {
+                        BatchPolicy::Accept => kf.update_with(&zv, &hs, &rs, &mut AcceptAll),
+                        BatchPolicy::Given(p) => kf.update_with(&zv, &hs, &rs, &mut **p),
+                    }
+                    .map_err(|e| e.at_epoch(k))?;
+                    for (j, &i) in present.iter().enumerate() {
+                        residuals[i] = rec.residual[j];
+                    }
+                    (rec.nis, rec.outcome)
+                }
+            };
+            out.nis.push(nis);
+            out.outcomes.push(outcome);
         }
         out.states.extend(kf.state().iter());
         if keep.covariance {
@@ -225,6 +452,130 @@ mod tests {
                 BatchKeep::default()
             )
             .is_err()
+        );
+    }
+
+    /// The step-by-step reference: a run-time sized filter updated with
+    /// the rows present selected into run-time sized matrices.
+    fn step_by_step(
+        x0: &DVector<f64>,
+        p0: &DMatrix<f64>,
+        (phi, q, h, r): (&DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>),
+        z: &[f64],
+        policy: &mut dyn MeasurementPolicy<Dyn>,
+    ) -> (Vec<f64>, Vec<f64>, Vec<Outcome>) {
+        let m = h.nrows();
+        let mut kf = KalmanFilter::<Dyn>::new(x0.clone(), p0.clone()).unwrap();
+        let (mut states, mut nis, mut outcomes) = (Vec::new(), Vec::new(), Vec::new());
+        for row in z.chunks(m) {
+            kf.predict(phi, q).unwrap();
+            let present: Vec<usize> = (0..m).filter(|&i| !row[i].is_nan()).collect();
+            if present.is_empty() {
+                policy.missing();
+                nis.push(f64::NAN);
+                outcomes.push(Outcome::Missing);
+            } else {
+                let zv = DVector::from_iterator(present.len(), present.iter().map(|&i| row[i]));
+                let rs = r.select_rows(present.iter()).select_columns(present.iter());
+                let rec = kf
+                    .update_with(&zv, &h.select_rows(present.iter()), &rs, policy)
+                    .unwrap();
+                nis.push(rec.nis);
+                outcomes.push(rec.outcome);
+            }
+            states.extend(kf.state().iter());
+        }
+        (states, nis, outcomes)
+    }
+
+    /// A fixed-size filter's batch — fixed-size updates of the components
+    /// present, up to six, run-time sized beyond — equals the step-by-step
+    /// run-time sized filter bit for bit, with and without a policy, over
+    /// epochs with every component (7: the run-time sized path), six, two
+    /// and none.
+    #[test]
+    fn fixed_size_batch_equals_the_run_time_sized_steps() {
+        use nalgebra::{Const, SMatrix, SVector};
+        let phi = DMatrix::from_fn(4, 4, |i, j| {
+            if i == j {
+                1.0
+            } else if j == i + 1 {
+                0.1
+            } else {
+                0.0
+            }
+        });
+        let q = DMatrix::from_diagonal(&DVector::from_vec(vec![1e-3, 2e-3, 1e-3, 3e-3]));
+        let h = DMatrix::from_fn(7, 4, |i, j| if i % 4 == j { 1.0 } else { 0.05 * i as f64 });
+        let r = DMatrix::from_fn(
+            7,
+            7,
+            |i, j| if i == j { 0.5 + 0.1 * i as f64 } else { 0.01 },
+        );
+        let p0 = DMatrix::from_fn(4, 4, |i, j| if i == j { 2.0 } else { 0.1 });
+        let x0 = DVector::from_vec(vec![0.1, -0.2, 0.3, 0.0]);
+        let nan = f64::NAN;
+        let mut z = Vec::new();
+        for k in 0..12 {
+            let v = |i: usize| ((k * 7 + i * 3) % 5) as f64 * 0.3 - 0.6;
+            let row: Vec<f64> = match k % 4 {
+                0 => (0..7).map(v).collect(),
+                1 => (0..7).map(|i| if i == 3 { nan } else { v(i) }).collect(),
+                2 => (0..7)
+                    .map(|i| if i == 1 || i == 5 { v(i) } else { nan })
+                    .collect(),
+                _ => vec![nan; 7],
+            };
+            z.extend(row);
+        }
+        // An outlier the gate rejects.
+        z[7 * 4] = 80.0;
+        let fixed = KalmanFilter::<Const<4>>::new(
+            SVector::<f64, 4>::from_column_slice(x0.as_slice()),
+            SMatrix::<f64, 4, 4>::from_column_slice(p0.as_slice()),
+        )
+        .unwrap();
+        let (phi_s, q_s) = (
+            SMatrix::<f64, 4, 4>::from_column_slice(phi.as_slice()),
+            SMatrix::<f64, 4, 4>::from_column_slice(q.as_slice()),
+        );
+        let h_d = OMatrix::<f64, Dyn, Const<4>>::from_column_slice(h.as_slice());
+        let model = (&phi, &q, &h, &r);
+        let keep = BatchKeep::default();
+        let plain =
+            filter_batch_plain(&mut fixed.clone(), &phi_s, &q_s, &h_d, &r, &z, true, keep).unwrap();
+        let (states, nis, outcomes) = step_by_step(&x0, &p0, model, &z, &mut AcceptAll);
+        assert_eq!(plain.states, states);
+        assert_eq!(plain.outcomes, outcomes);
+        assert!(
+            plain
+                .nis
+                .iter()
+                .zip(&nis)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+        let gate = || Chi2Gate { probability: 0.99 };
+        let gated = filter_batch(
+            &mut fixed.clone(),
+            &phi_s,
+            &q_s,
+            &h_d,
+            &r,
+            &z,
+            true,
+            &mut gate(),
+            keep,
+        )
+        .unwrap();
+        let (states, _, outcomes) = step_by_step(&x0, &p0, model, &z, &mut gate());
+        assert_eq!(gated.states, states);
+        assert_eq!(gated.outcomes, outcomes);
+        assert!(outcomes.contains(&Outcome::Rejected));
+        // R of the wrong size is refused.
+        let r6 = DMatrix::identity(6, 6);
+        assert!(
+            filter_batch_plain(&mut fixed.clone(), &phi_s, &q_s, &h_d, &r6, &z, true, keep)
+                .is_err()
         );
     }
 }

@@ -51,6 +51,7 @@ pub mod adaptive;
 pub mod allan;
 pub mod batch;
 pub mod blocked;
+pub mod cancel;
 mod check;
 pub mod consistency;
 mod dense;
@@ -69,7 +70,11 @@ pub mod scheme;
 pub mod smoother;
 pub mod subspace;
 
-pub use batch::{BatchKeep, BatchOutput, filter_batch};
+pub use batch::{
+    BatchKeep, BatchOutput, FixedBatchAllocator, MAX_FIXED_MEASUREMENT, filter_batch,
+    filter_batch_plain,
+};
+pub use cancel::{Cancel, Cancelled};
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
 pub use error::{EstimationError, Matrix, Result, Step};
 pub use information::{FisherInformation, InformationFilter};

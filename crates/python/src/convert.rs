@@ -1,6 +1,7 @@
 //! numpy ↔ nalgebra, Python values ↔ JSON/TOML, and running a long call
 //! off the GIL so Ctrl-C still reaches Python.
 
+use aidnav::sim::Cancel;
 use nalgebra::{DMatrix, DVector};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyTypeError, PyValueError};
@@ -112,20 +113,58 @@ pub fn py_of_json<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound
 /// How often a waiting call looks for Ctrl-C.
 const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
 
-/// Run `work` on a thread of its own with the GIL released, looking for
-/// signals every 50 ms: Ctrl-C raises `KeyboardInterrupt` at once (the
-/// work is then abandoned: it finishes in the background and its result is
-/// dropped). A panic in the work becomes a `RuntimeError`.
+/// How long a call interrupted by Ctrl-C waits for its cancelled work to
+/// stop before raising anyway (work that does not look at the token, a
+/// file being read, goes on in the background).
+const CANCEL_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Work threads of [`interruptible`] still running (`_running_calls()`).
+static RUNNING: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Number of long Rust calls whose work is still running, cancelled ones
+/// included (0 once an interrupted call's work has stopped).
+#[pyfunction]
+#[pyo3(name = "_running_calls")]
+pub fn running_calls() -> usize {
+    RUNNING.load(std::sync::atomic::Ordering::SeqCst)
+}
+
+/// Counts a work thread while it lives.
+struct Running;
+
+impl Running {
+    fn start() -> Self {
+        RUNNING.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        Running
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        RUNNING.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+/// Run `work(cancel)` on a thread of its own with the GIL released,
+/// looking for signals every 50 ms. On Ctrl-C (any exception a signal
+/// handler raises) the token `cancel` is set — the library's Monte Carlo
+/// loops and filter passes look at it between runs and IMU samples and
+/// stop — the call waits for the work to stop (at most 2 s) and raises.
+/// A panic in the work becomes a `RuntimeError`.
 pub fn interruptible<T, F>(py: Python<'_>, work: F) -> PyResult<T>
 where
     T: Send + 'static,
-    F: FnOnce() -> T + Send + 'static,
+    F: FnOnce(Cancel) -> T + Send + 'static,
 {
+    let cancel = Cancel::new();
+    let token = cancel.clone();
     let (tx, rx) = std::sync::mpsc::channel();
+    let running = Running::start();
     std::thread::Builder::new()
         .name("aidnav".into())
         .spawn(move || {
-            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+            let _running = running;
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(token)));
             let _ = tx.send(r);
         })
         .map_err(|e| PyRuntimeError::new_err(format!("cannot start a thread: {e}")))?;
@@ -146,7 +185,13 @@ where
                 )));
             }
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                py.check_signals()?;
+                if let Err(interrupt) = py.check_signals() {
+                    cancel.cancel();
+                    // The work stops within a run or an IMU sample; its
+                    // result (an error saying it was cancelled) is dropped.
+                    let _ = py.detach(move || rx.recv_timeout(CANCEL_WAIT));
+                    return Err(interrupt);
+                }
             }
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
                 return Err(PyKeyboardInterrupt::new_err(

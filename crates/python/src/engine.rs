@@ -4,8 +4,8 @@
 use aidnav::estimation::kalman::FilterAllocator;
 use aidnav::estimation::scheme::{Scheme as RustScheme, SchemeParameters, SchemePolicy};
 use aidnav::estimation::{
-    AcceptAll, BatchKeep, CovarianceUpdate, DynKalmanFilter, EstimationError, ForwardEpoch,
-    KalmanFilter as RustKalmanFilter, Matrix, Step, UpdateRecord, filter_batch,
+    BatchKeep, CovarianceUpdate, DynKalmanFilter, EstimationError, ForwardEpoch,
+    KalmanFilter as RustKalmanFilter, Matrix, Step, UpdateRecord, filter_batch, filter_batch_plain,
     rts_smooth as rust_rts_smooth,
 };
 use nalgebra::{
@@ -371,17 +371,7 @@ where
         let q = square_of::<N>(self, q, Step::Predict, Matrix::Q)?;
         let h = rows_of::<N>(self, h, r.nrows())?;
         let out = match policy {
-            None => filter_batch(
-                self,
-                &phi,
-                &q,
-                &h,
-                r,
-                z,
-                predict_first,
-                &mut AcceptAll,
-                keep,
-            ),
+            None => filter_batch_plain(self, &phi, &q, &h, r, z, predict_first, keep),
             Some(p) => filter_batch(self, &phi, &q, &h, r, z, predict_first, p, keep),
         }?;
         let smoothed = if keep.forward {
@@ -674,6 +664,9 @@ impl KalmanFilter {
     /// arrays: `x` (epochs × n), `residual` (epochs × m), `nis`, `outcome`
     /// (strings); with `covariances=True` also `P` (epochs × n × n); with
     /// `smooth=True` also the RTS-smoothed `x_smooth` and `P_smooth`.
+    /// Each epoch's update runs in fixed-size matrices (the components
+    /// present, up to six, copied into stack matrices: no allocation per
+    /// epoch without a policy), with the GIL released.
     #[pyo3(signature = (zs, F, Q, H, R, policy=None, predict_first=true, covariances=false, smooth=false))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn batch<'py>(

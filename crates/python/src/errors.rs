@@ -72,6 +72,7 @@ pub fn job(e: JobError) -> PyErr {
     match e {
         JobError::Io(e) => io(e),
         JobError::Estimation { .. } => FilterError::new_err(e.to_string()),
+        JobError::Cancelled => pyo3::exceptions::PyKeyboardInterrupt::new_err("aidnav: cancelled"),
         other => AidnavError::new_err(other.to_string()),
     }
 }

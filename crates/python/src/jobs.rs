@@ -169,7 +169,7 @@ fn process_log(
         .map(|d| gnss_from_columns(d, "gnss (in memory)"))
         .transpose()?;
     let base = src.base.clone();
-    let run = interruptible(py, move || -> Result<ProcessRun, PyErrState> {
+    let run = interruptible(py, move |cancel| -> Result<ProcessRun, PyErrState> {
         let t = std::time::Instant::now();
         let process = if imu.is_none() && gnss.is_none() {
             Process::load(cfg, &base).map_err(PyErrState::process)?
@@ -211,7 +211,7 @@ fn process_log(
             Process::from_unsmoothed(cfg, inputs).map_err(PyErrState::process)?
         };
         let read_s = t.elapsed().as_secs_f64();
-        ProcessRun::run(process, score, read_s).map_err(PyErrState::job)
+        ProcessRun::run(process.with_cancel(cancel), score, read_s).map_err(PyErrState::job)
     })?
     .map_err(PyErrState::into_err)?;
     Ok(ProcessResult {
@@ -310,7 +310,8 @@ impl Campaign {
         self.campaign.runs()
     }
 
-    /// Whether the runs can be computed in chunks.
+    /// Whether the runs can be computed in chunks (every reproduction's
+    /// can).
     #[getter]
     fn splits(&self) -> bool {
         self.campaign.experiment().splits()
@@ -319,7 +320,8 @@ impl Campaign {
     /// Run the whole campaign here; `summary.json` as a Python value.
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let c = self.campaign.clone();
-        let s = interruptible(py, move || c.summary())?.map_err(errors::job)?;
+        let s = interruptible(py, move |cancel| c.with_cancel(cancel).summary())?
+            .map_err(errors::job)?;
         let v = serde_json::to_value(&s).map_err(|e| PyValueError::new_err(e.to_string()))?;
         py_of_json(py, &v)
     }
@@ -332,7 +334,10 @@ impl Campaign {
         end: usize,
     ) -> PyResult<Bound<'py, PyBytes>> {
         let c = self.campaign.clone();
-        let bytes = interruptible(py, move || c.run_chunk(start..end))?.map_err(errors::job)?;
+        let bytes = interruptible(py, move |cancel| {
+            c.with_cancel(cancel).run_chunk(start..end)
+        })?
+        .map_err(errors::job)?;
         Ok(PyBytes::new(py, &bytes))
     }
 

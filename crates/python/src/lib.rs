@@ -24,5 +24,6 @@ fn _aidnav(m: &Bound<'_, PyModule>) -> PyResult<()> {
     engine::register(m)?;
     readers::register(m)?;
     jobs::register(m)?;
+    m.add_function(wrap_pyfunction!(convert::running_calls, m)?)?;
     Ok(())
 }

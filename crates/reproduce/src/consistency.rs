@@ -187,19 +187,28 @@ pub struct ConsistencyResult {
 
 const VARIANTS: usize = 3;
 
-/// Per-run sums: for each variant, per-epoch NEES and NIS, and squared errors.
-struct RunSums {
+/// One run's record, what [`finish`] folds: for each variant, per-epoch
+/// NEES and NIS, and squared errors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunSums {
     nees: [Vec<f64>; VARIANTS],
     nis: [Vec<f64>; VARIANTS],
     sq_err: [f64; VARIANTS],
     sq_sigma: [f64; VARIANTS],
 }
 
-/// Run the demo. Errors only if the engine reports one (it should not).
-pub fn run(
-    s: &ConsistencyScenario,
-    mc: &MonteCarlo,
-) -> Result<ConsistencyResult, aidnav_estimation::EstimationError> {
+/// The demo's model, shared by every run.
+struct Model {
+    phi: Matrix2<f64>,
+    q: Matrix2<f64>,
+    q_factor: Matrix2<f64>,
+    h: nalgebra::Matrix1x2<f64>,
+    r: nalgebra::Matrix1<f64>,
+    p0: Matrix2<f64>,
+    scales: [(f64, f64); VARIANTS],
+}
+
+fn model(s: &ConsistencyScenario) -> Result<Model, aidnav_estimation::EstimationError> {
     let cv = ConstantVelocity::new(s.dt_s, s.accel_psd).ok_or(
         aidnav_estimation::EstimationError::NonFinite {
             step: aidnav_estimation::Step::Initialise,
@@ -221,60 +230,140 @@ pub fn run(
         (s.mistuned_q_scale, 1.0),
         (1.0, s.mistuned_r_scale),
     ];
-    let names = ["tuned", "q_too_small", "r_too_large"];
+    Ok(Model {
+        phi,
+        q,
+        q_factor,
+        h,
+        r,
+        p0,
+        scales,
+    })
+}
+
+/// One run: the truth, its measurements and the three filters.
+fn one_run(
+    s: &ConsistencyScenario,
+    m: &Model,
+    rng: &mut aidnav_sim::rng::RunRng,
+) -> Result<RunSums, aidnav_estimation::EstimationError> {
+    let Model {
+        phi,
+        q,
+        q_factor,
+        h,
+        r,
+        p0,
+        scales,
+    } = m;
+    let (phi, q, q_factor, h, r, p0) = (*phi, *q, *q_factor, *h, *r, *p0);
     let epochs = s.epochs;
+    let mut out = RunSums {
+        nees: std::array::from_fn(|_| Vec::with_capacity(epochs)),
+        nis: std::array::from_fn(|_| Vec::with_capacity(epochs)),
+        sq_err: [0.0; VARIANTS],
+        sq_sigma: [0.0; VARIANTS],
+    };
+    let mut truth = Vector2::new(
+        s.initial_position_sigma_m * standard_normal(rng),
+        s.initial_velocity_sigma_mps * standard_normal(rng),
+    );
+    let first = KalmanFilter::new(Vector2::zeros(), p0)?;
+    let mut filters: [_; VARIANTS] = std::array::from_fn(|_| first.clone());
+    for k in 0..epochs {
+        if k > 0 {
+            truth =
+                phi * truth + q_factor * Vector2::new(standard_normal(rng), standard_normal(rng));
+        }
+        let z = Vector1::new(truth[0] + s.position_sigma_m * standard_normal(rng));
+        for (v, kf) in filters.iter_mut().enumerate() {
+            let (qs, rs) = scales[v];
+            if k > 0 {
+                kf.predict(&phi, &(q * qs)).map_err(|e| e.at_epoch(k))?;
+            }
+            let rec = kf.update(&z, &h, &(r * rs)).map_err(|e| e.at_epoch(k))?;
+            out.nis[v].push(rec.nis);
+            out.nees[v].push(nees(&truth, kf.state(), kf.covariance()).map_err(|e| e.at_epoch(k))?);
+            out.sq_err[v] += (kf.state()[0] - truth[0]).powi(2);
+            out.sq_sigma[v] += kf.covariance()[(0, 0)];
+        }
+    }
+    Ok(out)
+}
+
+/// Run the demo (runs folded as they are computed: memory of a few runs,
+/// not of all). Errors only if the engine reports one (it should not).
+pub fn run(
+    s: &ConsistencyScenario,
+    mc: &MonteCarlo,
+) -> Result<ConsistencyResult, aidnav_estimation::EstimationError> {
+    let m = model(s)?;
     let runs = mc.runs as f64;
     let sums = mc.try_fold_chunked(
         s.runs_in_flight(),
-        CampaignSums::new(epochs),
-        |_, rng| -> Result<RunSums, aidnav_estimation::EstimationError> {
-            let mut out = RunSums {
-                nees: std::array::from_fn(|_| Vec::with_capacity(epochs)),
-                nis: std::array::from_fn(|_| Vec::with_capacity(epochs)),
-                sq_err: [0.0; VARIANTS],
-                sq_sigma: [0.0; VARIANTS],
-            };
-            let mut truth = Vector2::new(
-                s.initial_position_sigma_m * standard_normal(rng),
-                s.initial_velocity_sigma_mps * standard_normal(rng),
-            );
-            let first = KalmanFilter::new(Vector2::zeros(), p0)?;
-            let mut filters: [_; VARIANTS] = std::array::from_fn(|_| first.clone());
-            for k in 0..epochs {
-                if k > 0 {
-                    truth = phi * truth
-                        + q_factor * Vector2::new(standard_normal(rng), standard_normal(rng));
-                }
-                let z = Vector1::new(truth[0] + s.position_sigma_m * standard_normal(rng));
-                for (v, kf) in filters.iter_mut().enumerate() {
-                    let (qs, rs) = scales[v];
-                    if k > 0 {
-                        kf.predict(&phi, &(q * qs)).map_err(|e| e.at_epoch(k))?;
-                    }
-                    let rec = kf.update(&z, &h, &(r * rs)).map_err(|e| e.at_epoch(k))?;
-                    out.nis[v].push(rec.nis);
-                    out.nees[v].push(
-                        nees(&truth, kf.state(), kf.covariance()).map_err(|e| e.at_epoch(k))?,
-                    );
-                    out.sq_err[v] += (kf.state()[0] - truth[0]).powi(2);
-                    out.sq_sigma[v] += kf.covariance()[(0, 0)];
-                }
-            }
-            Ok(out)
-        },
+        CampaignSums::new(s.epochs),
+        |_, rng| one_run(s, &m, rng),
         |acc, _, run| acc.add(&run, runs),
     )?;
-    let nees_epoch_bounds = mean_chi2_bounds(2, mc.runs, s.confidence);
+    Ok(result_of(s, &m, sums, mc.runs))
+}
+
+/// Runs `range` of the campaign (run k draws stream k of the seed whatever
+/// the range): a chunk for [`finish`] to combine with the others, computed
+/// anywhere.
+pub fn run_range(
+    s: &ConsistencyScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<Vec<RunSums>, aidnav_estimation::EstimationError> {
+    let m = model(s)?;
+    mc.try_run_range(range, |_, rng| one_run(s, &m, rng))
+}
+
+/// The result from every run, in run order (the chunks of [`run_range`]
+/// concatenated): the same numbers, bit for bit, as [`run`] (the same
+/// fold, in the same order).
+pub fn finish(
+    s: &ConsistencyScenario,
+    per_run: Vec<RunSums>,
+) -> Result<ConsistencyResult, aidnav_estimation::EstimationError> {
+    let m = model(s)?;
+    let runs = per_run.len() as f64;
+    let mut sums = CampaignSums::new(s.epochs);
+    for run in &per_run {
+        sums.add(run, runs);
+    }
+    Ok(result_of(s, &m, sums, per_run.len()))
+}
+
+/// The result from the folded sums of `runs` runs.
+fn result_of(
+    s: &ConsistencyScenario,
+    m: &Model,
+    sums: CampaignSums,
+    runs: usize,
+) -> ConsistencyResult {
+    let names = ["tuned", "q_too_small", "r_too_large"];
+    let nees_epoch_bounds = mean_chi2_bounds(2, runs, s.confidence);
     let variants = sums
         .variants
         .into_iter()
         .enumerate()
-        .map(|(v, sums)| variant_result(s, sums, runs, names[v], scales[v], nees_epoch_bounds))
+        .map(|(v, sums)| {
+            variant_result(
+                s,
+                sums,
+                runs as f64,
+                names[v],
+                m.scales[v],
+                nees_epoch_bounds,
+            )
+        })
         .collect();
-    Ok(ConsistencyResult {
+    ConsistencyResult {
         nees_epoch_bounds,
         variants,
-    })
+    }
 }
 
 /// One variant's sums over the runs folded so far: the run-averaged NEES

@@ -180,7 +180,8 @@ impl GroupResult {
 }
 
 /// Per run: per epoch, sums over members of squared position and velocity errors.
-struct RunOut {
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunOut {
     position_sq: Vec<f64>,
     velocity_sq: Vec<f64>,
 }
@@ -197,12 +198,20 @@ fn mean_member_sigma(p: &DMatrix<f64>, members: usize, offset: usize) -> f64 {
         / members as f64
 }
 
-fn run_case(
-    name: &str,
-    g: &AxisGroup,
-    sc: &GroupScenario,
-    mc: &MonteCarlo,
-) -> Result<CaseScore, EstimationError> {
+/// A case's model: what its runs and its σ pass share.
+struct CaseModel {
+    n: usize,
+    phi: DMatrix<f64>,
+    q: DMatrix<f64>,
+    h: DMatrix<f64>,
+    r: DMatrix<f64>,
+    r_sigma: DVector<f64>,
+    p0: DMatrix<f64>,
+    p0_sigma: DVector<f64>,
+    velocity_step: f64,
+}
+
+fn case_model(g: &AxisGroup, sc: &GroupScenario) -> CaseModel {
     let n = g.states();
     let phi = g.transition();
     let q = g.process_noise();
@@ -217,25 +226,39 @@ fn run_case(
     }));
     let p0_sigma = p0.diagonal().map(f64::sqrt);
     let velocity_step = g.accel_sigma_m_s2 * g.dt_s;
-    // The filter's σ does not depend on the data: one pass gives it.
-    let mut sigma_filter = KalmanFilter::<Dyn>::new(DVector::zeros(n), p0.clone())?;
-    let mut sigma_by_epoch = Vec::with_capacity(sc.epochs);
-    let mut velocity_sigma_by_epoch = Vec::with_capacity(sc.epochs);
-    for e in 0..sc.epochs {
-        if e > 0 {
-            sigma_filter
-                .predict(&phi, &q)
-                .map_err(|err| err.at_epoch(e))?;
-        }
-        let z = &h * sigma_filter.state();
-        sigma_filter
-            .update(&z, &h, &r)
-            .map_err(|err| err.at_epoch(e))?;
-        let p = sigma_filter.covariance();
-        sigma_by_epoch.push(mean_member_sigma(p, g.members, POSITION));
-        velocity_sigma_by_epoch.push(mean_member_sigma(p, g.members, VELOCITY));
+    CaseModel {
+        n,
+        phi,
+        q,
+        h,
+        r,
+        r_sigma,
+        p0,
+        p0_sigma,
+        velocity_step,
     }
-    let per_run = mc.try_run(|_, rng| -> Result<RunOut, EstimationError> {
+}
+
+/// Runs `range` of one case.
+fn case_runs(
+    g: &AxisGroup,
+    sc: &GroupScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<Vec<RunOut>, EstimationError> {
+    let CaseModel {
+        n,
+        phi,
+        q,
+        h,
+        r,
+        r_sigma,
+        p0,
+        p0_sigma,
+        velocity_step,
+    } = case_model(g, sc);
+    let _ = &r;
+    mc.try_run_range(range, |_, rng| -> Result<RunOut, EstimationError> {
         let mut x = DVector::from_fn(n, |i, _| p0_sigma[i] * standard_normal(rng));
         let mut kf = KalmanFilter::<Dyn>::new(DVector::zeros(n), p0.clone())?;
         let mut out = RunOut {
@@ -260,7 +283,43 @@ fn run_case(
                 .push((0..g.members).map(|l| err[2 * l + 1].powi(2)).sum());
         }
         Ok(out)
-    })?;
+    })
+}
+
+/// A case's score from its runs (in run order).
+fn case_score(
+    name: &str,
+    g: &AxisGroup,
+    sc: &GroupScenario,
+    per_run: &[RunOut],
+) -> Result<CaseScore, EstimationError> {
+    let CaseModel {
+        n,
+        phi,
+        q,
+        h,
+        r,
+        p0,
+        ..
+    } = case_model(g, sc);
+    // The filter's σ does not depend on the data: one pass gives it.
+    let mut sigma_filter = KalmanFilter::<Dyn>::new(DVector::zeros(n), p0.clone())?;
+    let mut sigma_by_epoch = Vec::with_capacity(sc.epochs);
+    let mut velocity_sigma_by_epoch = Vec::with_capacity(sc.epochs);
+    for e in 0..sc.epochs {
+        if e > 0 {
+            sigma_filter
+                .predict(&phi, &q)
+                .map_err(|err| err.at_epoch(e))?;
+        }
+        let z = &h * sigma_filter.state();
+        sigma_filter
+            .update(&z, &h, &r)
+            .map_err(|err| err.at_epoch(e))?;
+        let p = sigma_filter.covariance();
+        sigma_by_epoch.push(mean_member_sigma(p, g.members, POSITION));
+        velocity_sigma_by_epoch.push(mean_member_sigma(p, g.members, VELOCITY));
+    }
     let settled: Vec<usize> = (0..sc.epochs)
         .filter(|&e| e as f64 * g.dt_s >= sc.settle_s)
         .collect();
@@ -297,12 +356,58 @@ fn run_case(
     })
 }
 
-/// Run the three cases (each on its own streams of the same seed).
+/// Run the three cases (each on the streams of the same seed):
+/// [`finish`] of every run ([`run_range`] over `0..mc.runs`).
 pub fn run(sc: &GroupScenario, mc: &MonteCarlo) -> Result<GroupResult, EstimationError> {
+    finish(sc, run_range(sc, mc, 0..mc.runs)?)
+}
+
+/// Runs `range` of every case, in [`CASES`] order: a chunk for [`finish`]
+/// to combine with the others (run k draws stream k of the seed whatever
+/// the range), computed anywhere.
+pub fn run_range(
+    sc: &GroupScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<GroupRuns, EstimationError> {
+    let cases = sc
+        .cases()
+        .iter()
+        .map(|g| case_runs(g, sc, mc, range.clone()))
+        .collect::<Result<_, _>>()?;
+    Ok(GroupRuns { cases })
+}
+
+/// The runs of a range of the campaign, per case.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct GroupRuns {
+    cases: Vec<Vec<RunOut>>,
+}
+
+impl crate::Chunk for GroupRuns {
+    fn runs(&self) -> usize {
+        self.cases.first().map_or(0, Vec::len)
+    }
+
+    fn append(&mut self, other: Self) {
+        if self.cases.is_empty() {
+            *self = other;
+            return;
+        }
+        for (mine, theirs) in self.cases.iter_mut().zip(other.cases) {
+            mine.extend(theirs);
+        }
+    }
+}
+
+/// The result from every run, in run order (the chunks of [`run_range`]
+/// joined): the same numbers, bit for bit, as [`run`].
+pub fn finish(sc: &GroupScenario, runs: GroupRuns) -> Result<GroupResult, EstimationError> {
     let cases = CASES
         .iter()
         .zip(sc.cases())
-        .map(|(name, g)| run_case(name, g, sc, mc))
+        .zip(&runs.cases)
+        .map(|((name, g), per_run)| case_score(name, g, sc, per_run))
         .collect::<Result<_, _>>()?;
     Ok(GroupResult { cases })
 }

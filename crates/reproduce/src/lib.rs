@@ -138,6 +138,26 @@ pub(crate) fn validate_faults(
     Ok(())
 }
 
+/// The runs of a range of a campaign (what an experiment's `run_range`
+/// returns and its `finish` takes): chunks computed anywhere are appended
+/// in run order, then finished into the result of the whole campaign.
+pub trait Chunk: serde::Serialize + serde::de::DeserializeOwned + Default {
+    /// Number of runs held.
+    fn runs(&self) -> usize;
+    /// Append the runs of `other` (the range right after this one's).
+    fn append(&mut self, other: Self);
+}
+
+impl<T: serde::Serialize + serde::de::DeserializeOwned> Chunk for Vec<T> {
+    fn runs(&self) -> usize {
+        self.len()
+    }
+
+    fn append(&mut self, other: Self) {
+        self.extend(other);
+    }
+}
+
 /// What every Monte Carlo scenario has: a run count and a master seed, so
 /// the CLI can override both the same way for every experiment.
 pub trait MonteCarloScenario {

@@ -23,5 +23,5 @@ pub mod monte_carlo;
 pub mod rng;
 pub mod trajectory;
 
-pub use monte_carlo::{MonteCarlo, Progress};
+pub use monte_carlo::{Cancel, Cancelled, MonteCarlo, Progress};
 pub use rng::{RunRng, run_rng};

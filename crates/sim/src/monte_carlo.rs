@@ -7,6 +7,8 @@ use rayon::prelude::*;
 
 use crate::rng::{RunRng, run_rng};
 
+pub use aidnav_estimation::{Cancel, Cancelled};
+
 /// Whether to show a progress bar.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Progress {
@@ -28,6 +30,10 @@ pub struct MonteCarlo {
     pub progress: Progress,
     /// Label shown before the bar.
     pub label: String,
+    /// Looked at before every run: once set, the campaign stops (see
+    /// [`Cancel`]: it unwinds with [`Cancelled`]; [`Cancel::catch`] turns
+    /// that into an error). Never set unless the caller sets it.
+    pub cancel: Cancel,
 }
 
 impl MonteCarlo {
@@ -38,7 +44,14 @@ impl MonteCarlo {
             seed,
             progress: Progress::Auto,
             label: String::from("Monte Carlo"),
+            cancel: Cancel::default(),
         }
+    }
+
+    /// Stop when `cancel` is set (before the next run, on every thread).
+    pub fn with_cancel(mut self, cancel: Cancel) -> Self {
+        self.cancel = cancel;
+        self
     }
 
     /// Never show a progress bar.
@@ -91,6 +104,7 @@ impl MonteCarlo {
         let out = range
             .into_par_iter()
             .map(|k| {
+                self.cancel.stop_if_cancelled();
                 let mut rng = run_rng(self.seed, k as u64);
                 let r = f(k, &mut rng);
                 bar.inc(1);
@@ -171,6 +185,7 @@ impl MonteCarlo {
             let results: Vec<Result<T, E>> = (first..last)
                 .into_par_iter()
                 .map(|k| {
+                    self.cancel.stop_if_cancelled();
                     let mut rng = run_rng(self.seed, k as u64);
                     let r = f(k, &mut rng);
                     bar.inc(1);
@@ -251,6 +266,30 @@ mod tests {
             |_, _, _| {},
         );
         assert_eq!(r, Err(517));
+    }
+
+    #[test]
+    fn a_set_token_stops_the_campaign_within_a_run_per_thread() {
+        let cancel = Cancel::new();
+        let mc = MonteCarlo::new(10_000, 1)
+            .quiet()
+            .with_cancel(cancel.clone());
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        let r = Cancel::catch(|| {
+            mc.run(|k, _| {
+                if k == 20 {
+                    cancel.cancel();
+                }
+                done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            })
+        });
+        assert_eq!(r, Err(Cancelled));
+        // The runs started before the flag was seen finish; no more start.
+        let done = done.into_inner();
+        assert!(done < 10_000, "{done} runs");
+        let r: Result<Result<f64, ()>, _> =
+            Cancel::catch(|| mc.try_fold(0.0, |_, _| Ok(1.0), |a: &mut f64, _, x| *a += x));
+        assert_eq!(r, Err(Cancelled));
     }
 
     #[test]

@@ -53,6 +53,16 @@ pub enum JobError {
     /// The job refuses the request (size limits and the like).
     #[error("{0}")]
     Refused(String),
+    /// The job was cancelled through its [`Cancel`](aidnav_sim::Cancel)
+    /// token before it finished.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+impl From<aidnav_sim::Cancelled> for JobError {
+    fn from(_: aidnav_sim::Cancelled) -> Self {
+        JobError::Cancelled
+    }
 }
 
 impl From<aidnav_reproduce::extended_state::ExtendedStateError> for JobError {

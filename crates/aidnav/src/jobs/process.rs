@@ -167,11 +167,11 @@ impl ProcessRun {
     pub fn run(process: crate::process::Process, score: bool, read_s: f64) -> JobResult<Self> {
         use std::time::Instant;
         let t_run = Instant::now();
-        let result = process.run().map_err(process_error)?;
+        let result = aidnav_sim::Cancel::catch(|| process.run())?.map_err(process_error)?;
         let run_s = t_run.elapsed().as_secs_f64();
         let t_score = Instant::now();
         let scores = if score {
-            Some(process.score().map_err(process_error)?)
+            Some(aidnav_sim::Cancel::catch(|| process.score())?.map_err(process_error)?)
         } else {
             None
         };

@@ -2,6 +2,7 @@
 //! separate call ([`super::Inputs::load`]); running and scoring return
 //! values and touch no file; [`super::export`] writes them.
 
+use aidnav_sim::Cancel;
 use std::path::Path;
 
 use aidnav_frames::earth::Geodetic;
@@ -66,6 +67,7 @@ pub struct Process {
     cfg: ProcessConfig,
     inputs: Inputs,
     tuning: Option<TuneResult>,
+    cancel: Cancel,
 }
 
 /// What a filter pass over the whole log gives (all GNSS used).
@@ -189,6 +191,7 @@ impl Process {
             cfg: config,
             inputs,
             tuning,
+            cancel: Cancel::default(),
         })
     }
 
@@ -203,6 +206,16 @@ impl Process {
     /// holds the fitted noise and GNSS σ scale, `auto` still set).
     pub fn tuning(&self) -> Option<&TuneResult> {
         self.tuning.as_ref()
+    }
+
+    /// Stop [`run`](Self::run) and [`score`](Self::score) within an IMU
+    /// sample of `cancel` being set: they then unwind with
+    /// [`Cancelled`](aidnav_sim::Cancelled), which
+    /// [`Cancel::catch`] turns into an error (as
+    /// [`ProcessRun::run`](crate::jobs::ProcessRun::run) does).
+    pub fn with_cancel(mut self, cancel: Cancel) -> Self {
+        self.cancel = cancel;
+        self
     }
 
     /// The configuration.
@@ -222,6 +235,7 @@ impl Process {
         let plan = RunPlan {
             smooth: cfg.output.smooth,
             monitor: cfg.filter.convergence_monitor,
+            cancel: self.cancel.clone(),
             ..RunPlan::default()
         };
         let begin = initialise(cfg, inputs)?;
@@ -288,7 +302,7 @@ impl Process {
     /// Score the log (see [`Scores`]): many filter passes with prepared
     /// inputs (withheld windows, injected outliers and bursts), in parallel.
     pub fn score(&self) -> Result<Scores, ProcessError> {
-        score_log(&self.cfg, &self.inputs)
+        score_log(&self.cfg, &self.inputs, &self.cancel)
     }
 }
 

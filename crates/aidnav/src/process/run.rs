@@ -7,6 +7,7 @@
 use aidnav_estimation::{NoiseRule, Outcome};
 use aidnav_frames::earth::Geodetic;
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
+use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::standstill::StandstillThresholds;
 use aidnav_integration::bridge::BridgeObserver;
 use aidnav_integration::ned::NedFilter;
@@ -19,6 +20,7 @@ use aidnav_models::ned_ins::{
     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, VELOCITY,
     Vector21,
 };
+use aidnav_sim::Cancel;
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
 use nalgebra::{Matrix3, Vector3};
 
@@ -47,6 +49,9 @@ pub struct RunPlan {
     /// Bridge the withheld windows with spec 20's predictors
     /// ([`Epoch::bridged`]; closed loop, not with `free_ins_in_windows`).
     pub bridge: bool,
+    /// Looked at every IMU sample: once set, the pass stops (unwinding
+    /// with [`Cancelled`](aidnav_sim::Cancelled); see [`Cancel`]).
+    pub cancel: Cancel,
 }
 
 impl RunPlan {
@@ -386,6 +391,18 @@ fn loop_config(cfg: &ProcessConfig, plan: &RunPlan, interval_s: f64) -> LoopConf
     }
 }
 
+/// Stops the loop (see [`Cancel`]) at the first IMU increment after the
+/// token is set.
+struct CancelWatch<'a>(&'a Cancel);
+
+impl EpochObserver for CancelWatch<'_> {
+    fn increment(&mut self, _filter: &NedFilter, _inc: &ImuIncrement, _t_end_s: f64) {
+        self.0.stop_if_cancelled();
+    }
+
+    fn fix(&mut self, _filter: &NedFilter, _record: &FixRecord) {}
+}
+
 /// [`run_filter`], also writing a [`SolutionRow`] every `interval_s` (at
 /// the first IMU sample at or after each multiple; 0: none) between the
 /// GNSS epochs — through real GNSS outages too.
@@ -423,7 +440,8 @@ pub fn run_filter_rows(
     let mut bridge = bridging.then(|| BridgeObserver::new(cfg.outage_bridge.bridge()));
     let mut position_policy = policy.policy(&cfg.gnss.scheme_parameters());
     let mut velocity_policy = policy.policy(&cfg.gnss.scheme_parameters());
-    let mut observers: Vec<&mut dyn EpochObserver> = vec![&mut collector];
+    let mut watch = CancelWatch(&plan.cancel);
+    let mut observers: Vec<&mut dyn EpochObserver> = vec![&mut collector, &mut watch];
     if let Some(f) = free.as_mut() {
         observers.push(f);
     }

@@ -3,6 +3,7 @@
 //! every policy, bursts after outages. Each run prepares its plan
 //! ([`RunPlan`]) and runs the ordinary loop; the runs go in parallel.
 
+use aidnav_sim::Cancel;
 use std::sync::Mutex;
 
 use nalgebra::Vector3;
@@ -80,9 +81,13 @@ pub struct Scores {
 }
 
 /// Score a log: every table of [`Scores`].
-pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, ProcessError> {
+pub fn score_log(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    cancel: &Cancel,
+) -> Result<Scores, ProcessError> {
     let mut scores = Scores::default();
-    outage_scores(cfg, inputs, &mut scores)?;
+    outage_scores(cfg, inputs, cancel, &mut scores)?;
     // A policy other than the configured one may make the filter fail
     // on corrupted data (eq. 4's gain, say): that is a result of the
     // table (NaN, and a warning saying why), not a reason to stop.
@@ -99,13 +104,13 @@ pub fn score_log(cfg: &ProcessConfig, inputs: &Inputs) -> Result<Scores, Process
             Some(f64::NAN)
         })
     };
-    let anomalies = anomaly_scores(cfg, inputs, &scored_or_nan);
+    let anomalies = anomaly_scores(cfg, inputs, cancel, &scored_or_nan);
     scores.anomaly_resets = anomalies.iter().map(|a| a.3).collect();
     scores.anomalies = anomalies
         .into_iter()
         .map(|(f, p, rms, _)| (f, p, rms))
         .collect();
-    let bursts = burst_scores(cfg, inputs, &scored_or_nan);
+    let bursts = burst_scores(cfg, inputs, cancel, &scored_or_nan);
     scores.burst_resets = bursts.iter().map(|b| [b.1.1, b.2.1]).collect();
     scores.post_outage_bursts = bursts
         .into_iter()
@@ -136,6 +141,7 @@ type ScoredOrNan<'a> = dyn Fn(String, Result<Option<f64>, ProcessError>) -> Opti
 fn outage_scores(
     cfg: &ProcessConfig,
     inputs: &Inputs,
+    cancel: &Cancel,
     scores: &mut Scores,
 ) -> Result<(), ProcessError> {
     let first = inputs.imu[0].time_s;
@@ -159,6 +165,7 @@ fn outage_scores(
                 free_ins_in_windows: free,
                 smooth: cfg.output.smooth,
                 bridge: cfg.outage_bridge.enabled,
+                cancel: cancel.clone(),
                 ..RunPlan::default()
             };
             let epochs = run_filter(cfg, inputs, &plan, cfg.gnss.policy)?;
@@ -235,6 +242,7 @@ type RmsResets = (Option<f64>, usize);
 fn anomaly_scores(
     cfg: &ProcessConfig,
     inputs: &Inputs,
+    cancel: &Cancel,
     scored_or_nan: &ScoredOrNan<'_>,
 ) -> Vec<(f64, PolicyName, Option<f64>, usize)> {
     let policies = PolicyName::ALL;
@@ -252,6 +260,7 @@ fn anomaly_scores(
                     cfg.score.outlier_m,
                     cfg.score.seed,
                 ),
+                cancel: cancel.clone(),
                 ..RunPlan::default()
             };
             let (run, resets) = rms_and_resets(run_filter(cfg, inputs, &plan, p), |e| {
@@ -279,6 +288,7 @@ fn rms_and_resets(
 fn burst_scores(
     cfg: &ProcessConfig,
     inputs: &Inputs,
+    cancel: &Cancel,
     scored_or_nan: &ScoredOrNan<'_>,
 ) -> Vec<(PolicyName, RmsResets, RmsResets)> {
     // (Written so that a NaN length scores nothing, as `> 0` is false.)
@@ -303,6 +313,7 @@ fn burst_scores(
                 let plan = RunPlan {
                     windows: windows.clone(),
                     outliers,
+                    cancel: cancel.clone(),
                     ..RunPlan::default()
                 };
                 let (run, resets) = rms_and_resets(run_filter(cfg, inputs, &plan, p), |e| {

@@ -164,7 +164,7 @@ pub fn switch_cases(sc: &ExtendedStateScenario) -> Vec<SwitchCase> {
 }
 
 /// One run's numbers for one threshold.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize, Serialize)]
 struct ThresholdRun {
     switch_time_s: f64,
     outputs_only_m: f64,
@@ -456,15 +456,56 @@ pub fn trajectories(
         .collect()
 }
 
-/// Run the experiment.
+/// One run on one trajectory: the free INS's error and, per threshold,
+/// the run's numbers and whether it never switched.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, Serialize)]
+pub struct RunRecord {
+    free: f64,
+    thresholds: Vec<(ThresholdRun, bool)>,
+}
+
+/// The runs of a range of the campaign, per trajectory.
+#[derive(Debug, Clone, PartialEq, Default, serde::Deserialize, Serialize)]
+pub struct ExtendedStateRuns {
+    trajectories: Vec<Vec<RunRecord>>,
+}
+
+impl crate::Chunk for ExtendedStateRuns {
+    fn runs(&self) -> usize {
+        self.trajectories.first().map_or(0, Vec::len)
+    }
+
+    fn append(&mut self, other: Self) {
+        if self.trajectories.is_empty() {
+            *self = other;
+            return;
+        }
+        for (mine, theirs) in self.trajectories.iter_mut().zip(other.trajectories) {
+            mine.extend(theirs);
+        }
+    }
+}
+
+/// Run the experiment: [`finish`] of every run ([`run_range`] over
+/// `0..mc.runs`).
 pub fn run(
     sc: &ExtendedStateScenario,
     mc: &MonteCarlo,
 ) -> Result<ExtendedStateResult, ExtendedStateError> {
+    finish(sc, run_range(sc, mc, 0..mc.runs)?)
+}
+
+/// Runs `range` on every trajectory (run k's streams depend on k alone):
+/// a chunk for [`finish`] to combine with the others, computed anywhere.
+pub fn run_range(
+    sc: &ExtendedStateScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<ExtendedStateRuns, ExtendedStateError> {
     let trajs = trajectories(sc)?;
     let switch_cases = switch_cases(sc);
     let gauss_newton_runs = sc.gauss_newton_runs.min(sc.runs);
-    let mut cases = Vec::new();
+    let mut trajectories = Vec::with_capacity(trajs.len());
     for (ti, traj) in trajs.iter().enumerate() {
         // With fixed error signs every run flies the same errors: their
         // thrust tables, the free INS and the filter's covariance path are
@@ -475,7 +516,7 @@ pub fn run(
             let path = CovariancePath::new(sc, &flight);
             (flight, free, path)
         });
-        let per_run = mc.try_run(|run, _| {
+        let per_run = mc.try_run_range(range.clone(), |run, _| {
             let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
             let (own, own_path);
             let (flight, free, path) = match &fixed {
@@ -532,12 +573,31 @@ pub fn run(
                     ),
                 });
             }
-            Ok::<_, EstimationError>((free, out))
+            Ok::<_, EstimationError>(RunRecord {
+                free,
+                thresholds: out,
+            })
         })?;
-        let free = sorted(per_run.iter().map(|r| r.0).collect());
+        trajectories.push(per_run);
+    }
+    Ok(ExtendedStateRuns { trajectories })
+}
+
+/// The result from every run, in run order (the chunks of [`run_range`]
+/// joined), with run 0's figures and the forced-switch sweep: the same
+/// numbers, bit for bit, as [`run`].
+pub fn finish(
+    sc: &ExtendedStateScenario,
+    runs: ExtendedStateRuns,
+) -> Result<ExtendedStateResult, ExtendedStateError> {
+    let trajs = trajectories(sc)?;
+    let switch_cases = switch_cases(sc);
+    let mut cases = Vec::new();
+    for (traj, per_run) in trajs.iter().zip(&runs.trajectories) {
+        let free = sorted(per_run.iter().map(|r| r.free).collect());
         for (k, case) in switch_cases.iter().enumerate() {
-            let runs: Vec<ThresholdRun> = per_run.iter().map(|r| r.1[k].0).collect();
-            let never = per_run.iter().filter(|r| r.1[k].1).count();
+            let runs: Vec<ThresholdRun> = per_run.iter().map(|r| r.thresholds[k].0).collect();
+            let never = per_run.iter().filter(|r| r.thresholds[k].1).count();
             let ok: Vec<&ThresholdRun> = runs.iter().filter(|r| r.proposed_m.is_finite()).collect();
             let pick = |f: fn(&ThresholdRun) -> f64| sorted(ok.iter().map(|r| f(r)).collect());
             let ratio = pick(|r| r.outputs_only_m / r.proposed_m);

@@ -50,7 +50,7 @@ mod run;
 mod scenario;
 mod simulate;
 
-pub use run::run;
+pub use run::{RunErrors, finish, run, run_range};
 
 /// Names of the three solutions compared per member.
 pub const SOLUTIONS: [&str; 3] = ["gnss_ins", "paper", "ekf"];

@@ -6,11 +6,14 @@ use aidnav_integration::group::{EkfFusion, PaperFusion};
 use aidnav_sim::monte_carlo::MonteCarlo;
 use aidnav_sim::rng::channel_rng;
 
+use serde::{Deserialize, Serialize};
+
 use super::simulate::{relative_measurements, stage_one};
 use super::{Denial, FormationResult, FormationScenario, MemberScore};
 
-/// One run's per-epoch errors.
-struct RunErrors {
+/// One run's per-epoch errors, what [`finish`] combines.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunErrors {
     /// [epoch][member][solution] squared position error.
     position_sq: Vec<Vec<[f64; 3]>>,
     velocity_sq: Vec<Vec<[f64; 3]>>,
@@ -56,9 +59,28 @@ fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationErr
     Ok(errors)
 }
 
-/// Run the Monte Carlo of the formation.
+/// Run the Monte Carlo of the formation: [`finish`] of every run
+/// ([`run_range`] over `0..mc.runs`).
 pub fn run(sc: &FormationScenario, mc: &MonteCarlo) -> Result<FormationResult, EstimationError> {
-    let runs = mc.try_run(|run, _rng| run_once(sc, run as u64))?;
+    finish(sc, run_range(sc, mc, 0..mc.runs)?)
+}
+
+/// Runs `range` of the campaign (run k's streams depend on k alone): a
+/// chunk for [`finish`] to combine with the others, computed anywhere.
+pub fn run_range(
+    sc: &FormationScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<Vec<RunErrors>, EstimationError> {
+    mc.try_run_range(range, |run, _rng| run_once(sc, run as u64))
+}
+
+/// The result from every run, in run order (the chunks of [`run_range`]
+/// concatenated): the same numbers, bit for bit, as [`run`].
+pub fn finish(
+    sc: &FormationScenario,
+    runs: Vec<RunErrors>,
+) -> Result<FormationResult, EstimationError> {
     let epochs = sc.epochs();
     let time_s: Vec<f64> = (0..epochs)
         .map(|k| (k + 1) as f64 * sc.fix_interval_s)

@@ -330,7 +330,7 @@ pub struct OutageScores {
 }
 
 /// Run 0's long outage, for plots: truth and each predictor.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct OutageExample {
     /// Times \[s\] from the outage start.
     pub age_s: Vec<f64>,
@@ -368,7 +368,7 @@ pub struct EfficiencyScores {
 }
 
 /// Run 0's K_eff from the outage start to the end of recovery.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct EfficiencyExample {
     /// Time since the outage started \[s\].
     pub age_s: Vec<f64>,
@@ -427,7 +427,7 @@ impl From<aidnav_estimation::gmdh::GmdhError> for OutagesError {
 
 mod simulate;
 
-pub use simulate::run;
+pub use simulate::{RunOut, finish, run, run_range};
 
 #[cfg(test)]
 mod validation_tests {

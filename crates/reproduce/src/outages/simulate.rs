@@ -14,6 +14,7 @@ use aidnav_supervisors::efficiency::{
 };
 use aidnav_supervisors::outage::{OutageBridge, Predictor};
 use nalgebra::{Matrix1, Matrix1x3, Matrix3, Vector1, Vector3};
+use serde::{Deserialize, Serialize};
 
 use super::{
     ADAPTIVE_VARIANCE_WINDOW, CHANNEL_RECOVERY_FAULTS, EfficiencyExample, EfficiencyScores,
@@ -81,7 +82,7 @@ impl Setup {
 }
 
 /// Squared errors of one run over one outage window, summed over its epochs.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 struct WindowSums {
     /// Of the uncorrected INS (δV itself).
     uncorrected: f64,
@@ -91,7 +92,7 @@ struct WindowSums {
 
 /// One way of choosing the navigation source during recovery, summed over
 /// the recovery epochs of one run.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 struct SelectionSums {
     /// Squared error of the chosen source.
     sq: f64,
@@ -107,7 +108,7 @@ impl SelectionSums {
 }
 
 /// One run's recovery phase (GNSS back after the long outage).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 struct RecoverySums {
     /// Squared error navigating on GNSS alone.
     gnss_sq: f64,
@@ -121,8 +122,9 @@ struct RecoverySums {
     predicted: SelectionSums,
 }
 
-/// One run's record.
-struct RunOut {
+/// One run's record, what [`finish`] combines.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunOut {
     short: WindowSums,
     long: WindowSums,
     recovery: RecoverySums,
@@ -403,10 +405,28 @@ fn efficiency_scores(per_run: &[RunOut], s: &Setup) -> EfficiencyScores {
     }
 }
 
-/// Run the experiment.
+/// Run the experiment: [`finish`] of every run ([`run_range`] over
+/// `0..mc.runs`).
 pub fn run(sc: &OutagesScenario, mc: &MonteCarlo) -> Result<OutagesResult, OutagesError> {
+    finish(sc, run_range(sc, mc, 0..mc.runs)?)
+}
+
+/// Runs `range` of the campaign (run k draws stream k of the seed whatever
+/// the range): a chunk for [`finish`] to combine with the others, computed
+/// anywhere.
+pub fn run_range(
+    sc: &OutagesScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<Vec<RunOut>, OutagesError> {
     let setup = Setup::new(sc);
-    let per_run = mc.try_run(|k, rng| run_once(sc, &setup, k, rng))?;
+    mc.try_run_range(range, |k, rng| run_once(sc, &setup, k, rng))
+}
+
+/// The result from every run, in run order (the chunks of [`run_range`]
+/// concatenated): the same numbers, bit for bit, as [`run`].
+pub fn finish(sc: &OutagesScenario, per_run: Vec<RunOut>) -> Result<OutagesResult, OutagesError> {
+    let setup = Setup::new(sc);
     Ok(OutagesResult {
         short: score(&per_run, |r| &r.short, setup.short, setup.dt),
         long: score(&per_run, |r| &r.long, setup.long, setup.dt),
