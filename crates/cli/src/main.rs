@@ -11,7 +11,7 @@ use aidnav::reproduce::MonteCarloScenario;
 use aidnav::reproduce::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
 use aidnav::reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
-use aidnav::reproduce::formation::{FormationResult, FormationScenario};
+use aidnav::reproduce::formation::FormationScenario;
 use aidnav::reproduce::group::{GroupResult, GroupScenario};
 use aidnav::reproduce::outages::{OutageScores, OutagesResult, OutagesScenario};
 use anyhow::{Context, Result};
