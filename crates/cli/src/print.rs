@@ -86,8 +86,10 @@ pub(crate) fn print_formation(s: &FormationScenario, o: &jobs::FormationOutcome,
             net.latency_s,
             net.jitter_s,
             100.0 * net.loss_probability,
-            net.max_neighbours
-                .map_or_else(|| "all neighbours".to_string(), |k| format!("≤ {k} neighbours")),
+            net.max_neighbours.map_or_else(
+                || "all neighbours".to_string(),
+                |k| format!("≤ {k} neighbours")
+            ),
             net.history_s,
             n.sent,
             n.lost,
@@ -111,7 +113,14 @@ pub(crate) fn print_formation(s: &FormationScenario, o: &jobs::FormationOutcome,
         );
         println!(
             "{:>11} {:>6} {:>7} {:>7} {:>8} {:>17} {:>17} {:>26}",
-            "latency [s]", "loss", "lost", "late", "alone", "paper", "EKF", "denied alone/paper/EKF"
+            "latency [s]",
+            "loss",
+            "lost",
+            "late",
+            "alone",
+            "paper",
+            "EKF",
+            "denied alone/paper/EKF"
         );
         for c in &o.sweep {
             println!(
