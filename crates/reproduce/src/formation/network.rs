@@ -368,8 +368,8 @@ fn cell_run(sc: &FormationScenario, e: &RunErrors, settled: &[usize]) -> CellRun
         .map(|l| {
             let mut max = [0.0_f64; 3];
             for k in (0..e.position_sq.len()).filter(|&k| sc.denied(l, time(k))) {
-                for s in 0..3 {
-                    max[s] = max[s].max(e.position_sq[k][l][s].sqrt());
+                for (m, sq) in max.iter_mut().zip(e.position_sq[k][l]) {
+                    *m = m.max(sq.sqrt());
                 }
             }
             max
