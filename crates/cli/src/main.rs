@@ -11,7 +11,7 @@ use aidnav::reproduce::MonteCarloScenario;
 use aidnav::reproduce::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
 use aidnav::reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario, SwitchKind};
-use aidnav::reproduce::formation::{FormationResult, FormationScenario};
+use aidnav::reproduce::formation::FormationScenario;
 use aidnav::reproduce::group::{GroupResult, GroupScenario};
 use aidnav::reproduce::outages::{OutageScores, OutagesResult, OutagesScenario};
 use anyhow::{Context, Result};
@@ -64,7 +64,10 @@ enum Command {
     /// optional; `aidnav reproduce formation --print-scenario` prints the
     /// defaults (write them under `[formation]`), examples/formation.toml is a
     /// documented example. Writes formation.csv, formation_errors.svg and
-    /// summary.json.
+    /// summary.json. `[formation.network]` makes the exchange a network
+    /// (latency, loss, neighbour limit; late packets fused at their own
+    /// epoch), and its `sweep` table also writes network_sweep.csv and
+    /// network_sweep.svg (examples/formation_network.toml).
     Run(RunArgs),
     /// Process a recorded IMU + GNSS log end to end and score it.
     ///

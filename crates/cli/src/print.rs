@@ -3,7 +3,8 @@
 use super::*;
 use aidnav::reproduce::published;
 
-pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &Path) {
+pub(crate) fn print_formation(s: &FormationScenario, o: &jobs::FormationOutcome, out: &Path) {
+    let r = &o.result;
     println!(
         "Formation flight (spec 30 pipeline) — {} members, {:.0} s, {} runs, scored from {:.0} s, seed {}, aidnav {}",
         s.members,
@@ -78,6 +79,69 @@ pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &
                 m.member, e[0], e[1], e[2]
             );
         }
+    }
+    if let (Some(net), Some(n)) = (&s.network, &r.network) {
+        println!(
+            "network: latency {} s + jitter ≤ {} s, loss {:.0} %, {}, late packets fused up to {} s back: {} packets sent, {} lost ({:.1} %), {} fused on time, {} late (by rewind, {} epochs replayed), {} too old, {} in flight at the end, {} relative measurements withheld",
+            net.latency_s,
+            net.jitter_s,
+            100.0 * net.loss_probability,
+            net.max_neighbours.map_or_else(
+                || "all neighbours".to_string(),
+                |k| format!("≤ {k} neighbours")
+            ),
+            net.history_s,
+            n.sent,
+            n.lost,
+            100.0 * n.lost_fraction(),
+            n.fusion.on_time,
+            n.fusion.delayed,
+            n.fusion.replayed_epochs,
+            n.fusion.too_old,
+            n.in_flight_at_end,
+            n.withheld_by_neighbour_limit
+        );
+    }
+    if !o.sweep.is_empty() {
+        println!(
+            "network sweep (same stage 1 and measurements per run): members keeping GNSS, mean 3-D position RMS [m] (filter σ in brackets){}",
+            if o.sweep[0].denied_max_error_m.is_some() {
+                "; denied members' largest error while denied [m]"
+            } else {
+                ""
+            }
+        );
+        println!(
+            "{:>11} {:>6} {:>7} {:>7} {:>8} {:>17} {:>17} {:>26}",
+            "latency [s]",
+            "loss",
+            "lost",
+            "late",
+            "alone",
+            "paper",
+            "EKF",
+            "denied alone/paper/EKF"
+        );
+        for c in &o.sweep {
+            println!(
+                "{:>11} {:>5.0}% {:>6.1}% {:>6.1}% {:>8.3} {:>17} {:>17} {:>26}",
+                c.latency_s,
+                100.0 * c.loss_probability,
+                100.0 * c.network.lost_fraction(),
+                100.0 * c.network.late_fraction(),
+                c.kept_rms_m[0],
+                cell(c.kept_rms_m[1], c.kept_sigma_m[1]),
+                cell(c.kept_rms_m[2], c.kept_sigma_m[2]),
+                c.denied_max_error_m.map_or_else(
+                    || "—".to_string(),
+                    |d| format!("{:.2} / {:.2} / {:.2}", d[0], d[1], d[2])
+                )
+            );
+        }
+        println!(
+            "wrote {}/{{network_sweep.csv, network_sweep.svg}}",
+            out.display()
+        );
     }
     println!(
         "wrote {}/{{formation_errors.svg, formation.csv, summary.json}}",

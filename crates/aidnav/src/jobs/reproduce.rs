@@ -7,7 +7,7 @@ use aidnav_io::writers::{Summary, write_table};
 use aidnav_reproduce::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
 use aidnav_reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
 use aidnav_reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
-use aidnav_reproduce::formation::{FormationResult, FormationScenario, SOLUTIONS};
+use aidnav_reproduce::formation::{FormationResult, FormationScenario, SOLUTIONS, SweepCell};
 use aidnav_reproduce::group::{GroupResult, GroupScenario};
 use aidnav_reproduce::outages::{OutagesResult, OutagesScenario, PREDICTORS};
 use aidnav_sim::MonteCarlo;
@@ -195,18 +195,30 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
     Ok(result)
 }
 
+/// What [`formation`] computed: the flight's result and, with
+/// `[formation.network.sweep]`, the accuracy per latency × loss cell.
+#[derive(Debug, Clone)]
+pub struct FormationOutcome {
+    /// The flight (with the scenario's network, if any).
+    pub result: FormationResult,
+    /// The network sweep's cells (empty without a sweep).
+    pub sweep: Vec<SweepCell>,
+}
+
 /// Run the spec-30 formation pipeline (stage-1 INS/GNSS per member, stage-2
 /// group fusion in the paper's and the EKF form) and write `formation.csv`
 /// (per epoch and member: RMS over runs of the 3-D position error of each
 /// solution), `formation_errors.svg` (each GNSS-denied or -degraded member alone and in
-/// the group, and the mean of the others) and `summary.json` (list `members`)
-/// into `out`.
+/// the group, and the mean of the others) and `summary.json` (list `members`;
+/// `network` with `[formation.network]`) into `out`; with
+/// `[formation.network.sweep]` also `network_sweep.csv`, `network_sweep.svg`
+/// and `summary.json`'s `network_sweep`.
 pub fn formation(
     scenario: &FormationScenario,
     command: &str,
     out: &Path,
     quiet: bool,
-) -> JobResult<FormationResult> {
+) -> JobResult<FormationOutcome> {
     let mc = campaign(scenario.runs, scenario.seed, "formation", quiet);
     let result =
         aidnav_reproduce::formation::run(scenario, &mc).map_err(estimation("formation flight"))?;
@@ -225,8 +237,71 @@ pub fn formation(
         }),
     )?;
     aidnav_reproduce::figures::formation_figure(scenario, &result, out)?;
-    formation_summary(scenario, command, &result).write(out)?;
-    Ok(result)
+    let sweep = aidnav_reproduce::formation::sweep(scenario, &mc)
+        .map_err(estimation("formation network sweep"))?;
+    if !sweep.is_empty() {
+        write_network_sweep(&sweep, scenario.members, out)?;
+        aidnav_reproduce::figures::network_sweep_figure(scenario, &sweep, out)?;
+    }
+    let mut summary = formation_summary(scenario, command, &result);
+    if !sweep.is_empty() {
+        summary.insert("network_sweep", &sweep);
+    }
+    summary.write(out)?;
+    Ok(FormationOutcome { result, sweep })
+}
+
+/// `network_sweep.csv`: one row per latency × loss cell of the formation's
+/// network sweep.
+fn write_network_sweep(sweep: &[SweepCell], members: usize, out: &Path) -> JobResult<()> {
+    let denied = sweep[0].denied_max_error_m.is_some();
+    let mut header = vec![
+        "latency [s]",
+        "loss_probability",
+        "lost_fraction",
+        "late_fraction",
+        "too_old",
+        "replayed_epochs_per_epoch",
+        "alone_rms [m]",
+        "paper_rms [m]",
+        "ekf_rms [m]",
+        "paper_sigma [m]",
+        "ekf_sigma [m]",
+    ];
+    if denied {
+        header.extend([
+            "denied_max_alone [m]",
+            "denied_max_paper [m]",
+            "denied_max_ekf [m]",
+        ]);
+    }
+    write_table(
+        &out.join("network_sweep.csv"),
+        &header,
+        sweep.iter().map(|c| {
+            let n = &c.network;
+            // Every member sends one packet per epoch and run.
+            let epochs = (n.sent / members).max(1) as f64;
+            let mut row = vec![
+                c.latency_s,
+                c.loss_probability,
+                n.lost_fraction(),
+                n.late_fraction(),
+                n.fusion.too_old as f64,
+                n.fusion.replayed_epochs as f64 / epochs,
+                c.kept_rms_m[0],
+                c.kept_rms_m[1],
+                c.kept_rms_m[2],
+                c.kept_sigma_m[1],
+                c.kept_sigma_m[2],
+            ];
+            if let Some(d) = c.denied_max_error_m {
+                row.extend(d);
+            }
+            row
+        }),
+    )?;
+    Ok(())
 }
 
 /// Run the spec-10 extended-state experiment and write `extended_state.csv`
@@ -380,6 +455,9 @@ pub fn formation_summary(
     summary.insert("solutions", SOLUTIONS);
     summary.insert("members", &result.members);
     summary.insert("relative_measurements_per_epoch", result.relative_per_epoch);
+    if let Some(n) = &result.network {
+        summary.insert("network", n);
+    }
     summary
 }
 

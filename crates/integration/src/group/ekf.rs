@@ -9,7 +9,11 @@ use aidnav_estimation::{DynKalmanFilter, EstimationError};
 use aidnav_models::relative_sensor::{Polar, wrap_angle};
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::{FusionParams, OwnSolution, RelativeMeasurement, attitude_covariance_on};
+use super::delayed::check_packets;
+use super::{
+    EpochFusion, FusionParams, MemberPacket, OwnSolution, RelativeMeasurement,
+    attitude_covariance_on,
+};
 
 /// Stage 2, EKF form: state [R¹ V¹ … R^M V^M], 3-D each.
 #[derive(Debug, Clone)]
@@ -59,34 +63,60 @@ impl EkfFusion {
         if predict {
             self.kf.predict(&self.phi, &self.q)?;
         }
-        self.fuse_own(own)?;
+        for (l, o) in own.iter().enumerate() {
+            self.fuse_own(l, o)?;
+        }
         for meas in relative {
             self.fuse_relative(&own[meas.from], meas)?;
         }
         Ok(())
     }
 
-    /// Own solution: position (and velocity) with its stage-1 covariance block.
-    fn fuse_own(&mut self, own: &[OwnSolution]) -> Result<(), EstimationError> {
+    /// One epoch from the packets that arrived for it
+    /// ([`DelayedFusion`](super::DelayedFusion)): predict (if `predict`),
+    /// then the own solutions of the members that sent a packet and their
+    /// relative measurements, in the order of `packets`. With every
+    /// member's packet, in member order, it is [`epoch`](Self::epoch).
+    pub fn epoch_from_packets(
+        &mut self,
+        packets: &[MemberPacket],
+        predict: bool,
+    ) -> Result<(), EstimationError> {
+        check_packets(packets, self.kf.dim() / 6)?;
+        if predict {
+            self.kf.predict(&self.phi, &self.q)?;
+        }
+        for p in packets {
+            self.fuse_own(p.member, &p.own)?;
+        }
+        for p in packets {
+            for meas in &p.relative {
+                self.fuse_relative(&p.own, meas)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Own solution of member `l`: position (and velocity) with its stage-1
+    /// covariance block.
+    fn fuse_own(&mut self, l: usize, o: &OwnSolution) -> Result<(), EstimationError> {
         let n = self.kf.dim();
         let k = if self.params.own_velocity { 6 } else { 3 };
-        for (l, o) in own.iter().enumerate() {
-            let mut h = DMatrix::zeros(k, n);
-            for i in 0..k {
-                h[(i, 6 * l + i)] = 1.0;
-            }
-            let z = DVector::from_iterator(
-                k,
-                o.state
-                    .position
-                    .iter()
-                    .chain(o.state.velocity.iter())
-                    .take(k)
-                    .copied(),
-            );
-            let r = DMatrix::from_fn(k, k, |i, j| o.covariance[(i, j)]);
-            self.kf.update(&z, &h, &r)?;
+        let mut h = DMatrix::zeros(k, n);
+        for i in 0..k {
+            h[(i, 6 * l + i)] = 1.0;
         }
+        let z = DVector::from_iterator(
+            k,
+            o.state
+                .position
+                .iter()
+                .chain(o.state.velocity.iter())
+                .take(k)
+                .copied(),
+        );
+        let r = DMatrix::from_fn(k, k, |i, j| o.covariance[(i, j)]);
+        self.kf.update(&z, &h, &r)?;
         Ok(())
     }
 
@@ -150,5 +180,17 @@ impl EkfFusion {
             .map(|a| p[(6 * l + a, 6 * l + a)])
             .sum::<f64>()
             .sqrt()
+    }
+}
+
+impl EpochFusion for EkfFusion {
+    type Packet = MemberPacket;
+
+    fn fuse_epoch(
+        &mut self,
+        packets: &[MemberPacket],
+        predict: bool,
+    ) -> Result<(), EstimationError> {
+        self.epoch_from_packets(packets, predict)
     }
 }

@@ -16,6 +16,10 @@
 //!   positions and velocities that uses range, bearing and elevation
 //!   directly.
 //!
+//! - [`DelayedFusion`]: either 3-D form (or any [`EpochFusion`]) fed over a
+//!   network: a late [`MemberPacket`] is fused at its own epoch by rewinding
+//!   to a buffered snapshot and running the epochs since again.
+//!
 //! Both 3-D forms take their parameters from [`FusionParams`], each member's
 //! stage-1 solution as an [`OwnSolution`] and the relative measurements as
 //! [`RelativeMeasurement`]s, and add the observer's attitude uncertainty to
@@ -33,10 +37,12 @@
 //! ```
 
 mod axis_information;
+mod delayed;
 mod ekf;
 mod paper;
 
 pub use axis_information::{GroupAxisFilter, k_nearest, within_range};
+pub use delayed::{DelayStats, DelayedFusion, EpochFusion, MemberPacket};
 pub use ekf::EkfFusion;
 pub use paper::PaperFusion;
 

@@ -7,8 +7,10 @@
 use aidnav_estimation::EstimationError;
 use nalgebra::Vector3;
 
+use super::delayed::check_packets;
 use super::{
-    FusionParams, GroupAxisFilter, OwnSolution, RelativeMeasurement, attitude_covariance_on,
+    EpochFusion, FusionParams, GroupAxisFilter, MemberPacket, OwnSolution, RelativeMeasurement,
+    attitude_covariance_on,
 };
 
 /// Stage 2, paper form: three axis filters over all members.
@@ -50,12 +52,47 @@ impl PaperFusion {
         relative: &[RelativeMeasurement],
         predict: bool,
     ) -> Result<(), EstimationError> {
+        self.fuse(
+            own.iter().enumerate(),
+            relative.iter().map(|r| (&own[r.from], r)),
+            predict,
+        )
+    }
+
+    /// One epoch from the packets that arrived for it
+    /// ([`DelayedFusion`](super::DelayedFusion)): predict (if `predict`),
+    /// then the own solutions of the members that sent a packet and their
+    /// relative measurements, in the order of `packets`. With every
+    /// member's packet, in member order, it is [`epoch`](Self::epoch).
+    pub fn epoch_from_packets(
+        &mut self,
+        packets: &[MemberPacket],
+        predict: bool,
+    ) -> Result<(), EstimationError> {
+        check_packets(packets, self.axes[0].members())?;
+        self.fuse(
+            packets.iter().map(|p| (p.member, &p.own)),
+            packets
+                .iter()
+                .flat_map(|p| p.relative.iter().map(move |r| (&p.own, r))),
+            predict,
+        )
+    }
+
+    /// Per axis: predict, own solutions `(member, solution)`, relative
+    /// measurements `(observer's solution, measurement)`, one update.
+    fn fuse<'a>(
+        &mut self,
+        own: impl Iterator<Item = (usize, &'a OwnSolution)> + Clone,
+        relative: impl Iterator<Item = (&'a OwnSolution, &'a RelativeMeasurement)> + Clone,
+        predict: bool,
+    ) -> Result<(), EstimationError> {
         let params = &self.params;
         for (a, f) in self.axes.iter_mut().enumerate() {
             if predict {
                 f.predict();
             }
-            for (l, o) in own.iter().enumerate() {
+            for (l, o) in own.clone() {
                 f.observe_own_position(l, o.state.position[a], o.covariance[(a, a)].sqrt())?;
                 if params.own_velocity {
                     f.observe_own_velocity(
@@ -65,8 +102,7 @@ impl PaperFusion {
                     )?;
                 }
             }
-            for r in relative {
-                let observer = &own[r.from];
+            for (observer, r) in relative.clone() {
                 let c = observer.state.attitude.to_rotation_matrix().into_inner();
                 // Line of sight to `to` in the nav frame: d = R^to − R^from.
                 let d = c * r.polar.to_cartesian();
@@ -105,5 +141,17 @@ impl PaperFusion {
             .map(|f| f.position_sigma(l).powi(2))
             .sum::<f64>()
             .sqrt()
+    }
+}
+
+impl EpochFusion for PaperFusion {
+    type Packet = MemberPacket;
+
+    fn fuse_epoch(
+        &mut self,
+        packets: &[MemberPacket],
+        predict: bool,
+    ) -> Result<(), EstimationError> {
+        self.epoch_from_packets(packets, predict)
     }
 }

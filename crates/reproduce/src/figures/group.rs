@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use crate::formation::{FormationResult, FormationScenario};
+use crate::formation::{FormationResult, FormationScenario, SweepCell};
 use crate::group::{GroupResult, GroupScenario};
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series};
@@ -115,4 +115,63 @@ pub fn formation_figure(
         log_y: true,
     }
     .write_svg(&out.join("formation_errors.svg"))
+}
+
+/// `network_sweep.svg`: the members that keep GNSS, mean 3-D position RMS
+/// against the network's latency, one line per loss rate (EKF solid, paper
+/// fusion dashed), and GNSS/INS alone for reference.
+pub fn network_sweep_figure(
+    scenario: &FormationScenario,
+    sweep: &[SweepCell],
+    out: &Path,
+) -> Result<(), IoError> {
+    let mut losses: Vec<f64> = Vec::new();
+    for c in sweep {
+        if !losses.contains(&c.loss_probability) {
+            losses.push(c.loss_probability);
+        }
+    }
+    let mut series = Vec::new();
+    for (i, &loss) in losses.iter().enumerate() {
+        let line = |s: usize| -> Vec<(f64, f64)> {
+            sweep
+                .iter()
+                .filter(|c| c.loss_probability == loss)
+                .map(|c| (c.latency_s, c.kept_rms_m[s]))
+                .collect()
+        };
+        series.push(Series {
+            label: format!("EKF fusion, loss {:.0} %", 100.0 * loss),
+            points: line(2),
+            style: LineStyle::Solid,
+            color: i,
+        });
+        series.push(Series {
+            label: format!("paper fusion, loss {:.0} %", 100.0 * loss),
+            points: line(1),
+            style: LineStyle::Dashed,
+            color: i,
+        });
+    }
+    series.push(Series {
+        label: "GNSS/INS alone".into(),
+        points: sweep
+            .iter()
+            .filter(|c| c.loss_probability == losses[0])
+            .map(|c| (c.latency_s, c.kept_rms_m[0]))
+            .collect(),
+        style: LineStyle::Solid,
+        color: losses.len(),
+    });
+    LineChart {
+        title: format!(
+            "Formation of {} over a network: members keeping GNSS, RMS over {} runs",
+            scenario.members, scenario.runs
+        ),
+        x_label: "latency [s]".into(),
+        y_label: "3-D position error RMS [m]".into(),
+        series,
+        log_y: false,
+    }
+    .write_svg(&out.join("network_sweep.svg"))
 }

@@ -9,7 +9,8 @@
 //! - spec 20, outages: Fig. 9 ([`outage_predictors_figure`]), K_eff
 //!   ([`efficiency_figure`]) and Fig. 10 ([`recovery_figure`]);
 //! - spec 30: the one-axis group like the paper's Fig. 6 ([`group_figure`])
-//!   and the formation ([`formation_figure`]).
+//!   and the formation ([`formation_figure`]), its accuracy against the
+//!   network's latency and loss ([`network_sweep_figure`]).
 
 mod anomalies;
 mod consistency;
@@ -20,5 +21,5 @@ mod outages;
 pub use anomalies::{anomaly_example_figure, anomaly_figures};
 pub use consistency::nees_figure;
 pub use extended_state::extended_state_figures;
-pub use group::{formation_figure, group_figure};
+pub use group::{formation_figure, group_figure, network_sweep_figure};
 pub use outages::{efficiency_figure, outage_predictors_figure, recovery_figure};

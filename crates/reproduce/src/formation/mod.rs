@@ -21,6 +21,19 @@
 //! flight, `simulate` stage 1 and the relative measurements, `run` the Monte
 //! Carlo and the scores.
 //!
+//! Network (`[formation.network]`, see [`Network`]): each member sends, per
+//! epoch, one packet — its stage-1 solution and its relative measurements
+//! (of at most `max_neighbours` neighbours, the nearest by measured range),
+//! stamped with the epoch it was made at — to the node that runs stage 2.
+//! A packet is lost with `loss_probability` or arrives `latency_s` plus a
+//! uniform `jitter_s` later; stage 2 runs at each epoch with what has
+//! arrived, and a late packet is fused at its own epoch by rewinding to a
+//! buffered snapshot and running the epochs since again
+//! ([`aidnav_integration::group::DelayedFusion`]); packets older than
+//! `history_s` are counted and dropped. The scored estimate at each epoch is
+//! what the node knows at that time. [`sweep`] runs a grid of latencies and
+//! loss rates on the same stage 1 and measurements.
+//!
 //! GNSS denial: the members listed in `[[formation.denial]]` lose GNSS for
 //! the interval; their stage-1 INS runs free (its σ grows) while the group
 //! keeps measuring them.
@@ -46,10 +59,12 @@ use aidnav_models::local_ins::LocalInsModel;
 use aidnav_models::relative_sensor::RelativeSensor;
 use serde::{Deserialize, Serialize};
 
+mod network;
 mod run;
 mod scenario;
 mod simulate;
 
+pub use network::{Network, NetworkStats, NetworkSweep, SweepCell, sweep};
 pub use run::{RunErrors, finish, run, run_range};
 
 /// Names of the three solutions compared per member.
@@ -169,6 +184,13 @@ pub struct FormationScenario {
     pub denial: Vec<Denial>,
     /// GNSS degradations (inflated and biased fixes). Default none.
     pub degradation: Vec<Degradation>,
+    /// The exchange between members as a network (`[formation.network]`:
+    /// latency, loss, neighbour limit, the late-packet buffer; see
+    /// [`Network`]). Default none: the ideal exchange, every packet at the
+    /// epoch it is made (not written out when absent, so results of
+    /// scenarios without it are unchanged).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub network: Option<Network>,
 }
 
 impl Default for FormationScenario {
@@ -200,6 +222,7 @@ impl Default for FormationScenario {
                 end_s: 500.0,
             }],
             degradation: Vec::new(),
+            network: None,
         }
     }
 }
@@ -254,4 +277,7 @@ pub struct FormationResult {
     pub error_by_epoch: Vec<Vec<[f64; 3]>>,
     /// Relative measurements per epoch (mean over epochs and runs).
     pub relative_per_epoch: f64,
+    /// What the network did, summed over runs (only with
+    /// `[formation.network]`).
+    pub network: Option<NetworkStats>,
 }

@@ -2,44 +2,52 @@
 //! same measurements, and the scores over runs.
 
 use aidnav_estimation::EstimationError;
-use aidnav_integration::group::{EkfFusion, PaperFusion};
+use aidnav_ins::local_level::LocalLevelState;
+use aidnav_integration::group::{EkfFusion, OwnSolution, PaperFusion};
 use aidnav_sim::monte_carlo::MonteCarlo;
 use aidnav_sim::rng::channel_rng;
 
 use serde::{Deserialize, Serialize};
 
-use super::simulate::{relative_measurements, stage_one};
+use super::network::{self, NetworkStats};
+use super::simulate::{RELATIVE_CHANNEL, relative_measurements, stage_one};
 use super::{Denial, FormationResult, FormationScenario, MemberScore};
 
 /// One run's per-epoch errors, what [`finish`] combines.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunErrors {
     /// [epoch][member][solution] squared position error.
-    position_sq: Vec<Vec<[f64; 3]>>,
-    velocity_sq: Vec<Vec<[f64; 3]>>,
-    sigma: Vec<Vec<[f64; 3]>>,
-    relative: usize,
+    pub(super) position_sq: Vec<Vec<[f64; 3]>>,
+    pub(super) velocity_sq: Vec<Vec<[f64; 3]>>,
+    pub(super) sigma: Vec<Vec<[f64; 3]>>,
+    pub(super) relative: usize,
+    /// What the network did (only with `[formation.network]`).
+    pub(super) network: Option<NetworkStats>,
 }
 
-fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationError> {
-    let (own, truth) = stage_one(sc, run)?;
-    let mut rng = channel_rng(sc.seed, run, 1_000_000);
-    let mut paper = PaperFusion::new(sc.fusion_params(), &own[0])?;
-    let mut ekf = EkfFusion::new(sc.fusion_params(), &own[0])?;
-    let mut errors = RunErrors {
-        position_sq: Vec::with_capacity(own.len()),
-        velocity_sq: Vec::with_capacity(own.len()),
-        sigma: Vec::with_capacity(own.len()),
-        relative: 0,
-    };
-    for (epoch, (own_e, truth_e)) in own.iter().zip(&truth).enumerate() {
-        let relative = relative_measurements(sc, truth_e, &mut rng);
-        errors.relative += relative.len();
-        paper.epoch(own_e, &relative, epoch > 0)?;
-        ekf.epoch(own_e, &relative, epoch > 0)?;
-        let mut pos = Vec::with_capacity(sc.members);
-        let mut vel = Vec::with_capacity(sc.members);
-        let mut sig = Vec::with_capacity(sc.members);
+impl RunErrors {
+    pub(super) fn with_capacity(epochs: usize) -> Self {
+        Self {
+            position_sq: Vec::with_capacity(epochs),
+            velocity_sq: Vec::with_capacity(epochs),
+            sigma: Vec::with_capacity(epochs),
+            relative: 0,
+            network: None,
+        }
+    }
+
+    /// Scores one epoch: each member's stage-1 solution and both stage-2
+    /// estimates against the truth.
+    pub(super) fn push_epoch(
+        &mut self,
+        own_e: &[OwnSolution],
+        truth_e: &[LocalLevelState],
+        paper: &PaperFusion,
+        ekf: &EkfFusion,
+    ) {
+        let mut pos = Vec::with_capacity(truth_e.len());
+        let mut vel = Vec::with_capacity(truth_e.len());
+        let mut sig = Vec::with_capacity(truth_e.len());
         for (l, t) in truth_e.iter().enumerate() {
             let o = &own_e[l];
             let estimates = [
@@ -52,9 +60,38 @@ fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationErr
             let stage1_sigma = (0..3).map(|a| o.covariance[(a, a)]).sum::<f64>().sqrt();
             sig.push([stage1_sigma, paper.position_sigma(l), ekf.position_sigma(l)]);
         }
-        errors.position_sq.push(pos);
-        errors.velocity_sq.push(vel);
-        errors.sigma.push(sig);
+        self.position_sq.push(pos);
+        self.velocity_sq.push(vel);
+        self.sigma.push(sig);
+    }
+}
+
+fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationError> {
+    let (own, truth) = stage_one(sc, run)?;
+    match &sc.network {
+        Some(net) => network::stage_two(sc, net, run, &own, &truth),
+        None => ideal_stage_two(sc, run, &own, &truth),
+    }
+}
+
+/// Stage 2 with the ideal exchange: every member's solution and relative
+/// measurements reach both filters at the epoch they are made.
+fn ideal_stage_two(
+    sc: &FormationScenario,
+    run: u64,
+    own: &[Vec<OwnSolution>],
+    truth: &[Vec<LocalLevelState>],
+) -> Result<RunErrors, EstimationError> {
+    let mut rng = channel_rng(sc.seed, run, RELATIVE_CHANNEL);
+    let mut paper = PaperFusion::new(sc.fusion_params(), &own[0])?;
+    let mut ekf = EkfFusion::new(sc.fusion_params(), &own[0])?;
+    let mut errors = RunErrors::with_capacity(own.len());
+    for (epoch, (own_e, truth_e)) in own.iter().zip(truth).enumerate() {
+        let relative = relative_measurements(sc, truth_e, &mut rng);
+        errors.relative += relative.len();
+        paper.epoch(own_e, &relative, epoch > 0)?;
+        ekf.epoch(own_e, &relative, epoch > 0)?;
+        errors.push_epoch(own_e, truth_e, &paper, &ekf);
     }
     Ok(errors)
 }
@@ -174,11 +211,21 @@ pub fn finish(
         .collect();
     let relative_per_epoch =
         runs.iter().map(|r| r.relative as f64).sum::<f64>() / (n_runs * epochs as f64);
+    let network = sc.network.as_ref().map(|_| {
+        let mut total = NetworkStats::default();
+        for r in &runs {
+            if let Some(n) = &r.network {
+                total.add(n);
+            }
+        }
+        total
+    });
     Ok(FormationResult {
         members,
         time_s,
         error_by_epoch,
         relative_per_epoch,
+        network,
     })
 }
 

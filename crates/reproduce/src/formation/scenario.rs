@@ -221,6 +221,9 @@ impl Validate for FormationScenario {
                 ));
             }
         }
+        if let Some(n) = &self.network {
+            n.validate_for(self).map_err(|e| e.within("network"))?;
+        }
         Ok(())
     }
 }

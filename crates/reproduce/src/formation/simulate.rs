@@ -14,6 +14,10 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::FormationScenario;
 
+/// The random stream of the relative measurements' noise (channel of
+/// [`channel_rng`]; members' stage 1 use channels 0 … M − 1).
+pub(super) const RELATIVE_CHANNEL: u64 = 1_000_000;
+
 /// Truth-side IMU and GNSS error processes of one member.
 struct MemberErrors {
     accel_bias: Vector3<f64>,
