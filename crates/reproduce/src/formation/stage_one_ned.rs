@@ -340,4 +340,28 @@ mod tests {
             );
         }
     }
+
+    /// The origin must be on the ellipsoid away from the poles (the NED
+    /// frame is singular there); a bad key is named.
+    #[test]
+    fn origin_out_of_range_is_named() {
+        use aidnav_io::config::Validate;
+        for (lat, lon, key) in [
+            (89.0, 0.0, "origin_latitude_deg"),
+            (f64::NAN, 0.0, "origin_latitude_deg"),
+            (10.0, 181.0, "origin_longitude_deg"),
+        ] {
+            let sc = FormationScenario {
+                origin_latitude_deg: lat,
+                origin_longitude_deg: lon,
+                ..FormationScenario::default()
+            };
+            assert_eq!(sc.validate().unwrap_err().key, key);
+        }
+        let flat = FormationScenario {
+            ins_model: InsModel::Flat,
+            ..FormationScenario::default()
+        };
+        assert!(flat.validate().is_ok());
+    }
 }
