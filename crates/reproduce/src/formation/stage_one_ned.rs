@@ -279,13 +279,14 @@ mod tests {
         }
     }
 
-    /// Stage 1 with the Earth-frame model on a short flight, 12 runs of
-    /// member 1 with a GNSS gap from 60 s to 90 s: its errors agree with its
+    /// Stage 1 with the Earth-frame model on a short flight (two members),
+    /// 12 runs of member 1 with a GNSS gap from 60 s to 90 s: its errors agree with its
     /// own σ (NEES per axis, position and velocity, close to 1), and the flat
     /// model, given the same random numbers, agrees with it closely.
     #[test]
     fn ned_stage_one_is_consistent_and_agrees_with_the_flat_model_on_a_short_flight() {
         let base = FormationScenario {
+            members: 2,
             duration_s: 120.0,
             settle_s: 20.0,
             denial: vec![Denial {
