@@ -77,7 +77,7 @@ impl EarthFrame {
     }
 
     /// An Earth state in the tangent plane; also the ENU → local NED rotation.
-    pub(super) fn from_earth(&self, s: &NedState) -> (LocalLevelState, Matrix3<f64>) {
+    pub(super) fn to_tangent_plane(&self, s: &NedState) -> (LocalLevelState, Matrix3<f64>) {
         let t = self.enu_to_ned(&s.position);
         let position =
             self.enu_to_ecef.transpose() * (s.position.to_ecef().raw() - self.origin_ecef);
@@ -233,7 +233,7 @@ pub(super) fn member(
             );
             lc.gnss_update(&position, &velocity)?;
         }
-        let (state, t_ins) = frame.from_earth(lc.solution());
+        let (state, t_ins) = frame.to_tangent_plane(lc.solution());
         let back = t_ins.transpose();
         out.push((
             OwnSolution {
@@ -267,7 +267,7 @@ mod tests {
         for (l, t) in [(0, 0.0), (3, 250.0), (4, 599.0)] {
             let s = sc.truth(l, t);
             let (e, _) = frame.to_earth(&s);
-            let (back, _) = frame.from_earth(&e);
+            let (back, _) = frame.to_tangent_plane(&e);
             assert!((back.position - s.position).norm() < 1e-6);
             assert!((back.velocity - s.velocity).norm() < 1e-9);
             assert!(back.attitude.angle_to(&s.attitude) < 1e-9);
