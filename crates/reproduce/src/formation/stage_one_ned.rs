@@ -333,8 +333,8 @@ mod tests {
         for (name, n) in ["position", "velocity"].iter().zip(nees) {
             assert!((0.4..2.0).contains(&n), "{name} NEES {n}");
         }
-        for q in 0..2 {
-            let (ned, flat) = (sq[0][q].sqrt(), sq[1][q].sqrt());
+        for (q, (ned, flat)) in sq[0].iter().zip(&sq[1]).enumerate() {
+            let (ned, flat) = (ned.sqrt(), flat.sqrt());
             assert!(
                 (ned / flat - 1.0).abs() < 0.1,
                 "quantity {q}: ned {ned}, flat {flat}"
