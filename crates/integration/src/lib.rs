@@ -8,6 +8,8 @@
 //!   NED mechanization;
 //! - [`local_level`]: spec 30's stage 1, the loosely coupled filter on the
 //!   flat local-level INS;
+//! - [`ned_loosely`]: the same stage 1 in an Earth frame, the WGS-84 NED INS
+//!   with spec 40's error model and the GNSS receiver's correlated errors;
 //! - [`ned_loop`]: the NED filter's epoch loop over a recorded log, its
 //!   observers, and [`bridge`], spec 20's outage bridge as one of them;
 //! - [`group`]: spec 30's stage 2, the group filters: one axis of a large
@@ -19,4 +21,5 @@ pub mod group;
 pub mod local_level;
 pub mod ned;
 pub mod ned_loop;
+pub mod ned_loosely;
 mod recording;

@@ -163,8 +163,9 @@ pub fn outages(scenario: &OutagesScenario, out: &Path, quiet: bool) -> JobResult
 }
 
 /// Run the spec-30 group experiment and write `group.csv` (per epoch and
-/// case: filter σ and Monte Carlo RMS of position), `group_errors.svg` (like
-/// the paper's Fig. 6) and `summary.json` (an object per case `single`,
+/// case: filter σ and Monte Carlo RMS of position and of velocity),
+/// `group_errors.svg` and `group_velocity_errors.svg` (the paper's Fig. 6,
+/// position and velocity panels) and `summary.json` (an object per case `single`,
 /// `group_low`, `group_high`) into `out`.
 pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<GroupResult> {
     let mc = campaign(scenario.runs, scenario.seed, "group", quiet);
@@ -177,6 +178,10 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
         header.push(format!("{}_sigma [m]", c.name));
         header.push(format!("{}_rms [m]", c.name));
     }
+    for c in &result.cases {
+        header.push(format!("{}_velocity_sigma [m/s]", c.name));
+        header.push(format!("{}_velocity_rms [m/s]", c.name));
+    }
     let header_ref: Vec<&str> = header.iter().map(String::as_str).collect();
     write_table(
         &out.join("group.csv"),
@@ -186,6 +191,10 @@ pub fn group(scenario: &GroupScenario, out: &Path, quiet: bool) -> JobResult<Gro
             for c in &result.cases {
                 row.push(c.sigma_by_epoch[e]);
                 row.push(c.rms_by_epoch[e]);
+            }
+            for c in &result.cases {
+                row.push(c.velocity_sigma_by_epoch[e]);
+                row.push(c.velocity_rms_by_epoch[e]);
             }
             row
         }),

@@ -1,53 +1,71 @@
-//! Spec 30's figures: the one-axis group's errors (like the paper's Fig. 6)
+//! Spec 30's figures: the one-axis group's position and velocity errors
+//! (the paper's Fig. 6)
 //! and the formation's 3-D position errors.
 
 use std::path::Path;
 
 use crate::formation::{FormationResult, FormationScenario, SweepCell};
-use crate::group::{GroupResult, GroupScenario};
+use crate::group::{CaseScore, GroupResult, GroupScenario};
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series};
 
-/// `group_errors.svg` (like the paper's Fig. 6): per case, the Monte Carlo
-/// RMS and the filter's σ of position per epoch.
+/// Fig. 6 of the paper in two files: `group_errors.svg` (its position
+/// panel) and `group_velocity_errors.svg` (its velocity panel); per case,
+/// the Monte Carlo RMS and the filter's σ per epoch.
 pub fn group_figure(
     scenario: &GroupScenario,
     result: &GroupResult,
     out: &Path,
 ) -> Result<(), IoError> {
-    let mut series = Vec::new();
-    for (i, c) in result.cases.iter().enumerate() {
-        let case_dt = scenario.cases()[i].dt_s;
-        let trace = |v: &[f64]| -> Vec<(f64, f64)> {
-            v.iter()
-                .enumerate()
-                .map(|(e, &y)| (e as f64 * case_dt, y))
-                .collect()
-        };
-        series.push(Series {
-            label: format!("{}: Monte Carlo RMS", c.name),
-            points: trace(&c.rms_by_epoch),
-            style: LineStyle::Solid,
-            color: i,
-        });
-        series.push(Series {
-            label: format!("{}: filter σ", c.name),
-            points: trace(&c.sigma_by_epoch),
-            style: LineStyle::Dashed,
-            color: i,
-        });
-    }
-    LineChart {
-        title: format!(
-            "Position error per member, one axis, {} runs (paper Fig. 6)",
-            scenario.runs
+    type Pick = fn(&CaseScore) -> (&[f64], &[f64]);
+    let panels: [(&str, &str, &str, Pick); 2] = [
+        ("group_errors.svg", "Position", "position error [m]", |c| {
+            (&c.rms_by_epoch, &c.sigma_by_epoch)
+        }),
+        (
+            "group_velocity_errors.svg",
+            "Velocity",
+            "velocity error [m/s]",
+            |c| (&c.velocity_rms_by_epoch, &c.velocity_sigma_by_epoch),
         ),
-        x_label: "time [s]".into(),
-        y_label: "position error [m]".into(),
-        series,
-        log_y: false,
+    ];
+    for (file, quantity, y_label, pick) in panels {
+        let mut series = Vec::new();
+        for (i, c) in result.cases.iter().enumerate() {
+            let case_dt = scenario.cases()[i].dt_s;
+            let trace = |v: &[f64]| -> Vec<(f64, f64)> {
+                v.iter()
+                    .enumerate()
+                    .map(|(e, &y)| (e as f64 * case_dt, y))
+                    .collect()
+            };
+            let (rms, sigma) = pick(c);
+            series.push(Series {
+                label: format!("{}: Monte Carlo RMS", c.name),
+                points: trace(rms),
+                style: LineStyle::Solid,
+                color: i,
+            });
+            series.push(Series {
+                label: format!("{}: filter σ", c.name),
+                points: trace(sigma),
+                style: LineStyle::Dashed,
+                color: i,
+            });
+        }
+        LineChart {
+            title: format!(
+                "{quantity} error per member, one axis, {} runs (paper Fig. 6)",
+                scenario.runs
+            ),
+            x_label: "time [s]".into(),
+            y_label: y_label.into(),
+            series,
+            log_y: false,
+        }
+        .write_svg(&out.join(file))?;
     }
-    .write_svg(&out.join("group_errors.svg"))
+    Ok(())
 }
 
 /// `formation_errors.svg`: each GNSS-denied or -degraded member alone and in

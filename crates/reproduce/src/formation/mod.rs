@@ -52,7 +52,17 @@
 //! The flight: the leader flies east at `speed_mps`, weaving left and right
 //! (`weave_amplitude_m`, `weave_period_s`) and climbing and descending; the
 //! others hold a V behind it (`spacing_m`, rotated with the leader's heading).
-//! Flat, non-rotating Earth, local ENU frame (see [`aidnav_ins::local_level`]).
+//! The flight is defined in the local tangent plane (ENU) at the origin
+//! `origin_latitude_deg`, `origin_longitude_deg`; stage 2, the relative
+//! sensors and the scores work in that frame.
+//!
+//! Stage 1's INS and error model (`ins_model`): `"ned"` (default) — the
+//! paper's eq. 3 model in an Earth frame: the WGS-84 NED INS on the rotating
+//! Earth with spec 40's error model (Earth and transport rates, Coriolis,
+//! the gravity gradient) and the receiver's correlated errors
+//! ([`aidnav_integration::ned_loosely`]); `"flat"` — a flat, non-rotating
+//! Earth with constant gravity, the tangent plane as the navigation frame
+//! ([`aidnav_ins::local_level`], [`aidnav_integration::local_level`]).
 
 use aidnav_io::config::{Invalid, Validate};
 use aidnav_models::local_ins::LocalInsModel;
@@ -63,6 +73,7 @@ mod network;
 mod run;
 mod scenario;
 mod simulate;
+mod stage_one_ned;
 
 pub use network::{Network, NetworkStats, NetworkSweep, SweepCell, sweep};
 pub use run::{RunErrors, finish, run, run_range};
@@ -103,6 +114,19 @@ pub struct Degradation {
     /// stage-1 filter. Default false: a silent failure.
     #[serde(default)]
     pub reported: bool,
+}
+
+/// Stage 1's INS and error model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InsModel {
+    /// WGS-84 NED INS on the rotating Earth, spec 40's error model (the
+    /// paper's eq. 3).
+    #[default]
+    Ned,
+    /// Flat, non-rotating Earth, constant gravity, the tangent plane as the
+    /// navigation frame.
+    Flat,
 }
 
 /// Initial INS errors (σ).
@@ -174,6 +198,13 @@ pub struct FormationScenario {
     /// `position_correlation_s`), and stage 2 becomes overconfident and
     /// lags. See the closing note of issue 5 for the numbers.
     pub stage2_own_velocity: bool,
+    /// Stage 1's INS and error model, `"ned"` or `"flat"`. Default `"ned"`.
+    pub ins_model: InsModel,
+    /// Latitude of the tangent plane's origin \[deg\], within ±85 (`ned`
+    /// only). Default 45.
+    pub origin_latitude_deg: f64,
+    /// Longitude of the origin \[deg\], within ±180 (`ned` only). Default 0.
+    pub origin_longitude_deg: f64,
     /// Initial INS errors.
     pub initial: InitialErrors,
     /// IMU and GNSS errors (stage-1 model; the truth draws from the same).
@@ -213,6 +244,9 @@ impl Default for FormationScenario {
             spacing_m: 150.0,
             group_accel_sigma_m_s2: 1.0,
             stage2_own_velocity: false,
+            ins_model: InsModel::Ned,
+            origin_latitude_deg: 45.0,
+            origin_longitude_deg: 0.0,
             initial: InitialErrors::default(),
             model: LocalInsModel::default(),
             sensor: RelativeSensor::default(),

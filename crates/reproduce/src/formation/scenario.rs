@@ -74,6 +74,13 @@ impl Validate for FormationScenario {
                 ("weave_period_s", self.weave_period_s, 1.0, 1e6),
                 ("climb_period_s", self.climb_period_s, 1.0, 1e6),
                 ("spacing_m", self.spacing_m, 0.1, 100_000.0),
+                ("origin_latitude_deg", self.origin_latitude_deg, -85.0, 85.0),
+                (
+                    "origin_longitude_deg",
+                    self.origin_longitude_deg,
+                    -180.0,
+                    180.0,
+                ),
                 (
                     "group_accel_sigma_m_s2",
                     self.group_accel_sigma_m_s2,

@@ -12,7 +12,7 @@ use aidnav_models::relative_sensor::{Polar, wrap_angle};
 use aidnav_sim::rng::{RunRng, channel_rng, standard_normal};
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::FormationScenario;
+use super::{FormationScenario, InsModel};
 
 /// The random stream of the relative measurements' noise (channel of
 /// [`channel_rng`]; members' stage 1 use channels 0 … M − 1).
@@ -38,7 +38,7 @@ fn gauss3(rng: &mut RunRng, sigma: &Vector3<f64>) -> Vector3<f64> {
 /// the model's white noise plus (k² − 1) times the nominal total variance
 /// (correlated and white) per axis, so that the total σ the filter assumes
 /// is k times the nominal one (the correlated part keeps its state model).
-fn reported_noise(sc: &FormationScenario, k: f64) -> Matrix6 {
+pub(super) fn reported_noise(sc: &FormationScenario, k: f64) -> Matrix6 {
     let gnss = &sc.model.gnss;
     let (_, mut r) = sc.model.measurement();
     let extra = k * k - 1.0;
@@ -55,7 +55,8 @@ fn reported_noise(sc: &FormationScenario, k: f64) -> Matrix6 {
 type StageOne = (Vec<Vec<OwnSolution>>, Vec<Vec<LocalLevelState>>);
 
 /// Stage 1 of every member over the whole flight: per epoch, each member's
-/// INS* solution. Also returns the truth at each epoch.
+/// INS* solution (in the tangent plane, whichever `ins_model`). Also returns
+/// the truth at each epoch.
 pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, EstimationError> {
     let m = sc.members;
     let epochs = sc.epochs();
@@ -86,6 +87,16 @@ pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, Es
     let i = &sc.initial;
     let attitude_sigma = Vector3::new(i.tilt_sigma_rad, i.tilt_sigma_rad, i.heading_sigma_rad);
     for l in 0..m {
+        if sc.ins_model == InsModel::Ned {
+            let member = super::stage_one_ned::member(sc, run, l)?;
+            for ((out_e, truth_e), (own, truth)) in
+                out.iter_mut().zip(truth_by_epoch.iter_mut()).zip(member)
+            {
+                out_e.push(own);
+                truth_e.push(truth);
+            }
+            continue;
+        }
         let mut rng = channel_rng(sc.seed, run, l as u64);
         let start = sc.truth(l, 0.0);
         let psi = gauss3(&mut rng, &attitude_sigma);
