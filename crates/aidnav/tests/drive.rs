@@ -92,12 +92,13 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
             g.position.latitude_rad.to_degrees(),
             g.position.longitude_rad.to_degrees(),
             g.position.height_m,
-            sp.x,
-            sp.y,
-            sp.z,
+            // KF-GINS's 13-column layout: velocity before the position σ.
             v.x,
             v.y,
             v.z,
+            sp.x,
+            sp.y,
+            sp.z,
             sv.x,
             sv.y,
             sv.z
