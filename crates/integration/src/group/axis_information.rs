@@ -376,6 +376,89 @@ mod tests {
         }
     }
 
+    /// With own-error states the sparse filter equals the augmented model
+    /// `[R, V, b_R, b_V]` (Φ with T and the Gauss–Markov φ, Q with (a_R T)²
+    /// and σ²(1 − φ²)) run through the engine's Joseph-form filter, with own
+    /// fixes R + b_R and V + b_V, relative positions and relative velocities.
+    #[test]
+    fn own_error_states_match_dense_augmented_model() {
+        let (m, t, a) = (3, 1.0, 0.5);
+        let pos_gm = GaussMarkov::new(300.0, 2.0).unwrap();
+        let vel_gm = GaussMarkov::new(60.0, 0.05).unwrap();
+        let r0 = [0.0, 50.0, -40.0];
+        let v0 = [1.0, 0.0, 2.0];
+        let mut sparse = GroupAxisFilter::new(m, t, a, true, &r0, &v0, 10.0, 1.0)
+            .unwrap()
+            .with_own_errors(AxisOwnErrors {
+                position: pos_gm,
+                velocity: Some(vel_gm),
+            });
+        let n = 4 * m;
+        let (fp, qp) = pos_gm.discretise(t);
+        let (fv, qv) = vel_gm.discretise(t);
+        let mut phi = DMatrix::identity(n, n);
+        let mut q = DMatrix::zeros(n, n);
+        let mut p0 = DVector::zeros(n);
+        let mut x0 = DVector::zeros(n);
+        for l in 0..m {
+            phi[(l, m + l)] = t;
+            phi[(2 * m + l, 2 * m + l)] = fp;
+            phi[(3 * m + l, 3 * m + l)] = fv;
+            q[(m + l, m + l)] = (a * t) * (a * t);
+            q[(2 * m + l, 2 * m + l)] = qp;
+            q[(3 * m + l, 3 * m + l)] = qv;
+            p0[l] = 100.0;
+            p0[m + l] = 1.0;
+            p0[2 * m + l] = 4.0;
+            p0[3 * m + l] = 0.05f64.powi(2);
+            x0[l] = r0[l];
+            x0[m + l] = v0[l];
+        }
+        let mut dense = aidnav_estimation::DynKalmanFilter::new(x0, DMatrix::from_diagonal(&p0))
+            .unwrap();
+        for epoch in 0..12 {
+            let e = epoch as f64;
+            let mut rows: Vec<(Vec<(usize, f64)>, f64, f64)> = Vec::new();
+            for l in 0..m {
+                let zp = r0[l] + v0[l] * e + 0.3 * (l as f64 - e).sin();
+                let zv = v0[l] + 0.02 * (e + l as f64).cos();
+                sparse.observe_own_position(l, zp, 0.5).unwrap();
+                sparse.observe_own_velocity(l, zv, 0.05).unwrap();
+                rows.push((vec![(l, 1.0), (2 * m + l, 1.0)], 0.25, zp));
+                rows.push((vec![(m + l, 1.0), (3 * m + l, 1.0)], 0.0025, zv));
+            }
+            for (l, k) in [(0, 1), (1, 2), (2, 0)] {
+                let zr = r0[l] - r0[k] + (v0[l] - v0[k]) * e + 0.1 * e.cos();
+                let zd = v0[l] - v0[k] + 0.05 * (e + 1.0).sin();
+                sparse.observe_relative(l, k, zr, 0.5).unwrap();
+                sparse.observe_relative_velocity(l, k, zd, 0.2).unwrap();
+                rows.push((vec![(l, 1.0), (k, -1.0)], 0.25, zr));
+                rows.push((vec![(m + l, 1.0), (m + k, -1.0)], 0.04, zd));
+            }
+            if epoch > 0 {
+                sparse.predict();
+                dense.predict(&phi, &q).unwrap();
+            }
+            sparse.update().unwrap();
+            let mut h = DMatrix::zeros(rows.len(), n);
+            let mut r = DMatrix::zeros(rows.len(), rows.len());
+            let mut z = DVector::zeros(rows.len());
+            for (i, (terms, var, zi)) in rows.iter().enumerate() {
+                for &(j, c) in terms {
+                    h[(i, j)] = c;
+                }
+                r[(i, i)] = *var;
+                z[i] = *zi;
+            }
+            dense.update(&z, &h, &r).unwrap();
+            let (xs, xd) = (&sparse.x, dense.state());
+            assert!((xs - xd).amax() < 1e-8, "epoch {epoch}: state");
+            assert!((&sparse.p - dense.covariance()).amax() < 1e-9, "epoch {epoch}: P");
+        }
+        // The correlated errors were estimated, not left at their prior.
+        assert!(sparse.p[(2 * m, 2 * m)] < 4.0);
+    }
+
     #[test]
     fn neighbours_are_nearest_first() {
         let p: Vec<Vector3<f64>> = (0..6)

@@ -100,10 +100,24 @@ impl EkfFusion {
         relative: &[RelativeMeasurement],
         predict: bool,
     ) -> Result<(), EstimationError> {
+        self.epoch_with_new_own(own, &vec![true; own.len()], relative, predict)
+    }
+
+    /// [`Self::epoch`] fusing member l's own solution only where `own_new[l]`
+    /// (its stage 1 had a GNSS fix since the last epoch; otherwise its
+    /// solution is a prediction from information already fused). Its
+    /// attitude still serves its relative measurements.
+    pub fn epoch_with_new_own(
+        &mut self,
+        own: &[OwnSolution],
+        own_new: &[bool],
+        relative: &[RelativeMeasurement],
+        predict: bool,
+    ) -> Result<(), EstimationError> {
         if predict {
             self.kf.predict(&self.phi, &self.q)?;
         }
-        self.fuse_own(own)?;
+        self.fuse_own(own, own_new)?;
         for meas in relative {
             self.fuse_relative(&own[meas.from], meas)?;
         }
@@ -111,10 +125,13 @@ impl EkfFusion {
     }
 
     /// Own solution: position (and velocity) with its stage-1 covariance block.
-    fn fuse_own(&mut self, own: &[OwnSolution]) -> Result<(), EstimationError> {
+    fn fuse_own(&mut self, own: &[OwnSolution], own_new: &[bool]) -> Result<(), EstimationError> {
         let n = self.kf.dim();
         let k = if self.params.own_velocity { 6 } else { 3 };
         for (l, o) in own.iter().enumerate() {
+            if !own_new.get(l).copied().unwrap_or(true) {
+                continue;
+            }
             let mut h = DMatrix::zeros(k, n);
             for i in 0..k {
                 h[(i, 6 * l + i)] = 1.0;

@@ -63,6 +63,20 @@ impl PaperFusion {
         relative: &[RelativeMeasurement],
         predict: bool,
     ) -> Result<(), EstimationError> {
+        self.epoch_with_new_own(own, &vec![true; own.len()], relative, predict)
+    }
+
+    /// [`Self::epoch`] fusing member l's own solution only where `own_new[l]`
+    /// (its stage 1 had a GNSS fix since the last epoch; otherwise its
+    /// solution is a prediction from information already fused). Its
+    /// attitude still serves its relative measurements.
+    pub fn epoch_with_new_own(
+        &mut self,
+        own: &[OwnSolution],
+        own_new: &[bool],
+        relative: &[RelativeMeasurement],
+        predict: bool,
+    ) -> Result<(), EstimationError> {
         let params = &self.params;
         let noise: Vec<Matrix6> = own
             .iter()
@@ -76,6 +90,9 @@ impl PaperFusion {
                 f.predict();
             }
             for (l, (o, r)) in own.iter().zip(&noise).enumerate() {
+                if !own_new.get(l).copied().unwrap_or(true) {
+                    continue;
+                }
                 f.observe_own_position(l, o.state.position[a], r[(a, a)].sqrt())?;
                 if params.own_velocity {
                     f.observe_own_velocity(l, o.state.velocity[a], r[(3 + a, 3 + a)].sqrt())?;

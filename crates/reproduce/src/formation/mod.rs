@@ -52,6 +52,21 @@ mod simulate;
 
 pub use run::run;
 
+/// How stage 2 treats the errors of each member's stage-1 solution
+/// (`stage2_own_errors`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage2OwnErrors {
+    /// The correlated part of each member's stage-1 position (and velocity)
+    /// error as first-order Gauss–Markov states, with σ and τ from the
+    /// receiver model (`model.gnss`); the rest of the stage-1 covariance,
+    /// at least the receiver's white σ, as white noise.
+    #[default]
+    GaussMarkov,
+    /// The paper's treatment: each epoch's stage-1 covariance as white noise.
+    White,
+}
+
 /// Names of the three solutions compared per member.
 pub const SOLUTIONS: [&str; 3] = ["gnss_ins", "paper", "ekf"];
 
@@ -157,8 +172,12 @@ pub struct FormationScenario {
     /// stage 2 then averages the INS* positions over minutes as if their
     /// errors were white — they are not (GNSS errors correlated over
     /// `position_correlation_s`), and stage 2 becomes overconfident and
-    /// lags. See the closing note of issue 5 for the numbers.
+    /// lags. With `stage2_own_errors = "gauss_markov"` (default) the
+    /// correlated errors are modelled and own velocities help.
     pub stage2_own_velocity: bool,
+    /// How stage 2 treats the errors of each member's stage-1 solution.
+    /// Default `"gauss_markov"`; `"white"` is the paper's treatment.
+    pub stage2_own_errors: Stage2OwnErrors,
     /// Initial INS errors.
     pub initial: InitialErrors,
     /// IMU and GNSS errors (stage-1 model; the truth draws from the same).
@@ -191,6 +210,7 @@ impl Default for FormationScenario {
             spacing_m: 150.0,
             group_accel_sigma_m_s2: 1.0,
             stage2_own_velocity: false,
+            stage2_own_errors: Stage2OwnErrors::GaussMarkov,
             initial: InitialErrors::default(),
             model: LocalInsModel::default(),
             sensor: RelativeSensor::default(),
@@ -232,6 +252,13 @@ pub struct MemberScore {
     pub velocity_rms_mps: [f64; 3],
     /// Filter's predicted 3-D position σ (√ trace), mean over epochs \[m\].
     pub position_sigma_m: [f64; 3],
+    /// Filter's predicted 3-D velocity σ (√ trace), mean over epochs [m/s].
+    pub velocity_sigma_mps: [f64; 3],
+    /// Mean normalised estimation error squared of the 3-D position, per
+    /// solution (3 when the filter's covariance matches its errors).
+    pub position_nees: [f64; 3],
+    /// Mean NEES of the 3-D velocity, per solution (ideal 3).
+    pub velocity_nees: [f64; 3],
     /// During its denial: mean over runs of the largest 3-D position error \[m\].
     pub denial_max_error_m: Option<[f64; 3]>,
     /// At the end of its denial: RMS over runs of the 3-D position error \[m\].

@@ -4,10 +4,12 @@
 use aidnav_estimation::EstimationError;
 use aidnav_integration::group::{EkfFusion, PaperFusion};
 use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_models::local_ins::Matrix6;
 use aidnav_sim::rng::channel_rng;
+use nalgebra::Vector3;
 
-use super::simulate::{relative_measurements, stage_one};
-use super::{Denial, FormationResult, FormationScenario, MemberScore};
+use super::simulate::{relative_measurements, relative_rates, stage_one};
+use super::{Denial, FormationResult, FormationScenario, MemberScore, Stage2OwnErrors};
 
 /// One run's per-epoch errors.
 struct RunErrors {
@@ -15,28 +17,60 @@ struct RunErrors {
     position_sq: Vec<Vec<[f64; 3]>>,
     velocity_sq: Vec<Vec<[f64; 3]>>,
     sigma: Vec<Vec<[f64; 3]>>,
+    velocity_sigma: Vec<Vec<[f64; 3]>>,
+    /// [epoch][member][solution] position and velocity NEES.
+    position_nees: Vec<Vec<[f64; 3]>>,
+    velocity_nees: Vec<Vec<[f64; 3]>>,
     relative: usize,
+}
+
+/// e_iᵀ P⁻¹ e for the 3-D block at `offset` of a 6×6 covariance (Cholesky
+/// solve; NaN when the block is not positive definite).
+fn nees3(p: &Matrix6, offset: usize, e: &Vector3<f64>) -> f64 {
+    let block = p.fixed_view::<3, 3>(offset, offset).into_owned();
+    block
+        .cholesky()
+        .map_or(f64::NAN, |c| e.dot(&c.solve(e)))
 }
 
 fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationError> {
     let (own, truth) = stage_one(sc, run)?;
     let mut rng = channel_rng(sc.seed, run, 1_000_000);
+    let mut rate_rng = channel_rng(sc.seed, run, 2_000_000);
     let mut paper = PaperFusion::new(sc.fusion_params(), &own[0])?;
     let mut ekf = EkfFusion::new(sc.fusion_params(), &own[0])?;
     let mut errors = RunErrors {
         position_sq: Vec::with_capacity(own.len()),
         velocity_sq: Vec::with_capacity(own.len()),
         sigma: Vec::with_capacity(own.len()),
+        velocity_sigma: Vec::with_capacity(own.len()),
+        position_nees: Vec::with_capacity(own.len()),
+        velocity_nees: Vec::with_capacity(own.len()),
         relative: 0,
     };
     for (epoch, (own_e, truth_e)) in own.iter().zip(&truth).enumerate() {
         let relative = relative_measurements(sc, truth_e, &mut rng);
         errors.relative += relative.len();
-        paper.epoch(own_e, &relative, epoch > 0)?;
-        ekf.epoch(own_e, &relative, epoch > 0)?;
+        let rates = relative_rates(sc, truth_e, &mut rate_rng);
+        // With the correlated model, a member without a GNSS fix this epoch
+        // hands stage 2 a prediction of what was already fused: not fused
+        // again (its INS drift is not white). The white treatment fuses it.
+        let t = (epoch + 1) as f64 * sc.fix_interval_s;
+        let own_new: Vec<bool> = (0..sc.members)
+            .map(|l| sc.stage2_own_errors == Stage2OwnErrors::White || !sc.denied(l, t))
+            .collect();
+        paper.epoch_with_new_own(own_e, &own_new, &relative, epoch > 0)?;
+        ekf.epoch_with_new_own(own_e, &own_new, &relative, epoch > 0)?;
+        if !rates.is_empty() {
+            paper.fuse_rates(own_e, &rates)?;
+            ekf.fuse_rates(own_e, &rates)?;
+        }
         let mut pos = Vec::with_capacity(sc.members);
         let mut vel = Vec::with_capacity(sc.members);
         let mut sig = Vec::with_capacity(sc.members);
+        let mut vsig = Vec::with_capacity(sc.members);
+        let mut pnees = Vec::with_capacity(sc.members);
+        let mut vnees = Vec::with_capacity(sc.members);
         for (l, t) in truth_e.iter().enumerate() {
             let o = &own_e[l];
             let estimates = [
@@ -48,10 +82,29 @@ fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationErr
             vel.push(estimates.map(|(_, v)| (v - t.velocity).norm_squared()));
             let stage1_sigma = (0..3).map(|a| o.covariance[(a, a)]).sum::<f64>().sqrt();
             sig.push([stage1_sigma, paper.position_sigma(l), ekf.position_sigma(l)]);
+            let stage1_vsigma = (3..6).map(|a| o.covariance[(a, a)]).sum::<f64>().sqrt();
+            vsig.push([stage1_vsigma, paper.velocity_sigma(l), ekf.velocity_sigma(l)]);
+            let covariances = [
+                o.covariance,
+                paper.position_velocity_covariance(l),
+                ekf.position_velocity_covariance(l),
+            ];
+            let mut pn = [0.0; 3];
+            let mut vn = [0.0; 3];
+            for s in 0..3 {
+                let (p, v) = estimates[s];
+                pn[s] = nees3(&covariances[s], 0, &(p - t.position));
+                vn[s] = nees3(&covariances[s], 3, &(v - t.velocity));
+            }
+            pnees.push(pn);
+            vnees.push(vn);
         }
         errors.position_sq.push(pos);
         errors.velocity_sq.push(vel);
         errors.sigma.push(sig);
+        errors.velocity_sigma.push(vsig);
+        errors.position_nees.push(pnees);
+        errors.velocity_nees.push(vnees);
     }
     Ok(errors)
 }
@@ -128,6 +181,9 @@ pub fn run(sc: &FormationScenario, mc: &MonteCarlo) -> Result<FormationResult, E
                 position_rms_m: mean_over(&|r, k| r.position_sq[k][l], true),
                 velocity_rms_mps: mean_over(&|r, k| r.velocity_sq[k][l], true),
                 position_sigma_m: mean_over(&|r, k| r.sigma[k][l], false),
+                velocity_sigma_mps: mean_over(&|r, k| r.velocity_sigma[k][l], false),
+                position_nees: mean_over(&|r, k| r.position_nees[k][l], false),
+                velocity_nees: mean_over(&|r, k| r.velocity_nees[k][l], false),
                 denial_max_error_m: denial_max,
                 denial_end_error_m: denial_end,
                 degraded: degradation_rms.is_some(),
@@ -165,7 +221,6 @@ mod tests {
     use super::super::Degradation;
     use super::*;
     use aidnav_io::config::Validate;
-    use nalgebra::Vector3;
 
     #[test]
     fn formation_truth_is_smooth_and_spaced() {
