@@ -53,7 +53,11 @@ pub(crate) fn print_formation(s: &FormationScenario, r: &FormationResult, out: &
             Stage2OwnErrors::GaussMarkov => "Gauss–Markov",
             Stage2OwnErrors::White => "white",
         },
-        if s.stage2_own_velocity { "fused" } else { "not fused" },
+        if s.stage2_own_velocity {
+            "fused"
+        } else {
+            "not fused"
+        },
         if s.sensor.range_rate {
             format!("σ {} m/s", s.sensor.range_rate_sigma_mps)
         } else {

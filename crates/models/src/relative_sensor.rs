@@ -132,7 +132,10 @@ pub fn range_rate_jacobian(
 /// velocity of the other member relative to the observer expressed in the
 /// observer's axes, not the rate of the body-frame line of sight (which
 /// would add −ω × d).
-pub fn body_relative_velocity(attitude: &UnitQuaternion<f64>, d_dot: &Vector3<f64>) -> Vector3<f64> {
+pub fn body_relative_velocity(
+    attitude: &UnitQuaternion<f64>,
+    d_dot: &Vector3<f64>,
+) -> Vector3<f64> {
     attitude.inverse_transform_vector(d_dot)
 }
 
@@ -283,8 +286,16 @@ mod tests {
             e[k] = h;
             let fd_d = (range_rate(&(d + e), &d_dot) - range_rate(&(d - e), &d_dot)) / (2.0 * h);
             let fd_v = (range_rate(&d, &(d_dot + e)) - range_rate(&d, &(d_dot - e))) / (2.0 * h);
-            assert!((fd_d - jd[k]).abs() < 1e-9, "∂Ḋ/∂d[{k}]: {fd_d} vs {}", jd[k]);
-            assert!((fd_v - jv[k]).abs() < 1e-9, "∂Ḋ/∂ḋ[{k}]: {fd_v} vs {}", jv[k]);
+            assert!(
+                (fd_d - jd[k]).abs() < 1e-9,
+                "∂Ḋ/∂d[{k}]: {fd_d} vs {}",
+                jd[k]
+            );
+            assert!(
+                (fd_v - jv[k]).abs() < 1e-9,
+                "∂Ḋ/∂ḋ[{k}]: {fd_v} vs {}",
+                jv[k]
+            );
         }
         // Closed form: a purely radial rate is the full speed, a purely
         // transverse one is zero.

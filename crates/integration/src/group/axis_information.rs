@@ -223,7 +223,9 @@ impl GroupAxisFilter {
         sigma: f64,
     ) -> Result<(), EstimationError> {
         match self.own_error_index(0, l) {
-            Some(b) => self.info.add_scalar(&[(l, 1.0), (b, 1.0)], sigma * sigma, z),
+            Some(b) => self
+                .info
+                .add_scalar(&[(l, 1.0), (b, 1.0)], sigma * sigma, z),
             None => self.info.add_scalar(&[(l, 1.0)], sigma * sigma, z),
         }
     }
@@ -237,7 +239,9 @@ impl GroupAxisFilter {
     ) -> Result<(), EstimationError> {
         let v = self.members + l;
         match self.own_error_index(1, l) {
-            Some(b) => self.info.add_scalar(&[(v, 1.0), (b, 1.0)], sigma * sigma, z),
+            Some(b) => self
+                .info
+                .add_scalar(&[(v, 1.0), (b, 1.0)], sigma * sigma, z),
             None => self.info.add_scalar(&[(v, 1.0)], sigma * sigma, z),
         }
     }
@@ -414,8 +418,8 @@ mod tests {
             x0[l] = r0[l];
             x0[m + l] = v0[l];
         }
-        let mut dense = aidnav_estimation::DynKalmanFilter::new(x0, DMatrix::from_diagonal(&p0))
-            .unwrap();
+        let mut dense =
+            aidnav_estimation::DynKalmanFilter::new(x0, DMatrix::from_diagonal(&p0)).unwrap();
         for epoch in 0..12 {
             let e = epoch as f64;
             let mut rows: Vec<(Vec<(usize, f64)>, f64, f64)> = Vec::new();
@@ -453,7 +457,10 @@ mod tests {
             dense.update(&z, &h, &r).unwrap();
             let (xs, xd) = (&sparse.x, dense.state());
             assert!((xs - xd).amax() < 1e-8, "epoch {epoch}: state");
-            assert!((&sparse.p - dense.covariance()).amax() < 1e-9, "epoch {epoch}: P");
+            assert!(
+                (&sparse.p - dense.covariance()).amax() < 1e-9,
+                "epoch {epoch}: P"
+            );
         }
         // The correlated errors were estimated, not left at their prior.
         assert!(sparse.p[(2 * m, 2 * m)] < 4.0);

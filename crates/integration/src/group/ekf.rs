@@ -224,12 +224,14 @@ impl EkfFusion {
                 }
                 let nu = z - range_rate(&d, &d_dot);
                 let hx = (&h * x)[0];
-                let r = DMatrix::from_element(1, 1, self.params.sensor.range_rate_sigma_mps.powi(2));
+                let r =
+                    DMatrix::from_element(1, 1, self.params.sensor.range_rate_sigma_mps.powi(2));
                 self.kf.update(&DVector::from_element(1, nu + hx), &h, &r)?;
             }
             if let Some(z) = meas.body_velocity_mps {
                 let x = self.kf.state();
-                let d_dot = Vector3::from_fn(|a, _| x[6 * meas.to + 3 + a] - x[6 * meas.from + 3 + a]);
+                let d_dot =
+                    Vector3::from_fn(|a, _| x[6 * meas.to + 3 + a] - x[6 * meas.from + 3 + a]);
                 let observer = &own[meas.from];
                 let attitude = observer.state.attitude;
                 let (jv, _) = body_relative_velocity_jacobian(&attitude, &d_dot);

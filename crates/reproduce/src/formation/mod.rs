@@ -167,13 +167,12 @@ pub struct FormationScenario {
     /// Stage-2 acceleration disturbance a_R [m/s²]. Default 1.
     pub group_accel_sigma_m_s2: f64,
     /// Whether stage 2 also fuses each member's own INS* velocity (the
-    /// paper's optional z_V). Default false: the INS* velocity is precise
-    /// (σ ≈ 0.05 m/s) so it ties stage 2's position to its own integral and
-    /// stage 2 then averages the INS* positions over minutes as if their
-    /// errors were white — they are not (GNSS errors correlated over
-    /// `position_correlation_s`), and stage 2 becomes overconfident and
-    /// lags. With `stage2_own_errors = "gauss_markov"` (default) the
-    /// correlated errors are modelled and own velocities help.
+    /// paper's optional z_V). Default true. With `stage2_own_errors =
+    /// "white"` set it to false: the INS* velocity is precise (σ ≈ 0.05 m/s)
+    /// so it ties stage 2's position to its own integral, and stage 2 then
+    /// averages the INS* positions over minutes as if their errors were
+    /// white — they are not (GNSS errors correlated over
+    /// `position_correlation_s`) — and becomes overconfident and lags.
     pub stage2_own_velocity: bool,
     /// How stage 2 treats the errors of each member's stage-1 solution.
     /// Default `"gauss_markov"`; `"white"` is the paper's treatment.
@@ -209,7 +208,7 @@ impl Default for FormationScenario {
             climb_period_s: 180.0,
             spacing_m: 150.0,
             group_accel_sigma_m_s2: 1.0,
-            stage2_own_velocity: false,
+            stage2_own_velocity: true,
             stage2_own_errors: Stage2OwnErrors::GaussMarkov,
             initial: InitialErrors::default(),
             model: LocalInsModel::default(),

@@ -3,8 +3,8 @@
 
 use aidnav_ins::local_level::LocalLevelState;
 use aidnav_integration::group::{CorrelatedOwnErrors, FusionParams, OwnErrorModel};
-use aidnav_models::GaussMarkov;
 use aidnav_io::config::{Invalid, Validate, all_in_range, count_in_range, in_range};
+use aidnav_models::GaussMarkov;
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::{Degradation, Denial, FormationScenario, Stage2OwnErrors};
