@@ -422,7 +422,9 @@ mod tests {
             aidnav_estimation::DynKalmanFilter::new(x0, DMatrix::from_diagonal(&p0)).unwrap();
         for epoch in 0..12 {
             let e = epoch as f64;
-            let mut rows: Vec<(Vec<(usize, f64)>, f64, f64)> = Vec::new();
+            // (terms, variance, z) of each scalar observation.
+            type Row = (Vec<(usize, f64)>, f64, f64);
+            let mut rows: Vec<Row> = Vec::new();
             for l in 0..m {
                 let zp = r0[l] + v0[l] * e + 0.3 * (l as f64 - e).sin();
                 let zv = v0[l] + 0.02 * (e + l as f64).cos();
