@@ -1,6 +1,7 @@
 //! The reproductions' tables as the CLI prints them.
 
 use super::*;
+use aidnav::reproduce::formation::Stage2OwnErrors;
 use aidnav::reproduce::published;
 
 pub(crate) fn print_formation(s: &FormationScenario, o: &jobs::FormationOutcome, out: &Path) {
@@ -46,6 +47,44 @@ pub(crate) fn print_formation(s: &FormationScenario, o: &jobs::FormationOutcome,
                 m.velocity_rms_mps[0], m.velocity_rms_mps[1], m.velocity_rms_mps[2]
             )
         );
+    }
+    println!(
+        "stage 2: own errors {}, own velocities {}, range rate {}, relative velocity {}; velocity RMS [m/s] (σ) and NEES position / velocity (ideal 3)",
+        match s.stage2_own_errors {
+            Stage2OwnErrors::GaussMarkov => "Gauss–Markov",
+            Stage2OwnErrors::White => "white",
+        },
+        if s.stage2_own_velocity {
+            "fused"
+        } else {
+            "not fused"
+        },
+        if s.sensor.range_rate {
+            format!("σ {} m/s", s.sensor.range_rate_sigma_mps)
+        } else {
+            "off".into()
+        },
+        if s.sensor.relative_velocity {
+            format!("σ {} m/s", s.sensor.relative_velocity_sigma_mps)
+        } else {
+            "off".into()
+        },
+    );
+    println!(
+        "{:<7} {:>30} {:>30} {:>30}",
+        "member", "GNSS/INS alone", "paper fusion", "EKF fusion"
+    );
+    for m in &r.members {
+        let c = |k: usize| {
+            format!(
+                "{:.3} ({:.3}) {:.1} / {:.1}",
+                m.velocity_rms_mps[k],
+                m.velocity_sigma_mps[k],
+                m.position_nees[k],
+                m.velocity_nees[k]
+            )
+        };
+        println!("{:<7} {:>30} {:>30} {:>30}", m.member, c(0), c(1), c(2));
     }
     let kept: Vec<_> = r
         .members

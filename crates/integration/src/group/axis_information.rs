@@ -19,7 +19,19 @@
 //! ```
 
 use aidnav_estimation::{EstimationError, SparseInformation, SubspaceUpdate};
+use aidnav_models::GaussMarkov;
 use nalgebra::{DMatrix, DVector, Vector3};
+
+/// Correlated errors of the members' own fixes on one axis, carried as
+/// first-order Gauss–Markov states ([`GroupAxisFilter::with_own_errors`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisOwnErrors {
+    /// The own position fixes' correlated error.
+    pub position: GaussMarkov,
+    /// The own velocity fixes' correlated error (only with own velocity
+    /// fixes).
+    pub velocity: Option<GaussMarkov>,
+}
 
 /// One axis of an M-member group: dense covariance, information-form update.
 #[derive(Debug, Clone)]
@@ -31,6 +43,9 @@ pub struct GroupAxisFilter {
     p: DMatrix<f64>,
     info: SparseInformation,
     update: SubspaceUpdate,
+    /// Per own-error state block after `[R, V]` (position block, then
+    /// velocity block): its (φ, q) per step.
+    own_errors: Vec<(f64, f64)>,
 }
 
 impl GroupAxisFilter {
@@ -77,7 +92,46 @@ impl GroupAxisFilter {
             p,
             info: SparseInformation::new(block),
             update: SubspaceUpdate::new(n, block),
+            own_errors: Vec::new(),
         })
+    }
+
+    /// The same filter with the correlated errors of the own fixes as
+    /// states: the state becomes `[R, V, b_R, b_V]` (b_V only with
+    /// `errors.velocity`), each b at its stationary σ and zero mean, and an
+    /// own fix observes `R + b_R` (`V + b_V`). Every state is then observed,
+    /// so the information-form update covers the whole state.
+    pub fn with_own_errors(self, errors: AxisOwnErrors) -> Self {
+        let m = self.members;
+        let blocks: Vec<GaussMarkov> = std::iter::once(errors.position)
+            .chain(errors.velocity)
+            .collect();
+        let n = 2 * m + m * blocks.len();
+        let mut x = DVector::zeros(n);
+        x.rows_mut(0, 2 * m).copy_from(&self.x.rows(0, 2 * m));
+        let mut p = DMatrix::zeros(n, n);
+        p.view_mut((0, 0), (2 * m, 2 * m))
+            .copy_from(&self.p.view((0, 0), (2 * m, 2 * m)));
+        for (b, gm) in blocks.iter().enumerate() {
+            for l in 0..m {
+                let i = 2 * m + b * m + l;
+                p[(i, i)] = gm.sigma().powi(2);
+            }
+        }
+        Self {
+            x,
+            p,
+            info: SparseInformation::new(n),
+            update: SubspaceUpdate::new(n, n),
+            own_errors: blocks.iter().map(|gm| gm.discretise(self.dt_s)).collect(),
+            ..self
+        }
+    }
+
+    /// Index of the own-error state of `block` (0 position, 1 velocity) of
+    /// member l, if carried.
+    fn own_error_index(&self, block: usize, l: usize) -> Option<usize> {
+        (block < self.own_errors.len()).then(|| 2 * self.members + block * self.members + l)
     }
 
     /// Number of members.
@@ -134,6 +188,31 @@ impl GroupAxisFilter {
         for l in 0..m {
             p[(m + l, m + l)] += self.velocity_variance;
         }
+        // Own-error states b ← φ b: the cross terms with R pick up T times
+        // those with V, all of a b's row and column scale by its φ.
+        let bias: Vec<(usize, f64, f64)> = self
+            .own_errors
+            .iter()
+            .enumerate()
+            .flat_map(|(b, &(phi, q))| (0..m).map(move |l| (2 * m + b * m + l, phi, q)))
+            .collect();
+        for &(j, phi, _) in &bias {
+            self.x[j] *= phi;
+            for i in 0..m {
+                let rb = (p[(i, j)] + t * p[(m + i, j)]) * phi;
+                let vb = p[(m + i, j)] * phi;
+                p[(i, j)] = rb;
+                p[(j, i)] = rb;
+                p[(m + i, j)] = vb;
+                p[(j, m + i)] = vb;
+            }
+        }
+        for &(i, phi_i, q) in &bias {
+            for &(j, phi_j, _) in &bias {
+                p[(i, j)] *= phi_i * phi_j;
+            }
+            p[(i, i)] += q;
+        }
     }
 
     /// Own position fix of member l.
@@ -143,7 +222,12 @@ impl GroupAxisFilter {
         z: f64,
         sigma: f64,
     ) -> Result<(), EstimationError> {
-        self.info.add_scalar(&[(l, 1.0)], sigma * sigma, z)
+        match self.own_error_index(0, l) {
+            Some(b) => self
+                .info
+                .add_scalar(&[(l, 1.0), (b, 1.0)], sigma * sigma, z),
+            None => self.info.add_scalar(&[(l, 1.0)], sigma * sigma, z),
+        }
     }
 
     /// Own velocity fix of member l (only with `observe_velocity`).
@@ -153,8 +237,27 @@ impl GroupAxisFilter {
         z: f64,
         sigma: f64,
     ) -> Result<(), EstimationError> {
+        let v = self.members + l;
+        match self.own_error_index(1, l) {
+            Some(b) => self
+                .info
+                .add_scalar(&[(v, 1.0), (b, 1.0)], sigma * sigma, z),
+            None => self.info.add_scalar(&[(v, 1.0)], sigma * sigma, z),
+        }
+    }
+
+    /// Relative velocity observation `z = V^l − V^k + n`, σ(n) = `sigma`
+    /// (only with `observe_velocity` or own-error states).
+    pub fn observe_relative_velocity(
+        &mut self,
+        l: usize,
+        k: usize,
+        z: f64,
+        sigma: f64,
+    ) -> Result<(), EstimationError> {
+        let m = self.members;
         self.info
-            .add_scalar(&[(self.members + l, 1.0)], sigma * sigma, z)
+            .add_scalar(&[(m + l, 1.0), (m + k, -1.0)], sigma * sigma, z)
     }
 
     /// Relative observation `z = R^l − R^k + n`, σ(n) = `sigma`.
@@ -275,6 +378,94 @@ mod tests {
                 assert!((sd - sparse.position_sigma(l)).abs() < 1e-9);
             }
         }
+    }
+
+    /// With own-error states the sparse filter equals the augmented model
+    /// `[R, V, b_R, b_V]` (Φ with T and the Gauss–Markov φ, Q with (a_R T)²
+    /// and σ²(1 − φ²)) run through the engine's Joseph-form filter, with own
+    /// fixes R + b_R and V + b_V, relative positions and relative velocities.
+    #[test]
+    fn own_error_states_match_dense_augmented_model() {
+        let (m, t, a) = (3, 1.0, 0.5);
+        let pos_gm = GaussMarkov::new(300.0, 2.0).unwrap();
+        let vel_gm = GaussMarkov::new(60.0, 0.05).unwrap();
+        let r0 = [0.0, 50.0, -40.0];
+        let v0 = [1.0, 0.0, 2.0];
+        let mut sparse = GroupAxisFilter::new(m, t, a, true, &r0, &v0, 10.0, 1.0)
+            .unwrap()
+            .with_own_errors(AxisOwnErrors {
+                position: pos_gm,
+                velocity: Some(vel_gm),
+            });
+        let n = 4 * m;
+        let (fp, qp) = pos_gm.discretise(t);
+        let (fv, qv) = vel_gm.discretise(t);
+        let mut phi = DMatrix::identity(n, n);
+        let mut q = DMatrix::zeros(n, n);
+        let mut p0 = DVector::zeros(n);
+        let mut x0 = DVector::zeros(n);
+        for l in 0..m {
+            phi[(l, m + l)] = t;
+            phi[(2 * m + l, 2 * m + l)] = fp;
+            phi[(3 * m + l, 3 * m + l)] = fv;
+            q[(m + l, m + l)] = (a * t) * (a * t);
+            q[(2 * m + l, 2 * m + l)] = qp;
+            q[(3 * m + l, 3 * m + l)] = qv;
+            p0[l] = 100.0;
+            p0[m + l] = 1.0;
+            p0[2 * m + l] = 4.0;
+            p0[3 * m + l] = 0.05f64.powi(2);
+            x0[l] = r0[l];
+            x0[m + l] = v0[l];
+        }
+        let mut dense =
+            aidnav_estimation::DynKalmanFilter::new(x0, DMatrix::from_diagonal(&p0)).unwrap();
+        for epoch in 0..12 {
+            let e = epoch as f64;
+            // (terms, variance, z) of each scalar observation.
+            type Row = (Vec<(usize, f64)>, f64, f64);
+            let mut rows: Vec<Row> = Vec::new();
+            for l in 0..m {
+                let zp = r0[l] + v0[l] * e + 0.3 * (l as f64 - e).sin();
+                let zv = v0[l] + 0.02 * (e + l as f64).cos();
+                sparse.observe_own_position(l, zp, 0.5).unwrap();
+                sparse.observe_own_velocity(l, zv, 0.05).unwrap();
+                rows.push((vec![(l, 1.0), (2 * m + l, 1.0)], 0.25, zp));
+                rows.push((vec![(m + l, 1.0), (3 * m + l, 1.0)], 0.0025, zv));
+            }
+            for (l, k) in [(0, 1), (1, 2), (2, 0)] {
+                let zr = r0[l] - r0[k] + (v0[l] - v0[k]) * e + 0.1 * e.cos();
+                let zd = v0[l] - v0[k] + 0.05 * (e + 1.0).sin();
+                sparse.observe_relative(l, k, zr, 0.5).unwrap();
+                sparse.observe_relative_velocity(l, k, zd, 0.2).unwrap();
+                rows.push((vec![(l, 1.0), (k, -1.0)], 0.25, zr));
+                rows.push((vec![(m + l, 1.0), (m + k, -1.0)], 0.04, zd));
+            }
+            if epoch > 0 {
+                sparse.predict();
+                dense.predict(&phi, &q).unwrap();
+            }
+            sparse.update().unwrap();
+            let mut h = DMatrix::zeros(rows.len(), n);
+            let mut r = DMatrix::zeros(rows.len(), rows.len());
+            let mut z = DVector::zeros(rows.len());
+            for (i, (terms, var, zi)) in rows.iter().enumerate() {
+                for &(j, c) in terms {
+                    h[(i, j)] = c;
+                }
+                r[(i, i)] = *var;
+                z[i] = *zi;
+            }
+            dense.update(&z, &h, &r).unwrap();
+            let (xs, xd) = (&sparse.x, dense.state());
+            assert!((xs - xd).amax() < 1e-8, "epoch {epoch}: state");
+            assert!(
+                (&sparse.p - dense.covariance()).amax() < 1e-9,
+                "epoch {epoch}: P"
+            );
+        }
+        // The correlated errors were estimated, not left at their prior.
+        assert!(sparse.p[(2 * m, 2 * m)] < 4.0);
     }
 
     #[test]

@@ -17,7 +17,9 @@
 //! packets of an epoch are fused in the order of their source (member) index,
 //! whatever order they arrived in, so the result does not depend on arrival
 //! order. [`MemberPacket`] is the packet of the formation's stage 2: one
-//! member's stage-1 solution and its relative measurements at one epoch;
+//! member's stage-1 solution (and whether it holds a new GNSS fix), its
+//! relative measurements and its range rates / relative velocities at one
+//! epoch;
 //! [`EkfFusion`](super::EkfFusion) and [`PaperFusion`](super::PaperFusion)
 //! implement [`EpochFusion`] with it.
 //!
@@ -58,7 +60,7 @@ use std::collections::VecDeque;
 use aidnav_estimation::EstimationError;
 use serde::Serialize;
 
-use super::{OwnSolution, RelativeMeasurement};
+use super::{OwnSolution, RelativeMeasurement, RelativeRate};
 
 /// A filter that runs one epoch at a time from the packets of that epoch.
 pub trait EpochFusion: Clone {
@@ -76,7 +78,8 @@ pub trait EpochFusion: Clone {
 }
 
 /// What one member of the formation sends for one epoch: its stage-1
-/// solution and the relative measurements it made of its neighbours.
+/// solution, whether that solution holds a new GNSS fix, and the relative
+/// measurements (positions, then rates) it made of its neighbours.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MemberPacket {
     /// The sending member (0-based); every `relative[i].from` must equal it
@@ -85,13 +88,22 @@ pub struct MemberPacket {
     /// Its stage-1 (INS*) solution; its attitude and attitude covariance
     /// also convert its relative measurements.
     pub own: OwnSolution,
+    /// Whether its stage 1 had a GNSS fix since the last epoch. If not, its
+    /// solution is a prediction from information already fused and is not
+    /// fused again (its attitude still serves its relative measurements);
+    /// see `epoch_with_new_own` on the filters.
+    pub own_new: bool,
     /// Its relative measurements of other members at the same epoch.
     pub relative: Vec<RelativeMeasurement>,
+    /// Its range rates and/or relative velocities of other members at the
+    /// same epoch (fused after every packet's positions, like `fuse_rates`).
+    pub rates: Vec<RelativeRate>,
 }
 
-/// Checks that every packet's member and every relative measurement's
-/// members are below `members`, and that each relative measurement was made
-/// by the packet's member. Refused as a dimension mismatch: an index too
+/// Checks that every packet's member and every relative measurement's and
+/// rate's members are below `members` (the number of members, not a state
+/// dimension: the filters may carry more states per member), and that each
+/// relative measurement and rate was made by the packet's member. Refused as a dimension mismatch: an index too
 /// large as `cols` = 6 (index + 1) against `expected_cols` = 6 `members`; a
 /// measurement from another member as `rows` = its `from` against
 /// `expected_rows` = the packet's member.
@@ -108,16 +120,20 @@ pub(super) fn check_packets(
         expected_cols: 6 * members,
     };
     for p in packets {
-        let largest = p
-            .relative
-            .iter()
-            .flat_map(|r| [r.from, r.to])
+        let pairs = || {
+            p.relative
+                .iter()
+                .map(|r| (r.from, r.to))
+                .chain(p.rates.iter().map(|r| (r.from, r.to)))
+        };
+        let largest = pairs()
+            .flat_map(|(from, to)| [from, to])
             .fold(p.member, usize::max);
         if largest >= members {
             return Err(mismatch(1, 6 * (largest + 1), 1));
         }
-        if let Some(r) = p.relative.iter().find(|r| r.from != p.member) {
-            return Err(mismatch(r.from, 6 * members, p.member));
+        if let Some((from, _)) = pairs().find(|&(from, _)| from != p.member) {
+            return Err(mismatch(from, 6 * members, p.member));
         }
     }
     Ok(())
@@ -399,8 +415,9 @@ mod tests {
         assert_eq!(f.next_epoch(), 6);
     }
 
-    use crate::group::{EkfFusion, FusionParams, PaperFusion};
+    use crate::group::{CorrelatedOwnErrors, EkfFusion, FusionParams, OwnErrorModel, PaperFusion};
     use aidnav_ins::local_level::LocalLevelState;
+    use aidnav_models::GaussMarkov;
     use aidnav_models::local_ins::Matrix6;
     use aidnav_models::relative_sensor::{Polar, RelativeSensor};
     use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -415,6 +432,29 @@ mod tests {
             sensor: RelativeSensor::default(),
             initial_position_sigma_m: 10.0,
             initial_velocity_sigma_mps: 1.0,
+            own_errors: OwnErrorModel::White,
+        }
+    }
+
+    /// wt-grpB's stage 2: Gauss–Markov own-error states (position and
+    /// velocity, so the state is longer than 6 per member), own velocities
+    /// fused, range rate and relative velocity measured.
+    fn params_gauss_markov() -> FusionParams {
+        let gm = |tau, sigma| GaussMarkov::new(tau, sigma).unwrap();
+        FusionParams {
+            own_velocity: true,
+            sensor: RelativeSensor {
+                range_rate: true,
+                relative_velocity: true,
+                ..RelativeSensor::default()
+            },
+            own_errors: OwnErrorModel::GaussMarkov(CorrelatedOwnErrors {
+                position: [gm(60.0, 1.5), gm(60.0, 1.5), gm(60.0, 3.0)],
+                velocity: [gm(30.0, 0.05); 3],
+                position_white_floor_m: 0.3,
+                velocity_white_floor_mps: 0.01,
+            }),
+            ..params()
         }
     }
 
@@ -459,10 +499,25 @@ mod tests {
                 }
             })
             .collect();
+        let rates = (0..MEMBERS)
+            .filter(|&m| m != l)
+            .map(|m| RelativeRate {
+                // The members fly in parallel: true rates are zero.
+                from: l,
+                to: m,
+                range_rate_mps: Some(0.05 * wobble(1.3 + m as f64)),
+                body_velocity_mps: Some(
+                    attitude.inverse() * Vector3::new(0.03 * wobble(0.6), -0.02 * wobble(0.8), 0.0),
+                ),
+            })
+            .collect();
         MemberPacket {
             member: l,
             own,
+            // Every third solution without a new GNSS fix.
+            own_new: (k + l) % 3 != 2,
             relative,
+            rates,
         }
     }
 
@@ -500,7 +555,24 @@ mod tests {
     /// arrives it differs (the packet matters). Both stage-2 forms.
     #[test]
     fn late_packet_fused_by_rewind_equals_on_time_fusion_in_both_filters() {
+        late_packet_fused_by_rewind(params());
+        late_packet_fused_by_rewind(params_gauss_markov());
+    }
+
+    /// The rewind test with `params`; the reference runs `epoch_with_new_own`
+    /// (own solutions fused only with a new fix) then `fuse_rates`.
+    fn late_packet_fused_by_rewind(params: FusionParams) {
         let epochs = 10;
+        // Rates only where the sensor measures them (the paper's axis filters
+        // carry no relative velocity otherwise).
+        let rates_on = params.sensor.range_rate || params.sensor.relative_velocity;
+        let packet = |k: usize, l: usize| {
+            let mut p = packet(k, l);
+            if !rates_on {
+                p.rates.clear();
+            }
+            p
+        };
         let late = |k: usize, l: usize| k == 4 && l == 1;
         let arrivals = |k: usize| {
             let mut a: Vec<(usize, usize, MemberPacket)> = (0..MEMBERS)
@@ -512,17 +584,27 @@ mod tests {
             }
             a
         };
-        let mut ekf_ref = EkfFusion::new(params(), &first()).unwrap();
-        let mut paper_ref = PaperFusion::new(params(), &first()).unwrap();
-        let mut ekf = DelayedFusion::new(EkfFusion::new(params(), &first()).unwrap(), 5);
-        let mut paper = DelayedFusion::new(PaperFusion::new(params(), &first()).unwrap(), 5);
+        let mut ekf_ref = EkfFusion::new(params, &first()).unwrap();
+        let mut paper_ref = PaperFusion::new(params, &first()).unwrap();
+        let mut ekf = DelayedFusion::new(EkfFusion::new(params, &first()).unwrap(), 5);
+        let mut paper = DelayedFusion::new(PaperFusion::new(params, &first()).unwrap(), 5);
         for k in 0..epochs {
             let packets: Vec<MemberPacket> = (0..MEMBERS).map(|l| packet(k, l)).collect();
             let own: Vec<OwnSolution> = packets.iter().map(|p| p.own).collect();
+            let own_new: Vec<bool> = packets.iter().map(|p| p.own_new).collect();
             let relative: Vec<RelativeMeasurement> =
                 packets.iter().flat_map(|p| p.relative.clone()).collect();
-            ekf_ref.epoch(&own, &relative, k > 0).unwrap();
-            paper_ref.epoch(&own, &relative, k > 0).unwrap();
+            let rates: Vec<RelativeRate> = packets.iter().flat_map(|p| p.rates.clone()).collect();
+            ekf_ref
+                .epoch_with_new_own(&own, &own_new, &relative, k > 0)
+                .unwrap();
+            paper_ref
+                .epoch_with_new_own(&own, &own_new, &relative, k > 0)
+                .unwrap();
+            if rates_on {
+                ekf_ref.fuse_rates(&own, &rates).unwrap();
+                paper_ref.fuse_rates(&own, &rates).unwrap();
+            }
             ekf.advance(arrivals(k)).unwrap();
             paper.advance(arrivals(k)).unwrap();
             let d_ekf = difference(ekf_estimate(ekf.filter()), ekf_estimate(&ekf_ref));
@@ -545,16 +627,22 @@ mod tests {
     }
 
     /// A packet naming a member outside the group, or a relative
-    /// measurement made by another member, is refused, not a panic.
+    /// measurement or rate made by another member, is refused, not a panic.
     #[test]
     fn packets_with_bad_members_are_refused() {
-        let mut ekf = EkfFusion::new(params(), &first()).unwrap();
-        let mut paper = PaperFusion::new(params(), &first()).unwrap();
+        // With the Gauss–Markov states the EKF's state is longer than 6 per
+        // member: the check must use the number of members.
+        let mut ekf = EkfFusion::new(params_gauss_markov(), &first()).unwrap();
+        let mut paper = PaperFusion::new(params_gauss_markov(), &first()).unwrap();
         let mut outside = packet(1, 2);
         outside.member = MEMBERS;
         let mut foreign = packet(1, 2);
         foreign.relative[0].from = 0;
-        for bad in [outside, foreign] {
+        let mut rate_outside = packet(1, 2);
+        rate_outside.rates[0].to = MEMBERS;
+        let mut rate_foreign = packet(1, 2);
+        rate_foreign.rates[0].from = 0;
+        for bad in [outside, foreign, rate_outside, rate_foreign] {
             assert!(matches!(
                 ekf.epoch_from_packets(std::slice::from_ref(&bad), true),
                 Err(EstimationError::DimensionMismatch { .. })

@@ -3,14 +3,19 @@
 //! and optionally velocities observed), each relative measurement converted
 //! to Cartesian coordinates with the observer's INS* attitude and its
 //! per-axis variance taken from the diagonal of the converted covariance.
+//! Body-frame relative velocities are converted the same way; range rates
+//! are not used (a scalar along the line of sight has no per-axis form).
+//! With [`OwnErrorModel::GaussMarkov`] each axis filter carries the
+//! correlated own errors of that axis ([`GroupAxisFilter::with_own_errors`]).
 
 use aidnav_estimation::EstimationError;
+use aidnav_models::local_ins::Matrix6;
 use nalgebra::Vector3;
 
 use super::delayed::check_packets;
 use super::{
-    EpochFusion, FusionParams, GroupAxisFilter, MemberPacket, OwnSolution, RelativeMeasurement,
-    attitude_covariance_on,
+    AxisOwnErrors, EpochFusion, FusionParams, GroupAxisFilter, MemberPacket, OwnErrorModel,
+    OwnSolution, RelativeMeasurement, RelativeRate, attitude_covariance_on,
 };
 
 /// Stage 2, paper form: three axis filters over all members.
@@ -29,16 +34,23 @@ impl PaperFusion {
             .map(|a| {
                 let p: Vec<f64> = first.iter().map(|o| o.state.position[a]).collect();
                 let v: Vec<f64> = first.iter().map(|o| o.state.velocity[a]).collect();
-                GroupAxisFilter::new(
+                let f = GroupAxisFilter::new(
                     m,
                     params.interval_s,
                     params.accel_sigma_m_s2,
-                    params.own_velocity,
+                    params.own_velocity || params.sensor.relative_velocity,
                     &p,
                     &v,
                     params.initial_position_sigma_m,
                     params.initial_velocity_sigma_mps,
-                )
+                )?;
+                Ok(match params.own_errors {
+                    OwnErrorModel::White => f,
+                    OwnErrorModel::GaussMarkov(c) => f.with_own_errors(AxisOwnErrors {
+                        position: c.position[a],
+                        velocity: params.own_velocity.then_some(c.velocity[a]),
+                    }),
+                })
             })
             .collect::<Result<_, _>>()?;
         Ok(Self { params, axes })
@@ -52,8 +64,24 @@ impl PaperFusion {
         relative: &[RelativeMeasurement],
         predict: bool,
     ) -> Result<(), EstimationError> {
+        self.epoch_with_new_own(own, &vec![true; own.len()], relative, predict)
+    }
+
+    /// [`Self::epoch`] fusing member l's own solution only where `own_new[l]`
+    /// (its stage 1 had a GNSS fix since the last epoch; otherwise its
+    /// solution is a prediction from information already fused). Its
+    /// attitude still serves its relative measurements.
+    pub fn epoch_with_new_own(
+        &mut self,
+        own: &[OwnSolution],
+        own_new: &[bool],
+        relative: &[RelativeMeasurement],
+        predict: bool,
+    ) -> Result<(), EstimationError> {
         self.fuse(
-            own.iter().enumerate(),
+            own.iter()
+                .enumerate()
+                .filter(|(l, _)| own_new.get(*l).copied().unwrap_or(true)),
             relative.iter().map(|r| (&own[r.from], r)),
             predict,
         )
@@ -61,9 +89,11 @@ impl PaperFusion {
 
     /// One epoch from the packets that arrived for it
     /// ([`DelayedFusion`](super::DelayedFusion)): predict (if `predict`),
-    /// then the own solutions of the members that sent a packet and their
-    /// relative measurements, in the order of `packets`. With every
-    /// member's packet, in member order, it is [`epoch`](Self::epoch).
+    /// then the own solutions of the members that sent a packet with a new
+    /// own fix ([`MemberPacket::own_new`]) and their relative measurements,
+    /// then their rates, in the order of `packets`. With every member's
+    /// packet, in member order, it is [`epoch_with_new_own`](Self::epoch_with_new_own)
+    /// followed by [`fuse_rates`](Self::fuse_rates).
     pub fn epoch_from_packets(
         &mut self,
         packets: &[MemberPacket],
@@ -71,35 +101,49 @@ impl PaperFusion {
     ) -> Result<(), EstimationError> {
         check_packets(packets, self.axes[0].members())?;
         self.fuse(
-            packets.iter().map(|p| (p.member, &p.own)),
+            packets
+                .iter()
+                .filter(|p| p.own_new)
+                .map(|p| (p.member, &p.own)),
             packets
                 .iter()
                 .flat_map(|p| p.relative.iter().map(move |r| (&p.own, r))),
             predict,
+        )?;
+        self.fuse_rate_list(
+            packets
+                .iter()
+                .flat_map(|p| p.rates.iter().map(move |r| (&p.own, r))),
         )
     }
 
-    /// Per axis: predict, own solutions `(member, solution)`, relative
-    /// measurements `(observer's solution, measurement)`, one update.
+    /// Per axis: predict, own solutions `(member, solution)` (their white
+    /// noise under the Gauss–Markov model), relative measurements
+    /// `(observer's solution, measurement)`, one update.
     fn fuse<'a>(
         &mut self,
-        own: impl Iterator<Item = (usize, &'a OwnSolution)> + Clone,
+        own: impl Iterator<Item = (usize, &'a OwnSolution)>,
         relative: impl Iterator<Item = (&'a OwnSolution, &'a RelativeMeasurement)> + Clone,
         predict: bool,
     ) -> Result<(), EstimationError> {
         let params = &self.params;
+        let own: Vec<(usize, &OwnSolution, Matrix6)> = own
+            .map(|(l, o)| {
+                let noise = match params.own_errors {
+                    OwnErrorModel::White => o.covariance,
+                    OwnErrorModel::GaussMarkov(c) => c.white_covariance(&o.covariance),
+                };
+                (l, o, noise)
+            })
+            .collect();
         for (a, f) in self.axes.iter_mut().enumerate() {
             if predict {
                 f.predict();
             }
-            for (l, o) in own.clone() {
-                f.observe_own_position(l, o.state.position[a], o.covariance[(a, a)].sqrt())?;
+            for &(l, o, r) in &own {
+                f.observe_own_position(l, o.state.position[a], r[(a, a)].sqrt())?;
                 if params.own_velocity {
-                    f.observe_own_velocity(
-                        l,
-                        o.state.velocity[a],
-                        o.covariance[(3 + a, 3 + a)].sqrt(),
-                    )?;
+                    f.observe_own_velocity(l, o.state.velocity[a], r[(3 + a, 3 + a)].sqrt())?;
                 }
             }
             for (observer, r) in relative.clone() {
@@ -114,6 +158,74 @@ impl PaperFusion {
             f.update()?;
         }
         Ok(())
+    }
+
+    /// Fuse body-frame relative velocities (after [`Self::epoch`], at the
+    /// same epoch), each converted to the nav frame with the observer's INS*
+    /// attitude, its per-axis variance the diagonal of the rotated sensor
+    /// covariance plus the attitude term. Range rates are skipped: the
+    /// projection of the relative velocity on the line of sight cannot be
+    /// split into independent per-axis observations.
+    pub fn fuse_rates(
+        &mut self,
+        own: &[OwnSolution],
+        rates: &[RelativeRate],
+    ) -> Result<(), EstimationError> {
+        self.fuse_rate_list(rates.iter().map(|r| (&own[r.from], r)))
+    }
+
+    /// [`Self::fuse_rates`] over `(observer's solution, rate)` pairs.
+    fn fuse_rate_list<'a>(
+        &mut self,
+        rates: impl Iterator<Item = (&'a OwnSolution, &'a RelativeRate)>,
+    ) -> Result<(), EstimationError> {
+        let sigma2 = self.params.sensor.relative_velocity_sigma_mps.powi(2);
+        let converted: Vec<(usize, usize, Vector3<f64>, Vector3<f64>)> = rates
+            .filter_map(|(observer, r)| {
+                let z = r.body_velocity_mps?;
+                let c = observer.state.attitude.to_rotation_matrix().into_inner();
+                let dv = c * z;
+                let cov = c * (sigma2 * c.transpose())
+                    + attitude_covariance_on(&dv, &observer.attitude_covariance);
+                Some((r.from, r.to, dv, cov.diagonal()))
+            })
+            .collect();
+        if converted.is_empty() {
+            return Ok(());
+        }
+        for (a, f) in self.axes.iter_mut().enumerate() {
+            for &(from, to, dv, var) in &converted {
+                // As for positions, z^{lk} = V^l − V^k with l the observer.
+                f.observe_relative_velocity(from, to, -dv[a], var[a].sqrt())?;
+            }
+            f.update()?;
+        }
+        Ok(())
+    }
+
+    /// Covariance of member `l`'s position and velocity (6×6, position
+    /// first): the axis filters' variances, no cross-axis terms (the
+    /// paper's decoupling).
+    pub fn position_velocity_covariance(&self, l: usize) -> Matrix6 {
+        let mut p = Matrix6::zeros();
+        for (a, f) in self.axes.iter().enumerate() {
+            let c = f.covariance();
+            let (r, v) = (l, f.members() + l);
+            p[(a, a)] = c[(r, r)];
+            p[(3 + a, 3 + a)] = c[(v, v)];
+            p[(a, 3 + a)] = c[(r, v)];
+            p[(3 + a, a)] = c[(v, r)];
+        }
+        p
+    }
+
+    /// The filter's 3-D velocity σ of member `l` (√ trace) [m/s].
+    pub fn velocity_sigma(&self, l: usize) -> f64 {
+        self.axes
+            .iter()
+            .map(|f| f.velocity_sigma(l).powi(2))
+            .sum::<f64>()
+            .sqrt()
     }
 
     /// Estimated position of member `l` \[m\].

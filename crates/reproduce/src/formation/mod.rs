@@ -78,6 +78,21 @@ mod stage_one_ned;
 pub use network::{Network, NetworkStats, NetworkSweep, SweepCell, sweep};
 pub use run::{RunErrors, finish, run, run_range};
 
+/// How stage 2 treats the errors of each member's stage-1 solution
+/// (`stage2_own_errors`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage2OwnErrors {
+    /// The correlated part of each member's stage-1 position (and velocity)
+    /// error as first-order Gauss–Markov states, with σ and τ from the
+    /// receiver model (`model.gnss`); the rest of the stage-1 covariance,
+    /// at least the receiver's white σ, as white noise.
+    #[default]
+    GaussMarkov,
+    /// The paper's treatment: each epoch's stage-1 covariance as white noise.
+    White,
+}
+
 /// Names of the three solutions compared per member.
 pub const SOLUTIONS: [&str; 3] = ["gnss_ins", "paper", "ekf"];
 
@@ -191,13 +206,16 @@ pub struct FormationScenario {
     /// Stage-2 acceleration disturbance a_R [m/s²]. Default 1.
     pub group_accel_sigma_m_s2: f64,
     /// Whether stage 2 also fuses each member's own INS* velocity (the
-    /// paper's optional z_V). Default false: the INS* velocity is precise
-    /// (σ ≈ 0.05 m/s) so it ties stage 2's position to its own integral and
-    /// stage 2 then averages the INS* positions over minutes as if their
-    /// errors were white — they are not (GNSS errors correlated over
-    /// `position_correlation_s`), and stage 2 becomes overconfident and
-    /// lags. See the closing note of issue 5 for the numbers.
+    /// paper's optional z_V). Default true. With `stage2_own_errors =
+    /// "white"` set it to false: the INS* velocity is precise (σ ≈ 0.05 m/s)
+    /// so it ties stage 2's position to its own integral, and stage 2 then
+    /// averages the INS* positions over minutes as if their errors were
+    /// white — they are not (GNSS errors correlated over
+    /// `position_correlation_s`) — and becomes overconfident and lags.
     pub stage2_own_velocity: bool,
+    /// How stage 2 treats the errors of each member's stage-1 solution.
+    /// Default `"gauss_markov"`; `"white"` is the paper's treatment.
+    pub stage2_own_errors: Stage2OwnErrors,
     /// Stage 1's INS and error model, `"ned"` or `"flat"`. Default `"ned"`.
     pub ins_model: InsModel,
     /// Latitude of the tangent plane's origin \[deg\], within ±85 (`ned`
@@ -243,7 +261,8 @@ impl Default for FormationScenario {
             climb_period_s: 180.0,
             spacing_m: 150.0,
             group_accel_sigma_m_s2: 1.0,
-            stage2_own_velocity: false,
+            stage2_own_velocity: true,
+            stage2_own_errors: Stage2OwnErrors::GaussMarkov,
             ins_model: InsModel::Ned,
             origin_latitude_deg: 45.0,
             origin_longitude_deg: 0.0,
@@ -289,6 +308,13 @@ pub struct MemberScore {
     pub velocity_rms_mps: [f64; 3],
     /// Filter's predicted 3-D position σ (√ trace), mean over epochs \[m\].
     pub position_sigma_m: [f64; 3],
+    /// Filter's predicted 3-D velocity σ (√ trace), mean over epochs [m/s].
+    pub velocity_sigma_mps: [f64; 3],
+    /// Mean normalised estimation error squared of the 3-D position, per
+    /// solution (3 when the filter's covariance matches its errors).
+    pub position_nees: [f64; 3],
+    /// Mean NEES of the 3-D velocity, per solution (ideal 3).
+    pub velocity_nees: [f64; 3],
     /// During its denial: mean over runs of the largest 3-D position error \[m\].
     pub denial_max_error_m: Option<[f64; 3]>,
     /// At the end of its denial: RMS over runs of the 3-D position error \[m\].

@@ -5,7 +5,10 @@
 //! ([`aidnav_integration::group::DelayedFusion`]).
 //!
 //! Each member sends one packet per epoch, stamped with the epoch (and time)
-//! it was made at: its stage-1 solution and its relative measurements. The
+//! it was made at: its stage-1 solution (flagged with whether it holds a new
+//! GNSS fix, as the ideal exchange treats it), its relative measurements and
+//! its range rates / relative velocities (when the sensor measures them; the
+//! same random streams as the ideal exchange). The
 //! node that runs stage 2 receives every member's packet over the network
 //! (its own too: a ground station, or a member whose packets queue like the
 //! others'). Both stage-2 filters start from the first epoch's stage-1
@@ -21,19 +24,22 @@ use aidnav_estimation::EstimationError;
 use aidnav_ins::local_level::LocalLevelState;
 use aidnav_integration::group::{
     DelayStats, DelayedFusion, EkfFusion, MemberPacket, OwnSolution, PaperFusion,
-    RelativeMeasurement,
+    RelativeMeasurement, RelativeRate,
 };
 use aidnav_io::config::{Invalid, count_in_range, in_range};
 use aidnav_sim::monte_carlo::MonteCarlo;
 use aidnav_sim::rng::{RngExt, RunRng, channel_rng};
 use serde::{Deserialize, Serialize};
 
-use super::FormationScenario;
-use super::run::RunErrors;
-use super::simulate::{RELATIVE_CHANNEL, relative_measurements, stage_one};
+use super::run::{RunErrors, own_new};
+use super::simulate::{
+    RATE_CHANNEL, RELATIVE_CHANNEL, relative_measurements, relative_rates, stage_one,
+};
+use super::{FormationScenario, Stage2OwnErrors};
 
-/// The network's random stream (channel of [`channel_rng`]).
-const NETWORK_CHANNEL: u64 = 2_000_000;
+/// The network's random stream (channel of [`channel_rng`]; not the rates'
+/// [`RATE_CHANNEL`], so loss and jitter are independent of the rates' noise).
+const NETWORK_CHANNEL: u64 = 3_000_000;
 
 /// Memory the late-packet buffers of one run may take (both filters) \[B\].
 const HISTORY_BUDGET_BYTES: f64 = 256.0 * 1024.0 * 1024.0;
@@ -99,16 +105,14 @@ impl Network {
             count_in_range("max_neighbours", n, 0, 1000)?;
         }
         in_range("history_s", self.history_s, 0.0, 600.0)?;
-        let bytes =
-            (self.history_epochs(sc.fix_interval_s) + 1) as f64 * snapshot_bytes(sc.members);
+        let bytes = (self.history_epochs(sc.fix_interval_s) + 1) as f64 * snapshot_bytes(sc);
         if bytes > HISTORY_BUDGET_BYTES {
             return Err(Invalid::new(
                 "history_s",
                 self.history_s,
                 format!(
                     "a buffer of at most {:.0} s for {} members at {} s epochs (256 MiB of filter snapshots)",
-                    (HISTORY_BUDGET_BYTES / snapshot_bytes(sc.members) - 1.0).floor()
-                        * sc.fix_interval_s,
+                    (HISTORY_BUDGET_BYTES / snapshot_bytes(sc) - 1.0).floor() * sc.fix_interval_s,
                     sc.members,
                     sc.fix_interval_s
                 ),
@@ -143,12 +147,19 @@ impl Network {
 }
 
 /// An upper estimate of one snapshot of both stage-2 filters \[B\]: the
-/// EKF's covariance, transition and noise matrices (6M square each) and the
-/// paper form's three axes (covariance and update workspace, 2M square).
-fn snapshot_bytes(members: usize) -> f64 {
-    let n6 = (6 * members) as f64;
-    let n2 = (2 * members) as f64;
-    8.0 * (3.0 * n6 * n6 + 3.0 * 3.0 * n2 * n2)
+/// EKF's covariance, transition and noise matrices (square in its state:
+/// 6M, plus 3M per block of Gauss–Markov own-error states) and the paper
+/// form's three axes (covariance and update workspace, square in 2M plus M
+/// per own-error block).
+fn snapshot_bytes(sc: &FormationScenario) -> f64 {
+    let blocks = match sc.stage2_own_errors {
+        Stage2OwnErrors::White => 0,
+        Stage2OwnErrors::GaussMarkov if sc.stage2_own_velocity => 2,
+        Stage2OwnErrors::GaussMarkov => 1,
+    };
+    let ekf = ((6 + 3 * blocks) * sc.members) as f64;
+    let axis = ((2 + blocks) * sc.members) as f64;
+    8.0 * (3.0 * ekf * ekf + 3.0 * 3.0 * axis * axis)
 }
 
 /// What the network did (per run, or summed over runs).
@@ -215,17 +226,22 @@ impl<'a> Exchange<'a> {
         }
     }
 
-    /// Every member's packet of `epoch`, made at `time_s`: its solution and
-    /// its relative measurements, at most `max_neighbours` (the nearest by
-    /// measured range; the kept ones in their original order).
+    /// Every member's packet of `epoch`, made at `time_s`: its solution
+    /// (and whether it holds a new fix, `own_new`), its relative measurements,
+    /// at most `max_neighbours` (the nearest by measured range; the kept ones
+    /// in their original order), and its rates of the same neighbours.
     fn send(
         &mut self,
         epoch: usize,
         time_s: f64,
         own: &[OwnSolution],
+        own_new: &[bool],
         relative: &[RelativeMeasurement],
+        rates: &[RelativeRate],
     ) {
         for (member, o) in own.iter().enumerate() {
+            let mut mine_rates: Vec<RelativeRate> =
+                rates.iter().filter(|r| r.from == member).copied().collect();
             let mut mine: Vec<RelativeMeasurement> = relative
                 .iter()
                 .filter(|r| r.from == member)
@@ -249,6 +265,9 @@ impl<'a> Exchange<'a> {
                 self.stats.withheld_by_neighbour_limit += mine.len() - limit;
                 let mut k = keep.iter();
                 mine.retain(|_| *k.next().expect("one flag per measurement"));
+                // The rates of the neighbours kept (the sensor reports them
+                // together).
+                mine_rates.retain(|r| mine.iter().any(|m| m.to == r.to));
             }
             // Both draws always, so the stream does not depend on the settings.
             let loss_draw: f64 = self.rng.random();
@@ -264,7 +283,9 @@ impl<'a> Exchange<'a> {
                 packet: MemberPacket {
                     member,
                     own: *o,
+                    own_new: own_new[member],
                     relative: mine,
+                    rates: mine_rates,
                 },
             });
         }
@@ -286,8 +307,9 @@ impl<'a> Exchange<'a> {
     }
 }
 
-/// Stage 2 over the network: per epoch, the relative measurements (the same
-/// random stream as the ideal exchange), every member's packet sent, and
+/// Stage 2 over the network: per epoch, the relative measurements and rates
+/// (the same random streams as the ideal exchange), every member's packet
+/// sent (its own solution flagged as the ideal exchange fuses it), and
 /// both filters advanced with the packets that have arrived.
 pub(super) fn stage_two(
     sc: &FormationScenario,
@@ -297,6 +319,7 @@ pub(super) fn stage_two(
     truth: &[Vec<LocalLevelState>],
 ) -> Result<RunErrors, EstimationError> {
     let mut rng = channel_rng(sc.seed, run, RELATIVE_CHANNEL);
+    let mut rate_rng = channel_rng(sc.seed, run, RATE_CHANNEL);
     let depth = net.history_epochs(sc.fix_interval_s);
     let mut paper = DelayedFusion::new(PaperFusion::new(sc.fusion_params(), &own[0])?, depth);
     let mut ekf = DelayedFusion::new(EkfFusion::new(sc.fusion_params(), &own[0])?, depth);
@@ -305,8 +328,9 @@ pub(super) fn stage_two(
     for (epoch, (own_e, truth_e)) in own.iter().zip(truth).enumerate() {
         let relative = relative_measurements(sc, truth_e, &mut rng);
         errors.relative += relative.len();
+        let rates = relative_rates(sc, truth_e, &mut rate_rng);
         let time_s = (epoch + 1) as f64 * sc.fix_interval_s;
-        exchange.send(epoch, time_s, own_e, &relative);
+        exchange.send(epoch, time_s, own_e, &own_new(sc, epoch), &relative, &rates);
         let arrived = exchange.deliver(time_s, sc.fix_interval_s);
         paper.advance(arrived.clone())?;
         ekf.advance(arrived)?;
@@ -492,10 +516,29 @@ mod tests {
     }
 
     /// The network with zero latency, no loss and no neighbour limit gives
-    /// exactly today's result (every number of the result equal).
+    /// exactly today's result (every number of the result equal): with the
+    /// default stage 2 (Gauss–Markov own errors, own velocities, a denied
+    /// member's solutions not re-fused), with range rates and relative
+    /// velocities measured too, and with the white treatment.
     #[test]
     fn ideal_network_equals_the_ideal_exchange_exactly() {
-        let sc = short();
+        let rates = {
+            let mut sc = short();
+            sc.sensor.range_rate = true;
+            sc.sensor.relative_velocity = true;
+            sc
+        };
+        let white = FormationScenario {
+            stage2_own_errors: Stage2OwnErrors::White,
+            stage2_own_velocity: false,
+            ..short()
+        };
+        for sc in [short(), rates, white] {
+            ideal_network_equals_the_ideal_exchange(sc);
+        }
+    }
+
+    fn ideal_network_equals_the_ideal_exchange(sc: FormationScenario) {
         let mc = MonteCarlo::new(sc.runs, sc.seed).quiet();
         let ideal = run(&sc, &mc).unwrap();
         let networked = FormationScenario {

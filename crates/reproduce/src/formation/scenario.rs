@@ -2,11 +2,12 @@
 //! climbing path and the V behind it) and what it gives stage 2.
 
 use aidnav_ins::local_level::LocalLevelState;
-use aidnav_integration::group::FusionParams;
+use aidnav_integration::group::{CorrelatedOwnErrors, FusionParams, OwnErrorModel};
 use aidnav_io::config::{Invalid, Validate, all_in_range, count_in_range, in_range};
+use aidnav_models::GaussMarkov;
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::{Degradation, Denial, FormationScenario};
+use super::{Degradation, Denial, FormationScenario, Stage2OwnErrors};
 
 /// Stage 2's prior σ of each position coordinate around the first stage-1
 /// solution \[m\] (a few times the GNSS σ).
@@ -182,6 +183,13 @@ impl Validate for FormationScenario {
                 ("bearing_sigma_rad", s.bearing_sigma_rad, 1e-7, PI),
                 ("elevation_sigma_rad", s.elevation_sigma_rad, 1e-7, PI),
                 ("range_limit_m", s.range_limit_m, 1.0, 1e7),
+                ("range_rate_sigma_mps", s.range_rate_sigma_mps, 1e-5, 100.0),
+                (
+                    "relative_velocity_sigma_mps",
+                    s.relative_velocity_sigma_mps,
+                    1e-5,
+                    100.0,
+                ),
             ],
         )?;
         count_in_range("denial", self.denial.len(), 0, 1_000)?;
@@ -237,9 +245,28 @@ impl Validate for FormationScenario {
 
 impl FormationScenario {
     /// Stage 2's parameters: the fix interval, a_R, whether own velocities
-    /// are fused, the inter-vehicle sensor, and the prior σ (10 m, 1 m/s).
+    /// are fused, the inter-vehicle sensor, the prior σ (10 m, 1 m/s), and
+    /// the own-error model: with `stage2_own_errors = "gauss_markov"` the
+    /// receiver's correlated position and velocity errors (σ, τ of
+    /// `model.gnss`) and its white σ as the least white noise.
     pub fn fusion_params(&self) -> FusionParams {
+        let gnss = &self.model.gnss;
+        let gm = |tau: f64, sigma: f64| GaussMarkov::new(tau, sigma).expect("validated");
+        let own_errors = match self.stage2_own_errors {
+            Stage2OwnErrors::White => OwnErrorModel::White,
+            Stage2OwnErrors::GaussMarkov => {
+                let p = gnss.position_sigmas();
+                OwnErrorModel::GaussMarkov(CorrelatedOwnErrors {
+                    position: [0, 1, 2].map(|a| gm(gnss.position_correlation_s, p[a])),
+                    velocity: [0, 1, 2]
+                        .map(|_| gm(gnss.velocity_correlation_s, gnss.velocity_sigma_mps)),
+                    position_white_floor_m: gnss.position_white_sigma_m,
+                    velocity_white_floor_mps: gnss.velocity_white_sigma_mps,
+                })
+            }
+        };
         FusionParams {
+            own_errors,
             interval_s: self.fix_interval_s,
             accel_sigma_m_s2: self.group_accel_sigma_m_s2,
             own_velocity: self.stage2_own_velocity,

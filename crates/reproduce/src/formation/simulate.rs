@@ -4,11 +4,11 @@
 
 use aidnav_estimation::EstimationError;
 use aidnav_ins::local_level::{LocalLevelState, ideal_imu};
-use aidnav_integration::group::{OwnSolution, RelativeMeasurement};
+use aidnav_integration::group::{OwnSolution, RelativeMeasurement, RelativeRate};
 use aidnav_integration::local_level::LooselyCoupled;
 use aidnav_models::GaussMarkov;
 use aidnav_models::local_ins::Matrix6;
-use aidnav_models::relative_sensor::{Polar, wrap_angle};
+use aidnav_models::relative_sensor::{Polar, body_relative_velocity, range_rate, wrap_angle};
 use aidnav_sim::rng::{RunRng, channel_rng, standard_normal};
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -17,6 +17,10 @@ use super::{FormationScenario, InsModel};
 /// The random stream of the relative measurements' noise (channel of
 /// [`channel_rng`]; members' stage 1 use channels 0 … M − 1).
 pub(super) const RELATIVE_CHANNEL: u64 = 1_000_000;
+
+/// The random stream of the range rates' and relative velocities' noise
+/// ([`relative_rates`]; the network's draws use another).
+pub(super) const RATE_CHANNEL: u64 = 2_000_000;
 
 /// Truth-side IMU and GNSS error processes of one member.
 struct MemberErrors {
@@ -189,6 +193,45 @@ pub(super) fn relative_measurements(
                     ),
                     elevation_rad: p.elevation_rad + s.elevation_sigma_rad * standard_normal(rng),
                 },
+            });
+        }
+    }
+    out
+}
+
+/// Range rates and body-frame relative velocities of every member within
+/// range of every other, as the sensor is configured to measure them (none
+/// when both are off). Drawn from their own random stream, so turning them
+/// on leaves the other measurements unchanged.
+pub(super) fn relative_rates(
+    sc: &FormationScenario,
+    truth: &[LocalLevelState],
+    rng: &mut RunRng,
+) -> Vec<RelativeRate> {
+    let s = &sc.sensor;
+    if !s.range_rate && !s.relative_velocity {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for (from, a) in truth.iter().enumerate() {
+        for (to, b) in truth.iter().enumerate() {
+            let d = b.position - a.position;
+            if to == from || d.norm() > s.range_limit_m {
+                continue;
+            }
+            let d_dot = b.velocity - a.velocity;
+            let range_rate_mps = s
+                .range_rate
+                .then(|| range_rate(&d, &d_dot) + s.range_rate_sigma_mps * standard_normal(rng));
+            let body_velocity_mps = s.relative_velocity.then(|| {
+                body_relative_velocity(&a.attitude, &d_dot)
+                    + gauss3(rng, &Vector3::repeat(s.relative_velocity_sigma_mps))
+            });
+            out.push(RelativeRate {
+                from,
+                to,
+                range_rate_mps,
+                body_velocity_mps,
             });
         }
     }
