@@ -55,6 +55,63 @@ pub(super) fn reported_noise(sc: &FormationScenario, k: f64) -> Matrix6 {
     r
 }
 
+/// The simulated instruments' error processes, discretised once per run:
+/// both stage-1 models (flat and NED) draw the same errors from them.
+pub(super) struct ErrorProcesses {
+    /// Accelerometer bias Gauss–Markov: Φ and the driving σ per IMU step.
+    pub(super) ba_phi: f64,
+    pub(super) ba_q: f64,
+    /// Gyro bias Gauss–Markov: Φ and the driving σ per IMU step.
+    pub(super) bg_phi: f64,
+    pub(super) bg_q: f64,
+    /// Receiver position σ (north, east, down) \[m\].
+    pub(super) gnss_pos_sigma: Vector3<f64>,
+    /// Receiver position error's Φ per fix interval (unit σ).
+    pub(super) ep_phi: f64,
+    /// Receiver velocity Gauss–Markov: Φ and the driving σ per fix interval.
+    pub(super) ev_phi: f64,
+    pub(super) ev_q: f64,
+    /// White accelerometer and gyro noise σ per IMU step.
+    pub(super) accel_noise: f64,
+    pub(super) gyro_noise: f64,
+    /// Initial attitude σ (tilt, tilt, heading) \[rad\].
+    pub(super) attitude_sigma: Vector3<f64>,
+}
+
+impl ErrorProcesses {
+    pub(super) fn new(sc: &FormationScenario) -> Self {
+        let dt = sc.imu_dt_s;
+        let (imu, gnss) = (sc.model.imu, sc.model.gnss);
+        let gm = |tau: f64, sigma: f64, step: f64| {
+            GaussMarkov::new(tau, sigma)
+                .expect("validated")
+                .discretise(step)
+        };
+        let (ba_phi, ba_q) = gm(imu.accel_bias_correlation_s, imu.accel_bias_sigma_m_s2, dt);
+        let (bg_phi, bg_q) = gm(imu.gyro_bias_correlation_s, imu.gyro_bias_sigma_rad_s, dt);
+        let (ep_phi, _) = gm(gnss.position_correlation_s, 1.0, sc.fix_interval_s);
+        let (ev_phi, ev_q) = gm(
+            gnss.velocity_correlation_s,
+            gnss.velocity_sigma_mps,
+            sc.fix_interval_s,
+        );
+        let i = &sc.initial;
+        Self {
+            ba_phi,
+            ba_q,
+            bg_phi,
+            bg_q,
+            gnss_pos_sigma: gnss.position_sigmas(),
+            ep_phi,
+            ev_phi,
+            ev_q,
+            accel_noise: imu.velocity_random_walk / dt.sqrt(),
+            gyro_noise: imu.angle_random_walk / dt.sqrt(),
+            attitude_sigma: Vector3::new(i.tilt_sigma_rad, i.tilt_sigma_rad, i.heading_sigma_rad),
+        }
+    }
+}
+
 /// Per epoch, per member: stage-1 solutions and the truth.
 type StageOne = (Vec<Vec<OwnSolution>>, Vec<Vec<LocalLevelState>>);
 
@@ -72,24 +129,20 @@ pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, Es
     let mut out: Vec<Vec<OwnSolution>> = (0..epochs).map(|_| Vec::with_capacity(m)).collect();
     let mut truth_by_epoch: Vec<Vec<LocalLevelState>> =
         (0..epochs).map(|_| Vec::with_capacity(m)).collect();
-    let gm = |tau: f64, sigma: f64, step: f64| {
-        GaussMarkov::new(tau, sigma)
-            .expect("validated")
-            .discretise(step)
-    };
-    let (ba_phi, ba_q) = gm(imu.accel_bias_correlation_s, imu.accel_bias_sigma_m_s2, dt);
-    let (bg_phi, bg_q) = gm(imu.gyro_bias_correlation_s, imu.gyro_bias_sigma_rad_s, dt);
-    let gnss_pos_sigma = gnss.position_sigmas();
-    let (ep_phi, _) = gm(gnss.position_correlation_s, 1.0, sc.fix_interval_s);
-    let (ev_phi, ev_q) = gm(
-        gnss.velocity_correlation_s,
-        gnss.velocity_sigma_mps,
-        sc.fix_interval_s,
-    );
-    let accel_noise = imu.velocity_random_walk / dt.sqrt();
-    let gyro_noise = imu.angle_random_walk / dt.sqrt();
+    let ErrorProcesses {
+        ba_phi,
+        ba_q,
+        bg_phi,
+        bg_q,
+        gnss_pos_sigma,
+        ep_phi,
+        ev_phi,
+        ev_q,
+        accel_noise,
+        gyro_noise,
+        attitude_sigma,
+    } = ErrorProcesses::new(sc);
     let i = &sc.initial;
-    let attitude_sigma = Vector3::new(i.tilt_sigma_rad, i.tilt_sigma_rad, i.heading_sigma_rad);
     for l in 0..m {
         if sc.ins_model == InsModel::Ned {
             let member = super::stage_one_ned::member(sc, run, l)?;

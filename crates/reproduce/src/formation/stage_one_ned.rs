@@ -19,13 +19,12 @@ use aidnav_ins::local_level::LocalLevelState;
 use aidnav_ins::ned::{ImuIncrement, NedState, ideal_increment};
 use aidnav_integration::group::OwnSolution;
 use aidnav_integration::ned_loosely::{NedLooselyCoupled, prior_sigmas};
-use aidnav_models::GaussMarkov;
 use aidnav_models::local_ins::Matrix6;
 use aidnav_sim::rng::{RunRng, channel_rng, standard_normal};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 use super::FormationScenario;
-use super::simulate::reported_noise;
+use super::simulate::{ErrorProcesses, reported_noise};
 
 /// ENU → NED and forward–left–up → forward–right–down (each its own inverse).
 const ENU_NED: Matrix3<f64> = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
@@ -124,24 +123,20 @@ pub(super) fn member(
     let model = sc.model;
     let imu = model.imu;
     let gnss = model.gnss;
-    let gm = |tau: f64, sigma: f64, step: f64| {
-        GaussMarkov::new(tau, sigma)
-            .expect("validated")
-            .discretise(step)
-    };
-    let (ba_phi, ba_q) = gm(imu.accel_bias_correlation_s, imu.accel_bias_sigma_m_s2, dt);
-    let (bg_phi, bg_q) = gm(imu.gyro_bias_correlation_s, imu.gyro_bias_sigma_rad_s, dt);
-    let gnss_pos_sigma = gnss.position_sigmas();
-    let (ep_phi, _) = gm(gnss.position_correlation_s, 1.0, sc.fix_interval_s);
-    let (ev_phi, ev_q) = gm(
-        gnss.velocity_correlation_s,
-        gnss.velocity_sigma_mps,
-        sc.fix_interval_s,
-    );
-    let accel_noise = imu.velocity_random_walk / dt.sqrt();
-    let gyro_noise = imu.angle_random_walk / dt.sqrt();
+    let ErrorProcesses {
+        ba_phi,
+        ba_q,
+        bg_phi,
+        bg_q,
+        gnss_pos_sigma,
+        ep_phi,
+        ev_phi,
+        ev_q,
+        accel_noise,
+        gyro_noise,
+        attitude_sigma,
+    } = ErrorProcesses::new(sc);
     let i = &sc.initial;
-    let attitude_sigma = Vector3::new(i.tilt_sigma_rad, i.tilt_sigma_rad, i.heading_sigma_rad);
     let mut rng = channel_rng(sc.seed, run, l as u64);
     let start = sc.truth(l, 0.0);
     let (start_e, t0) = frame.to_earth(&start);
