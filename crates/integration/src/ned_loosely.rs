@@ -183,9 +183,10 @@ impl NedLooselyCoupled {
         self.ins.state()
     }
 
-    /// Estimated gyro and accelerometer biases (body frame).
+    /// Estimated accelerometer and gyro biases (body frame), in the order
+    /// of [`local_level::LooselyCoupled::bias_estimates`](crate::local_level::LooselyCoupled::bias_estimates).
     pub fn bias_estimates(&self) -> (Vector3<f64>, Vector3<f64>) {
-        (self.gyro_bias, self.accel_bias)
+        (self.accel_bias, self.gyro_bias)
     }
 
     /// Covariance of the INS* position and velocity errors (6×6, NED).
