@@ -188,6 +188,60 @@ fn block_of(k: usize) -> std::ops::Range<usize> {
     }
 }
 
+/// The columns that row `i` of F ([`NedErrorModel::continuous`]) may hold
+/// a nonzero in, increasing: position (−[ω_en×], I), velocity (the gravity
+/// gradient in δr_D, −[(2ω_ie + ω_en)×], [f^n×], C, C diag f), attitude
+/// (−[ω_in×], −C, −C diag ω), the instruments their own diagonal.
+/// [`NedErrorModel::discrete`] sums over these instead of all 21.
+const F_ROW_COLUMNS: [&[usize]; STATES] = {
+    const POS: &[usize] = &[0, 1, 2, 3, 4, 5];
+    const VEL: &[usize] = &[2, 3, 4, 5, 6, 7, 8, 12, 13, 14, 18, 19, 20];
+    const ATT: &[usize] = &[6, 7, 8, 9, 10, 11, 15, 16, 17];
+    [
+        POS,
+        POS,
+        POS,
+        VEL,
+        VEL,
+        VEL,
+        ATT,
+        ATT,
+        ATT,
+        &[9],
+        &[10],
+        &[11],
+        &[12],
+        &[13],
+        &[14],
+        &[15],
+        &[16],
+        &[17],
+        &[18],
+        &[19],
+        &[20],
+    ]
+};
+
+/// [`F_ROW_COLUMNS`] as bit masks (bit j: column j).
+const F_ROW_MASKS: [u32; STATES] = {
+    let mut masks = [0; STATES];
+    let mut i = 0;
+    while i < STATES {
+        let mut k = 0;
+        while k < F_ROW_COLUMNS[i].len() {
+            masks[i] |= 1 << F_ROW_COLUMNS[i][k];
+            k += 1;
+        }
+        i += 1;
+    }
+    masks
+};
+
+/// Whether every nonzero of `f` lies in [`F_ROW_COLUMNS`].
+fn follows_pattern(f: &Matrix21) -> bool {
+    (0..STATES).all(|j| (0..STATES).all(|i| F_ROW_MASKS[i] & (1 << j) != 0 || f[(i, j)] == 0.0))
+}
+
 /// The model; only the noise is configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -251,12 +305,31 @@ impl NedErrorModel {
     pub fn discrete(&self, f: &Matrix21, c_bn: &Matrix3<f64>, dt: f64) -> (Matrix21, Matrix21) {
         let fdt = f * dt;
         let mut phi = Matrix21::identity() + fdt;
-        for k in 0..STATES {
-            for i in 0..STATES {
+        // (FΔt)²[i, j] = Σ_k FΔt[i, k] FΔt[k, j], summed over the columns k
+        // that row i of F may hold ([`F_ROW_COLUMNS`]) and the columns j that
+        // row k may hold, each (i, j) in increasing k as the dense sum —
+        // the same additions in the same order, so the same Φ to the bit.
+        // An F with nonzeros elsewhere (not `continuous`'s) is summed over
+        // every column.
+        const EVERY: [usize; STATES] = {
+            let mut all = [0; STATES];
+            let mut i = 0;
+            while i < STATES {
+                all[i] = i;
+                i += 1;
+            }
+            all
+        };
+        let columns: [&[usize]; STATES] = if follows_pattern(f) {
+            F_ROW_COLUMNS
+        } else {
+            [&EVERY; STATES]
+        };
+        for (i, row) in columns.iter().enumerate() {
+            for &k in row.iter() {
                 let a = fdt[(i, k)];
                 if a != 0.0 {
-                    // (FΔt)²[i, :] += a · FΔt[k, :]
-                    for j in 0..STATES {
+                    for &j in columns[k].iter() {
                         let b = fdt[(k, j)];
                         if b != 0.0 {
                             phi[(i, j)] += 0.5 * a * b;
@@ -269,12 +342,11 @@ impl NedErrorModel {
         // (FΔt Q_c)[i, j] = Σ_k FΔt[i, k] Q_c[k, j], Q_c[k, ·] nonzero only
         // within k's block.
         let mut fq = Matrix21::zeros();
-        for k in 0..STATES {
-            let block = block_of(k);
-            for i in 0..STATES {
+        for (i, row) in columns.iter().enumerate() {
+            for &k in row.iter() {
                 let a = fdt[(i, k)];
                 if a != 0.0 {
-                    for j in block.clone() {
+                    for j in block_of(k) {
                         fq[(i, j)] += a * qc[(k, j)];
                     }
                 }
@@ -394,6 +466,80 @@ mod tests {
         assert!((phi - dense_phi).abs().max() < 1e-15);
         assert!((q - dense_q).abs().max() < 1e-18);
         assert!((q - q.transpose()).abs().max() == 0.0);
+    }
+
+    /// The loop over every (k, i, j) that `discrete` replaced: the
+    /// reference its Φ and Q must equal to the bit.
+    fn discrete_every_column(
+        m: &NedErrorModel,
+        f: &Matrix21,
+        c_bn: &Matrix3<f64>,
+        dt: f64,
+    ) -> (Matrix21, Matrix21) {
+        let fdt = f * dt;
+        let mut phi = Matrix21::identity() + fdt;
+        for k in 0..STATES {
+            for i in 0..STATES {
+                let a = fdt[(i, k)];
+                if a != 0.0 {
+                    for j in 0..STATES {
+                        let b = fdt[(k, j)];
+                        if b != 0.0 {
+                            phi[(i, j)] += 0.5 * a * b;
+                        }
+                    }
+                }
+            }
+        }
+        let qc = m.spectral_density(c_bn);
+        let mut fq = Matrix21::zeros();
+        for k in 0..STATES {
+            for i in 0..STATES {
+                let a = fdt[(i, k)];
+                if a != 0.0 {
+                    for j in block_of(k) {
+                        fq[(i, j)] += a * qc[(k, j)];
+                    }
+                }
+            }
+        }
+        let mut q = qc * dt;
+        for j in 0..STATES {
+            for i in 0..STATES {
+                q[(i, j)] += 0.5 * dt * (fq[(i, j)] + fq[(j, i)]);
+            }
+        }
+        (phi, q)
+    }
+
+    /// Bitwise equal to the loop over every column, for `continuous`'s F
+    /// and for an F with nonzeros outside its pattern.
+    #[test]
+    fn the_pattern_loop_equals_the_loop_over_every_column_bitwise() {
+        let m = NedErrorModel::default();
+        let c = nalgebra::Rotation3::from_euler_angles(-0.3, 0.2, 1.1).into_inner();
+        let f = m.continuous(
+            &c,
+            &Vector3::new(1.5, -0.7, -9.6),
+            &Vector3::new(0.03, 0.01, -0.2),
+            &Vector3::new(5e-5, 0.0, -4e-5),
+            &Vector3::new(2e-6, 1e-6, -3e-6),
+            0.5,
+        );
+        let mut dense = f;
+        for (n, v) in dense.iter_mut().enumerate() {
+            if *v == 0.0 && n % 7 == 3 {
+                *v = 1e-3 * (n as f64).sin();
+            }
+        }
+        assert!(follows_pattern(&f) && !follows_pattern(&dense));
+        for f in [f, dense] {
+            let (phi, q) = m.discrete(&f, &c, 0.05);
+            let (phi_ref, q_ref) = discrete_every_column(&m, &f, &c, 0.05);
+            let bits = |a: &Matrix21| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&phi), bits(&phi_ref));
+            assert_eq!(bits(&q), bits(&q_ref));
+        }
     }
 
     #[test]

@@ -125,14 +125,26 @@ pub fn score_log(
 /// (L, free INS?, the windows of L)
 type OutagePlan = (f64, bool, Vec<(f64, f64)>);
 
-/// (L, free INS?, score, score and consistency of the smoothed solution, epochs)
-type Scored = (
-    f64,
-    bool,
-    OutageScore,
-    Option<(OutageScore, OutageConsistency)>,
-    Vec<Epoch>,
-);
+/// One outage plan's results: everything [`Scores`] takes from its run,
+/// computed as soon as the run ends so that its epochs are freed then (a
+/// run's epochs, kept for all six plans until the last finished, were a
+/// quarter of a scored run's peak memory).
+struct PlanScores {
+    /// Free INS in the windows?
+    free: bool,
+    /// The outage score of the run.
+    score: OutageScore,
+    /// Score and consistency of the smoothed solution (with `output.smooth`).
+    smoothed: Option<(OutageScore, OutageConsistency)>,
+    /// Per bridging predictor, the bridged score (coasting runs).
+    bridged: Vec<OutageScore>,
+    /// The efficiency criterion (coasting runs).
+    efficiency: Option<EfficiencyScore>,
+    /// The consistency of the coasting filter (coasting runs).
+    consistency: Option<OutageConsistency>,
+    /// The drift series (coasting runs).
+    drift: Option<DriftSeries>,
+}
 
 /// What a scoring run reports: its score (None: no reference) or why it failed.
 type ScoredOrNan<'a> = dyn Fn(String, Result<Option<f64>, ProcessError>) -> Option<f64> + Sync + 'a;
@@ -156,7 +168,17 @@ fn outage_scores(
             [(l, false, windows.clone()), (l, true, windows)]
         })
         .collect();
-    let scored: Vec<Scored> = plans
+    let bridges = if cfg.outage_bridge.enabled {
+        BRIDGE_PREDICTORS.len()
+    } else {
+        0
+    };
+    // One smoothed run at a time: the smoother's storage of a pass is the
+    // largest allocation of a run, and two at once would double the peak.
+    // (The lock is held only around `run_filter`, which starts no rayon
+    // work, so a worker waiting for it cannot block the holder.)
+    let smoothing = Mutex::new(());
+    let scored: Vec<PlanScores> = plans
         .par_iter()
         .map(|(l, free, windows)| {
             let (l, free) = (*l, *free);
@@ -168,20 +190,62 @@ fn outage_scores(
                 cancel: cancel.clone(),
                 ..RunPlan::default()
             };
-            let epochs = run_filter(cfg, inputs, &plan, cfg.gnss.policy)?;
+            // (A free-INS run is never smoothed.)
+            let epochs = if cfg.output.smooth && !free {
+                let _one_at_a_time = smoothing
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                run_filter(cfg, inputs, &plan, cfg.gnss.policy)?
+            } else {
+                run_filter(cfg, inputs, &plan, cfg.gnss.policy)?
+            };
+            let score = score_windows(&epochs, windows, l, reference);
+            if free {
+                return Ok(PlanScores {
+                    free,
+                    score,
+                    smoothed: None,
+                    bridged: Vec::new(),
+                    efficiency: None,
+                    consistency: None,
+                    drift: None,
+                });
+            }
             let smoothed: Vec<Epoch> = epochs.iter().filter_map(|e| e.smoothed()).collect();
-            Ok((
-                l,
+            let smoothed = (!smoothed.is_empty()).then(|| {
+                (
+                    score_windows(&smoothed, windows, l, reference),
+                    outage_consistency(&smoothed, windows, l, reference),
+                )
+            });
+            let bridged = (0..bridges)
+                .map(|k| score_windows(&bridged_epochs(&epochs, k), windows, l, reference))
+                .collect();
+            Ok(PlanScores {
                 free,
-                score_windows(&epochs, windows, l, reference),
-                (!smoothed.is_empty()).then(|| {
-                    (
-                        score_windows(&smoothed, windows, l, reference),
-                        outage_consistency(&smoothed, windows, l, reference),
-                    )
+                score,
+                smoothed,
+                bridged,
+                efficiency: Some(efficiency_in_windows(&epochs, windows, l, reference)),
+                consistency: Some(outage_consistency(&epochs, windows, l, reference)),
+                drift: Some(DriftSeries {
+                    outage_s: l,
+                    error_m: epochs
+                        .iter()
+                        .filter(|e| is_reference(&e.fix, reference))
+                        .map(|e| {
+                            (
+                                e.fix.time_s - first,
+                                e.fix.position.ned_to(&e.antenna).norm().max(1e-3),
+                            )
+                        })
+                        .collect(),
+                    three_sigma_m: epochs
+                        .iter()
+                        .map(|e| (e.fix.time_s - first, (3.0 * e.sigma.norm()).max(1e-3)))
+                        .collect(),
                 }),
-                epochs,
-            ))
+            })
         })
         .collect::<Result<_, ProcessError>>()?;
     if cfg.outage_bridge.enabled {
@@ -193,44 +257,22 @@ fn outage_scores(
             })
             .collect();
     }
-    for ((l, free, s, smoothed, epochs), (_, _, windows)) in scored.into_iter().zip(&plans) {
-        if free {
-            scores.outages_free_ins.push(s);
+    for plan in scored {
+        if plan.free {
+            scores.outages_free_ins.push(plan.score);
             continue;
         }
-        for (k, b) in scores.outages_bridged.iter_mut().enumerate() {
-            let bridged = bridged_epochs(&epochs, k);
-            b.scores
-                .push(score_windows(&bridged, windows, l, reference));
+        for (b, score) in scores.outages_bridged.iter_mut().zip(plan.bridged) {
+            b.scores.push(score);
         }
-        scores
-            .efficiency
-            .push(efficiency_in_windows(&epochs, windows, l, reference));
-        scores
-            .consistency
-            .push(outage_consistency(&epochs, windows, l, reference));
-        scores.drift.push(DriftSeries {
-            outage_s: l,
-            error_m: epochs
-                .iter()
-                .filter(|e| is_reference(&e.fix, reference))
-                .map(|e| {
-                    (
-                        e.fix.time_s - first,
-                        e.fix.position.ned_to(&e.antenna).norm().max(1e-3),
-                    )
-                })
-                .collect(),
-            three_sigma_m: epochs
-                .iter()
-                .map(|e| (e.fix.time_s - first, (3.0 * e.sigma.norm()).max(1e-3)))
-                .collect(),
-        });
-        if let Some((score, consistency)) = smoothed {
+        scores.efficiency.extend(plan.efficiency);
+        scores.consistency.extend(plan.consistency);
+        scores.drift.extend(plan.drift);
+        if let Some((score, consistency)) = plan.smoothed {
             scores.outages_smoothed.push(score);
             scores.consistency_smoothed.push(consistency);
         }
-        scores.outages.push(s);
+        scores.outages.push(plan.score);
     }
     Ok(())
 }
