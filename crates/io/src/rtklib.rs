@@ -291,8 +291,11 @@ pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<Str
         .collect();
     let mut fixes: Vec<GnssFix> = Vec::with_capacity(lines.len());
     let mut warnings = Vec::new();
+    // One token buffer for every line.
+    let mut tokens: Vec<&str> = Vec::new();
     for (k, &(line, text)) in lines.iter().enumerate() {
-        let tokens: Vec<&str> = text.split_whitespace().collect();
+        tokens.clear();
+        tokens.extend(text.split_whitespace());
         let is_last = k + 1 == lines.len();
         if tokens.len() < 2 + 13 {
             if is_last {
@@ -317,7 +320,7 @@ pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<Str
             parse_time(tokens[0], tokens[1]).map_err(|m| data_error(path, line, "GPST", m))?;
         let mut values = [f64::NAN; 19];
         for (i, tok) in tokens[2..].iter().take(19).enumerate() {
-            let v: f64 = tok.parse().map_err(|_| {
+            let v = crate::text::parse_f64(tok).ok_or_else(|| {
                 data_error(
                     path,
                     line,
@@ -563,21 +566,26 @@ pub fn read_tagged_imu_from(
     let mut raw: Vec<(usize, [f64; 6], f64)> = Vec::with_capacity(lines.len());
     for (i, l) in lines.iter().enumerate().take(lines.len() - 1).skip(1) {
         let line = i + 1;
-        let fields: Vec<&str> = l.trim().split(',').collect();
-        if fields.len() != 7 {
+        // The fields in place (no Vec per line), counted for the message.
+        let mut fields = [""; 7];
+        let mut count = 0;
+        for f in l.trim().split(',') {
+            if let Some(slot) = fields.get_mut(count) {
+                *slot = f;
+            }
+            count += 1;
+        }
+        if count != 7 {
             return Err(data_error(
                 csv_path,
                 line,
                 "(line)",
-                format!(
-                    "{} fields, expected 7 (ax ay az [g], gx gy gz [deg/s], tick [ms])",
-                    fields.len()
-                ),
+                format!("{count} fields, expected 7 (ax ay az [g], gx gy gz [deg/s], tick [ms])"),
             ));
         }
         let mut v = [0.0; 7];
         for (k, f) in fields.iter().enumerate() {
-            v[k] = f.trim().parse::<f64>().map_err(|_| {
+            v[k] = crate::text::parse_f64(f.trim()).ok_or_else(|| {
                 data_error(
                     csv_path,
                     line,

@@ -7,6 +7,7 @@
 //! writes, and jobs write `summary.json` last: a directory whose
 //! `summary.json` is missing holds a run that did not finish.
 
+use std::fmt::Write as _;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -258,6 +259,30 @@ fn fmt(v: f64) -> String {
     }
 }
 
+/// Append `v` as [`fmt`] writes it (`{}`, NaN as nothing) to `text`,
+/// without allocating.
+fn push_number(text: &mut String, v: f64) {
+    if !v.is_nan() {
+        // Writing into a String cannot fail.
+        let _ = write!(text, "{v}");
+    }
+}
+
+/// Note `v` if it is non-finite (`missing_ok`: NaN is a missing value, not
+/// noted).
+fn note_non_finite(
+    v: f64,
+    non_finite: &mut NonFinite,
+    file: &str,
+    column: &str,
+    epoch: usize,
+    missing_ok: bool,
+) {
+    if v.is_infinite() || (v.is_nan() && !missing_ok) {
+        non_finite.note(file, column, epoch);
+    }
+}
+
 /// A number as a cell, noting a non-finite value (`missing_ok`: NaN is a
 /// missing value, not noted).
 fn cell(
@@ -268,9 +293,7 @@ fn cell(
     epoch: usize,
     missing_ok: bool,
 ) -> String {
-    if v.is_infinite() || (v.is_nan() && !missing_ok) {
-        non_finite.note(file, column, epoch);
-    }
+    note_non_finite(v, non_finite, file, column, epoch, missing_ok);
     fmt(v)
 }
 
@@ -404,6 +427,10 @@ pub fn write_table_noting_infinities(
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let mut non_finite = NonFinite::default();
     w.write_record(header)?;
+    // A row's cells are formatted into one reused buffer (`text`, cell c
+    // ending at `ends[c]`): no allocation per cell.
+    let mut text = String::new();
+    let mut ends = Vec::with_capacity(header.len());
     for (k, row) in rows.into_iter().enumerate() {
         if row.len() != header.len() {
             return Err(write_err(
@@ -411,11 +438,19 @@ pub fn write_table_noting_infinities(
                 format!("row of {} values for {} columns", row.len(), header.len()),
             ));
         }
-        w.write_record(
-            row.iter()
-                .zip(header)
-                .map(|(&v, column)| cell(v, &mut non_finite, &name, column, k + 1, true)),
-        )?;
+        text.clear();
+        ends.clear();
+        for (&v, column) in row.iter().zip(header) {
+            note_non_finite(v, &mut non_finite, &name, column, k + 1, true);
+            push_number(&mut text, v);
+            ends.push(text.len());
+        }
+        let mut start = 0;
+        w.write_record(ends.iter().map(|&end| {
+            let cell = &text[start..end];
+            start = end;
+            cell
+        }))?;
     }
     w.commit()?;
     Ok(non_finite
@@ -529,6 +564,37 @@ mod tests {
         assert_eq!(
             w,
             vec!["t.csv: column `a`: 2 non-finite values (first at data row 2)".to_string()]
+        );
+    }
+
+    #[test]
+    fn table_cells_are_written_as_display_writes_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let values = [1.0, -0.0, 1e-7, 123_456.789, -2.5e300, f64::NAN, 0.1 + 0.2];
+        let path = dir.path().join("t.csv");
+        let header: Vec<String> = (0..values.len()).map(|c| format!("c{c}")).collect();
+        let header: Vec<&str> = header.iter().map(String::as_str).collect();
+        write_table(&path, &header, vec![values.to_vec(), values.to_vec()]).unwrap();
+        let row = values
+            .iter()
+            .map(|v| {
+                if v.is_nan() {
+                    String::new()
+                } else {
+                    format!("{v}")
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(",");
+        assert_eq!(
+            row,
+            "1,-0,0.0000001,123456.789,-25".to_string()
+                + &"0".repeat(299)
+                + ",,0.30000000000000004"
+        );
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            format!("{}\n{row}\n{row}\n", header.join(","))
         );
     }
 

@@ -33,6 +33,46 @@ pub fn write_files(
     navresult: bool,
 ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
     begin_outputs(out)?;
+    // The charts are drawn and written on a second thread while this one
+    // writes the tables: the same files, in the same order in the list.
+    let trajectory = out.join("trajectory.svg");
+    let innovations = out.join("innovations.svg");
+    let drift = scores.map(|_| out.join("outage_drift.svg"));
+    let (charts, tables) = std::thread::scope(|s| {
+        let charts = s.spawn(|| -> Result<(), IoError> {
+            trajectory_chart(result).write_svg(&trajectory)?;
+            innovations_chart(result).write_svg(&innovations)?;
+            if let (Some(scores), Some(path)) = (scores, &drift) {
+                drift_chart(scores).write_svg(path)?;
+            }
+            Ok(())
+        });
+        let tables = write_tables(result, out, navresult);
+        // A panic drawing a chart is re-raised here, as it would have been
+        // on this thread.
+        let charts = charts
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (charts, tables)
+    });
+    let (mut files, warnings) = tables?;
+    charts?;
+    // `aidnav process`'s order: trajectory.svg after selected.csv,
+    // innovations.svg after instruments.csv, outage_drift.svg last.
+    let instruments = files.len() - 1;
+    files.insert(instruments, trajectory);
+    files.push(innovations);
+    files.extend(drift);
+    Ok((files, warnings))
+}
+
+/// The tables of [`write_files`], in its order (`instruments.csv` last);
+/// returns the files and the tables' warnings.
+fn write_tables(
+    result: &ProcessResult,
+    out: &Path,
+    navresult: bool,
+) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
     let mut files = Vec::new();
     let mut warnings = Vec::new();
     let solution = out.join("solution.csv");
@@ -51,20 +91,9 @@ pub fn write_files(
     let path = out.join("selected.csv");
     warnings.extend(write_selected(&path, &result.selected)?);
     files.push(path);
-    let path = out.join("trajectory.svg");
-    trajectory_chart(result).write_svg(&path)?;
-    files.push(path);
     let path = out.join("instruments.csv");
     warnings.extend(write_instruments(&path, &result.epochs)?);
     files.push(path);
-    let path = out.join("innovations.svg");
-    innovations_chart(result).write_svg(&path)?;
-    files.push(path);
-    if let Some(scores) = scores {
-        let path = out.join("outage_drift.svg");
-        drift_chart(scores).write_svg(&path)?;
-        files.push(path);
-    }
     Ok((files, warnings))
 }
 

@@ -118,22 +118,27 @@ impl Inputs {
     /// These inputs with the IMU smoothed by a zero-phase centred moving
     /// average over `smoothing_s` (none at 0 or for fewer than 3 samples).
     pub fn smoothed(&self, smoothing_s: f64) -> Self {
-        let mut out = self.clone();
+        self.clone().into_smoothed(smoothing_s)
+    }
+
+    /// [`Inputs::smoothed`], taking the inputs: no copy of the raw samples
+    /// is kept beside the smoothed ones.
+    fn into_smoothed(mut self, smoothing_s: f64) -> Self {
         let imu = &self.imu;
         if smoothing_s > 0.0 && imu.len() > 2 {
             let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
             let half = ((smoothing_s / dt) / 2.0).round() as usize;
             if half > 0 {
-                out.imu = moving_average(imu, half);
+                self.imu = moving_average(imu, half);
             }
         }
-        out
+        self
     }
 }
 
 /// Read, time-shift, rotate to the body frame and smooth.
 pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
-    Ok(load_unsmoothed(cfg, base)?.smoothed(cfg.imu.smoothing_s))
+    Ok(load_unsmoothed(cfg, base)?.into_smoothed(cfg.imu.smoothing_s))
 }
 
 /// Read, time-shift and rotate to the body frame.
@@ -157,14 +162,24 @@ pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, Proce
 pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     let dir = data_dir(cfg, base);
     let imu_path = dir.join(&cfg.data.imu);
-    let (imu, mut warnings) = read_imu(
-        cfg.data.imu_format,
-        &imu_path,
-        cfg.data.imu_tags.as_ref().map(|t| dir.join(t)).as_deref(),
-        cfg.data.imu_units,
-    )?;
     let gnss_path = dir.join(&cfg.data.gnss);
-    let (gnss, w) = read_gnss(cfg.data.gnss_format, &gnss_path, cfg.data.gnss_sigma_m)?;
+    // The GNSS file is read on a second thread while this one reads the
+    // IMU's (the larger); an IMU error comes first, as when read in turn.
+    let (imu, gnss) = std::thread::scope(|s| {
+        let gnss = s.spawn(|| read_gnss(cfg.data.gnss_format, &gnss_path, cfg.data.gnss_sigma_m));
+        let imu = read_imu(
+            cfg.data.imu_format,
+            &imu_path,
+            cfg.data.imu_tags.as_ref().map(|t| dir.join(t)).as_deref(),
+            cfg.data.imu_units,
+        );
+        let gnss = gnss
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (imu, gnss)
+    });
+    let (imu, mut warnings) = imu?;
+    let (gnss, w) = gnss?;
     warnings.extend(w);
     Ok(Inputs {
         imu,
