@@ -31,7 +31,10 @@ const SMALL_DYN: usize = 32;
 /// Capacity of a [`nonzero_columns`] list (larger matrices use every column).
 pub(crate) const MAX_LISTED: usize = 64;
 
-fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -> bool {
+/// Whether the small kernels here handle an r × k by k × c product (every
+/// size known at compile time, or none above [`SMALL_DYN`]); nalgebra's
+/// packed product otherwise.
+pub(crate) fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -> bool {
     let all_static =
         R::try_to_usize().is_some() && K::try_to_usize().is_some() && C::try_to_usize().is_some();
     all_static || r.max(k).max(c) <= SMALL_DYN
@@ -96,12 +99,22 @@ fn kernel<I: Iterator<Item = usize> + Clone>(
         columns(r, (0, 0..c), &inner, alpha, a, &b, beta, out);
         return;
     }
-    let start = |block: usize| (block * r / LOWER_BLOCKS) & !1;
+    lower_blocks(r, |row0, cols| {
+        columns(r, (row0, cols), &inner, alpha, a, &b, beta, out)
+    });
+}
+
+/// Calls `block(row0, columns)` for the [`LOWER_BLOCKS`] column blocks that
+/// cover the lower triangle of an r × r matrix, each from an even row at or
+/// above its first column down to the last row (see [`kernel`]).
+#[inline(always)]
+fn lower_blocks(r: usize, mut block: impl FnMut(usize, std::ops::Range<usize>)) {
+    let start = |b: usize| (b * r / LOWER_BLOCKS) & !1;
     let (s1, s2, s3) = (start(1), start(2), start(3));
-    columns(r, (0, 0..s1), &inner, alpha, a, &b, beta, out);
-    columns(r, (s1, s1..s2), &inner, alpha, a, &b, beta, out);
-    columns(r, (s2, s2..s3), &inner, alpha, a, &b, beta, out);
-    columns(r, (s3, s3..r), &inner, alpha, a, &b, beta, out);
+    block(0, 0..s1);
+    block(s1, s1..s2);
+    block(s2, s2..s3);
+    block(s3, s3..r);
 }
 
 /// Column blocks of a lower-triangle product (the four calls in [`kernel`]).
@@ -283,6 +296,169 @@ pub(crate) fn times_h_transpose<M: Dim, N: Dim>(
                 out.as_mut_slice(),
                 false,
             );
+        }
+    }
+}
+
+/// The lower triangle of `out += v kᵀ + k vᵀ` for a square `out` (the
+/// Joseph update's symmetric rank-2m term; the elements above the diagonal
+/// are left unspecified: follow with [`mirror_lower`]). One pass over out:
+/// each element gets `Σ v(i, l) k(j, l)` then `Σ k(i, l) v(j, l)` in
+/// increasing l, the operations and order of two [`gemm_nt_lower`] calls,
+/// so the result is theirs bit for bit at half the loads and stores of out.
+pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
+    out: &mut OMatrix<f64, D, D>,
+    v: &OMatrix<f64, D, K>,
+    k: &OMatrix<f64, D, K>,
+) where
+    DefaultAllocator: Allocator<D, D> + Allocator<D, K> + Allocator<K, D>,
+{
+    let (n, m) = v.shape();
+    if !use_kernel::<D, K, D>(n, m, n) {
+        gemm_nt_lower(out, 1.0, v, k, 1.0);
+        gemm_nt_lower(out, 1.0, k, v, 1.0);
+        return;
+    }
+    let (vs, ks) = (v.as_slice(), k.as_slice());
+    let os = out.as_mut_slice();
+    lower_blocks(n, |row0, cols| {
+        let len = n - row0;
+        for j in cols {
+            let oc = &mut os[j * n + row0..][..len];
+            for (a, b) in [(vs, ks), (ks, vs)] {
+                for l in 0..m {
+                    let s = b[l * n + j];
+                    let ac = &a[l * n + row0..][..len];
+                    for (o, &x) in oc.iter_mut().zip(ac) {
+                        *o += x * s;
+                    }
+                }
+            }
+        }
+    });
+}
+
+/// `out = p hᵀ` (n × m) for a symmetric `p` (n × n) and h (m × n): column i
+/// of out sums the columns k of p weighted by h(i, k), over the nonzero
+/// h(i, k) only (a navigation filter's H selects a few states), in
+/// increasing k from 0. The transpose of [`h_times_symmetric`]'s H P bit for
+/// bit: each product is the same, and a left-out term is an exact zero
+/// added to a sum that started at +0 and so is never −0, which leaves it
+/// unchanged (p is finite).
+pub(crate) fn symmetric_times_h_transpose<M: Dim, N: Dim>(
+    out: &mut OMatrix<f64, N, M>,
+    p: &OMatrix<f64, N, N>,
+    h: &OMatrix<f64, M, N>,
+) where
+    DefaultAllocator: Allocator<M, N> + Allocator<N, N> + Allocator<N, M>,
+{
+    let (m, n) = h.shape();
+    let (hs, ps) = (h.as_slice(), p.as_slice());
+    let os = out.as_mut_slice();
+    for i in 0..m {
+        let oc = &mut os[i * n..][..n];
+        oc.fill(0.0);
+        for k in 0..n {
+            let hv = hs[k * m + i];
+            if hv != 0.0 {
+                let pc = &ps[k * n..][..n];
+                for (o, &x) in oc.iter_mut().zip(pc) {
+                    *o += hv * x;
+                }
+            }
+        }
+    }
+}
+
+/// `out(i, j) = Σ_k w(k, i) h(j, k)` (m × m) for w = P Hᵀ (n × m), over the
+/// nonzero h(j, k) in increasing k: H P Hᵀ, bit for bit what
+/// [`times_h_transpose`] gives from H P (see [`symmetric_times_h_transpose`]).
+pub(crate) fn h_times_cross<M: Dim, N: Dim>(
+    out: &mut OMatrix<f64, M, M>,
+    h: &OMatrix<f64, M, N>,
+    w: &OMatrix<f64, N, M>,
+) where
+    DefaultAllocator: Allocator<M, N> + Allocator<N, M> + Allocator<M, M>,
+{
+    let (m, n) = h.shape();
+    let (hs, ws) = (h.as_slice(), w.as_slice());
+    let os = out.as_mut_slice();
+    for j in 0..m {
+        let oc = &mut os[j * m..][..m];
+        oc.fill(0.0);
+        for k in 0..n {
+            let hv = hs[k * m + j];
+            if hv != 0.0 {
+                for (i, o) in oc.iter_mut().enumerate() {
+                    *o += ws[i * n + k] * hv;
+                }
+            }
+        }
+    }
+}
+
+/// Largest measurement count for [`solve_gain_in_place`]: nalgebra's dot
+/// product sums fewer than 8 terms in plain order, which the substitution
+/// here reproduces (it switches to 8 interleaved partial sums beyond).
+pub(crate) const MAX_GAIN_SOLVE: usize = 8;
+
+/// Rows per block of the back substitution's partial sums.
+const SOLVE_BLOCK: usize = 8;
+
+/// The gain K = W C⁻¹ (n × m) in place of W = P Hᵀ, from the Cholesky
+/// factor `l` of C (its lower triangle; m × m, m ≤ [`MAX_GAIN_SOLVE`]): Kᵀ
+/// solves C Kᵀ = Wᵀ, by forward then back substitution on the columns of W
+/// (contiguous, so each step is a vectorised axpy over the n states instead
+/// of n separate m-long solves). Per element the operations and their order
+/// are those of nalgebra's `Cholesky::solve` applied to H P column by
+/// column (divide by L(i, i), subtract L(r, i)·y; then the dot product from
+/// +0 in increasing r, subtracted, divided), so the gain is the same bit for
+/// bit.
+pub(crate) fn solve_gain_in_place<N: Dim, M: Dim>(
+    w: &mut OMatrix<f64, N, M>,
+    l: &OMatrix<f64, M, M>,
+) where
+    DefaultAllocator: Allocator<N, M> + Allocator<M, M>,
+{
+    let (n, m) = w.shape();
+    debug_assert!(m <= MAX_GAIN_SOLVE);
+    let ls = l.as_slice();
+    let ws = w.as_mut_slice();
+    // Forward: L Y = W ᵀ, one column of Yᵀ (a row of Y) at a time.
+    for i in 0..m {
+        let d = ls[i * m + i];
+        let (head, tail) = ws.split_at_mut((i + 1) * n);
+        let yi = &mut head[i * n..];
+        for y in yi.iter_mut() {
+            *y /= d;
+        }
+        for r in (i + 1)..m {
+            let lri = ls[i * m + r];
+            let yr = &mut tail[(r - i - 1) * n..][..n];
+            for (o, &y) in yr.iter_mut().zip(yi.iter()) {
+                *o -= y * lri;
+            }
+        }
+    }
+    // Back: Lᵀ Kᵀ = Yᵀ, last column first.
+    for i in (0..m).rev() {
+        let d = ls[i * m + i];
+        let (head, tail) = ws.split_at_mut((i + 1) * n);
+        let ki = &mut head[i * n..];
+        for (c0, chunk) in ki.chunks_mut(SOLVE_BLOCK).enumerate() {
+            let c0 = c0 * SOLVE_BLOCK;
+            let len = chunk.len();
+            let mut dot = [0.0_f64; SOLVE_BLOCK];
+            for r in (i + 1)..m {
+                let lri = ls[i * m + r];
+                let kr = &tail[(r - i - 1) * n + c0..][..len];
+                for (s, &x) in dot.iter_mut().zip(kr) {
+                    *s += lri * x;
+                }
+            }
+            for (k, &s) in chunk.iter_mut().zip(&dot) {
+                *k = (*k - s) / d;
+            }
         }
     }
 }
