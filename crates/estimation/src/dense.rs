@@ -99,22 +99,22 @@ fn kernel<I: Iterator<Item = usize> + Clone>(
         columns(r, (0, 0..c), &inner, alpha, a, &b, beta, out);
         return;
     }
-    lower_blocks(r, |row0, cols| {
-        columns(r, (row0, cols), &inner, alpha, a, &b, beta, out)
-    });
+    let (s1, s2, s3) = lower_block_starts(r);
+    // Four calls, not a loop or a closure: each inlines with its own
+    // constant row count (fixed sizes), which keeps the columns in registers.
+    columns(r, (0, 0..s1), &inner, alpha, a, &b, beta, out);
+    columns(r, (s1, s1..s2), &inner, alpha, a, &b, beta, out);
+    columns(r, (s2, s2..s3), &inner, alpha, a, &b, beta, out);
+    columns(r, (s3, s3..r), &inner, alpha, a, &b, beta, out);
 }
 
-/// Calls `block(row0, columns)` for the [`LOWER_BLOCKS`] column blocks that
-/// cover the lower triangle of an r × r matrix, each from an even row at or
-/// above its first column down to the last row (see [`kernel`]).
+/// First columns (and rows) of blocks 1–3 of the [`LOWER_BLOCKS`] column
+/// blocks that cover the lower triangle of an r × r matrix, each starting at
+/// an even row at or above its first column (see [`kernel`]).
 #[inline(always)]
-fn lower_blocks(r: usize, mut block: impl FnMut(usize, std::ops::Range<usize>)) {
+fn lower_block_starts(r: usize) -> (usize, usize, usize) {
     let start = |b: usize| (b * r / LOWER_BLOCKS) & !1;
-    let (s1, s2, s3) = (start(1), start(2), start(3));
-    block(0, 0..s1);
-    block(s1, s1..s2);
-    block(s2, s2..s3);
-    block(s3, s3..r);
+    (start(1), start(2), start(3))
 }
 
 /// Column blocks of a lower-triangle product (the four calls in [`kernel`]).
@@ -321,21 +321,44 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
     }
     let (vs, ks) = (v.as_slice(), k.as_slice());
     let os = out.as_mut_slice();
-    lower_blocks(n, |row0, cols| {
-        let len = n - row0;
-        for j in cols {
-            let oc = &mut os[j * n + row0..][..len];
-            for (a, b) in [(vs, ks), (ks, vs)] {
-                for l in 0..m {
-                    let s = b[l * n + j];
-                    let ac = &a[l * n + row0..][..len];
-                    for (o, &x) in oc.iter_mut().zip(ac) {
-                        *o += x * s;
-                    }
-                }
+    let (s1, s2, s3) = lower_block_starts(n);
+    rank_2k_columns(n, m, (0, 0..s1), vs, ks, os);
+    rank_2k_columns(n, m, (s1, s1..s2), vs, ks, os);
+    rank_2k_columns(n, m, (s2, s2..s3), vs, ks, os);
+    rank_2k_columns(n, m, (s3, s3..n), vs, ks, os);
+}
+
+/// Columns `cols`, rows `row0..n`, of [`add_rank_2k_lower`] (the column of
+/// out stays in registers for fixed sizes, as in [`columns`]).
+#[inline(always)]
+fn rank_2k_columns(
+    n: usize,
+    m: usize,
+    (row0, cols): (usize, std::ops::Range<usize>),
+    vs: &[f64],
+    ks: &[f64],
+    os: &mut [f64],
+) {
+    let len = n - row0;
+    for j in cols {
+        let oc = &mut os[j * n + row0..][..len];
+        // (Two plain loops: a loop over the pair of operands stops the
+        // compiler from keeping oc in registers.)
+        for l in 0..m {
+            let s = ks[l * n + j];
+            let ac = &vs[l * n + row0..][..len];
+            for (o, &x) in oc.iter_mut().zip(ac) {
+                *o += x * s;
             }
         }
-    });
+        for l in 0..m {
+            let s = vs[l * n + j];
+            let ac = &ks[l * n + row0..][..len];
+            for (o, &x) in oc.iter_mut().zip(ac) {
+                *o += x * s;
+            }
+        }
+    }
 }
 
 /// `out = p hᵀ` (n × m) for a symmetric `p` (n × n) and h (m × n): column i
