@@ -132,3 +132,28 @@ where
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_finite_finds_every_non_finite_value_wherever_it_is() {
+        for len in [0_usize, 1, 7, 8, 9, 36, 225, 441] {
+            let values: Vec<f64> = (0..len).map(|i| (i as f64 - 3.5) * 1e300).collect();
+            assert!(all_finite(&values), "len {len}");
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                for at in [0, len / 2, len.saturating_sub(1)] {
+                    if len == 0 {
+                        continue;
+                    }
+                    let mut v = values.clone();
+                    v[at] = bad;
+                    assert!(!all_finite(&v), "len {len}, {bad} at {at}");
+                }
+            }
+        }
+        // Extremes that are finite: the largest, the smallest subnormal, −0.
+        assert!(all_finite(&[f64::MAX, -f64::MAX, 5e-324, -0.0, 0.0]));
+    }
+}

@@ -582,4 +582,104 @@ mod tests {
         let dense = SMatrix::<f64, 2, 3>::from_element(1.0);
         assert_eq!(nonzero_columns(&dense, &mut list), None);
     }
+
+    /// A symmetric, non-integer matrix (so that the order of the sums
+    /// matters and exact equality below is a real test of it).
+    fn symmetric_test_matrix(n: usize) -> DMatrix<f64> {
+        let a = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 13) % 17) as f64 / 3.0 - 2.7);
+        let p = &a * a.transpose() / n as f64 + DMatrix::identity(n, n) * 0.3;
+        (&p + p.transpose()) * 0.5
+    }
+
+    /// A measurement matrix with exact zeros, a −0 and a dense row.
+    fn measurement_test_matrix(m: usize, n: usize) -> DMatrix<f64> {
+        let mut h = DMatrix::from_fn(m, n, |i, j| {
+            if (i + 2 * j) % 3 == 0 {
+                ((i * 5 + j) % 7) as f64 / 7.0 - 0.4
+            } else {
+                0.0
+            }
+        });
+        h[(0, n - 1)] = -0.0;
+        h.row_mut(m - 1)
+            .iter_mut()
+            .enumerate()
+            .for_each(|(j, v)| *v = 0.1 + j as f64 / 9.0);
+        h
+    }
+
+    #[test]
+    fn cross_covariance_is_the_transposed_dense_product_bit_for_bit() {
+        for (m, n) in [(1, 1), (3, 8), (6, 15), (6, 21), (9, 12)] {
+            let p = symmetric_test_matrix(n);
+            let h = measurement_test_matrix(m, n);
+            let mut list = [0; MAX_LISTED];
+            let columns = nonzero_columns(&h, &mut list);
+            let mut hp = DMatrix::zeros(m, n);
+            h_times_symmetric(&mut hp, &h, &p, columns);
+            let mut hph = DMatrix::zeros(m, m);
+            times_h_transpose(&mut hph, &hp, &h, columns);
+            let mut cross = DMatrix::zeros(n, m);
+            symmetric_times_h_transpose(&mut cross, &p, &h);
+            assert_eq!(cross, hp.transpose(), "P Hᵀ, {m}×{n}");
+            let mut hph_sparse = DMatrix::zeros(m, m);
+            h_times_cross(&mut hph_sparse, &h, &cross);
+            assert_eq!(hph_sparse, hph, "H P Hᵀ, {m}×{n}");
+            // And both agree with nalgebra's product to rounding.
+            let reference = &h * &p * h.transpose();
+            assert!((&hph - &reference).abs().max() <= 1e-12 * reference.abs().max());
+        }
+    }
+
+    #[test]
+    fn gain_solve_equals_nalgebra_cholesky_solve_bit_for_bit() {
+        for (m, n) in [(1, 1), (3, 8), (6, 15), (6, 21), (8, 21)] {
+            let p = symmetric_test_matrix(n);
+            let h = measurement_test_matrix(m, n);
+            let hp = &h * &p;
+            let s = &hp * h.transpose()
+                + DMatrix::from_fn(m, m, |i, j| if i == j { 0.7 } else { 0.01 });
+            let s = (&s + s.transpose()) * 0.5;
+            let chol = nalgebra::Cholesky::new(s.clone()).expect("positive definite");
+            let expected = chol.solve(&hp).transpose();
+            let mut gain = hp.transpose();
+            solve_gain_in_place(&mut gain, chol.l_dirty());
+            assert_eq!(gain, expected, "{m}×{n}");
+            // K S = P Hᵀ, to rounding.
+            let back = &gain * &s;
+            assert!((&back - hp.transpose()).abs().max() <= 1e-12 * hp.abs().max());
+        }
+    }
+
+    #[test]
+    fn fused_rank_2k_equals_two_lower_products_bit_for_bit() {
+        for (n, m) in [(1, 1), (5, 2), (15, 6), (21, 6), (40, 6)] {
+            let p = symmetric_test_matrix(n);
+            let v = DMatrix::from_fn(n, m, |i, j| ((i * 3 + j * 5) % 11) as f64 / 7.0 - 0.6);
+            let k = DMatrix::from_fn(n, m, |i, j| ((i * 7 + j) % 13) as f64 / 9.0 - 0.5);
+            let mut two = p.clone();
+            gemm_nt_lower(&mut two, 1.0, &v, &k, 1.0);
+            gemm_nt_lower(&mut two, 1.0, &k, &v, 1.0);
+            mirror_lower(&mut two);
+            let mut fused = p.clone();
+            add_rank_2k_lower(&mut fused, &v, &k);
+            mirror_lower(&mut fused);
+            assert_eq!(fused, two, "n = {n}");
+            assert_eq!(fused, fused.transpose());
+            let reference = &p + &v * k.transpose() + &k * v.transpose();
+            assert!((&fused - &reference).abs().max() <= 1e-12 * reference.abs().max());
+        }
+        // Fixed sizes take the same kernel with constant lengths.
+        let p = SMatrix::<f64, 21, 21>::from_fn(|i, j| (i.min(j) * 3 + i.max(j)) as f64 / 5.0);
+        let v = SMatrix::<f64, 21, 6>::from_fn(|i, j| ((i * 3 + j * 5) % 11) as f64 / 7.0);
+        let k = SMatrix::<f64, 21, 6>::from_fn(|i, j| ((i * 7 + j) % 13) as f64 / 9.0);
+        let mut two = p;
+        gemm_nt_lower(&mut two, 1.0, &v, &k, 1.0);
+        gemm_nt_lower(&mut two, 1.0, &k, &v, 1.0);
+        mirror_lower(&mut two);
+        let mut fused = p;
+        add_rank_2k_lower(&mut fused, &v, &k);
+        mirror_lower(&mut fused);
+        assert_eq!(fused, two);
+    }
 }
