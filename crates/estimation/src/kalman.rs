@@ -200,7 +200,8 @@ where
     /// Time update `x = Φ x`, `P = Φ P Φᵀ + Q`.
     pub fn predict(&mut self, phi: &OMatrix<f64, N, N>, q: &OMatrix<f64, N, N>) -> Result<()> {
         self.predict_state(phi)?;
-        self.predict_covariance(phi, q)
+        // Φ has just been checked (shape and finite): not again.
+        self.propagate_covariance(phi, q)
     }
 
     /// State half of the time update, `x = Φ x`. Adaptive schemes that need the
@@ -225,6 +226,18 @@ where
         check::shape(phi, (n, n), step, Matrix::Phi)?;
         check::shape(q, (n, n), step, Matrix::Q)?;
         check::finite(phi, step, Matrix::Phi)?;
+        self.propagate_covariance(phi, q)
+    }
+
+    /// `P = Φ P Φᵀ + Q` for a Φ already checked (shape, finite).
+    fn propagate_covariance(
+        &mut self,
+        phi: &OMatrix<f64, N, N>,
+        q: &OMatrix<f64, N, N>,
+    ) -> Result<()> {
+        let n = self.dim();
+        let step = Step::Predict;
+        check::shape(q, (n, n), step, Matrix::Q)?;
         check::finite(q, step, Matrix::Q)?;
         let q_exactly_symmetric = check::symmetric(q, step, Matrix::Q)?;
         let (nd, _) = self.p.shape_generic();
@@ -252,9 +265,32 @@ where
     where
         DefaultAllocator: FilterAllocator<N, M>,
     {
+        let innov = self.innovate(z, h, r)?;
+        Ok(Innovation {
+            residual: innov.residual,
+            hp: innov.cross.transpose(),
+            hph: innov.hph,
+            s: innov.s,
+            chol: innov.chol,
+            nis: innov.nis,
+        })
+    }
+
+    /// [`innovation`](Self::innovation) with the cross covariance kept as
+    /// P Hᵀ (n × m), the shape the gain and the covariance update read.
+    fn innovate<M: Dim>(
+        &self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+    ) -> Result<Innovated<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
         let step = Step::Update;
         let m = z.len();
-        check::shape(h, (m, self.dim()), step, Matrix::H)?;
+        let n = self.dim();
+        check::shape(h, (m, n), step, Matrix::H)?;
         check::shape(r, (m, m), step, Matrix::R)?;
         check::finite(z, step, Matrix::Z)?;
         check::finite(h, step, Matrix::H)?;
@@ -262,14 +298,21 @@ where
         check::symmetric(r, step, Matrix::R)?;
         let residual = z - h * &self.x;
         let (md, nd) = h.shape_generic();
-        // Only H's nonzero columns enter H P and H P Hᵀ (a navigation
-        // filter's H touches a few states); the rest are exact zeros.
-        let mut listed = [0; dense::MAX_LISTED];
-        let columns = dense::nonzero_columns(h, &mut listed);
-        let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
-        dense::h_times_symmetric(&mut hp, h, &self.p, columns);
+        let mut cross = OMatrix::<f64, N, M>::zeros_generic(nd, md);
         let mut hph = OMatrix::<f64, M, M>::zeros_generic(md, md);
-        dense::times_h_transpose(&mut hph, &hp, h, columns);
+        if dense::use_kernel::<M, N, N>(m, n, n) {
+            // Only H's nonzero elements enter P Hᵀ and H P Hᵀ (a navigation
+            // filter's H selects a few states); the rest are exact zeros.
+            dense::symmetric_times_h_transpose(&mut cross, &self.p, h);
+            dense::h_times_cross(&mut hph, h, &cross);
+        } else {
+            let mut listed = [0; dense::MAX_LISTED];
+            let columns = dense::nonzero_columns(h, &mut listed);
+            let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
+            dense::h_times_symmetric(&mut hp, h, &self.p, columns);
+            dense::times_h_transpose(&mut hph, &hp, h, columns);
+            cross = hp.transpose();
+        }
         check::symmetrize(&mut hph);
         let s = &hph + r;
         let chol = Cholesky::new(s.clone()).ok_or(EstimationError::NotPositiveDefinite {
@@ -277,9 +320,9 @@ where
             matrix: Matrix::S,
         })?;
         let nis = residual.dot(&chol.solve(&residual));
-        Ok(Innovation {
+        Ok(Innovated {
             residual,
-            hp,
+            cross,
             hph,
             s,
             chol,
@@ -313,7 +356,7 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         let step = Step::Update;
-        let innov = self.innovation(z, h, r)?;
+        let innov = self.innovate(z, h, r)?;
         let decision = policy.decide(&InnovationView {
             residual: &innov.residual,
             hph: &innov.hph,
@@ -325,15 +368,15 @@ where
         let (outcome, gain) = match decision {
             Decision::Reject => (Outcome::Rejected, OMatrix::zeros_generic(nrows, ncols)),
             Decision::Accept => {
-                let gain = Self::gain(&innov.chol, &innov.hp);
-                self.apply(&gain, &innov.residual, &innov.hp, &innov.s, step)?;
+                let gain = Self::gain(&innov.chol, &innov.cross);
+                self.apply(&gain, &innov.residual, &innov.cross, &innov.s, step)?;
                 (Outcome::Accepted, gain)
             }
             Decision::ReplaceResidual(limited) => {
                 check::shape(&limited, (z.len(), 1), step, Matrix::Innovation)?;
                 check::finite(&limited, step, Matrix::Innovation)?;
-                let gain = Self::gain(&innov.chol, &innov.hp);
-                self.apply(&gain, &limited, &innov.hp, &innov.s, step)?;
+                let gain = Self::gain(&innov.chol, &innov.cross);
+                self.apply(&gain, &limited, &innov.cross, &innov.s, step)?;
                 (Outcome::Limited, gain)
             }
             Decision::InflateR(factor) => {
@@ -349,13 +392,13 @@ where
                         step,
                         matrix: Matrix::S,
                     })?;
-                let gain = Self::gain(&chol, &innov.hp);
-                self.apply(&gain, &innov.residual, &innov.hp, &s_used, step)?;
+                let gain = Self::gain(&chol, &innov.cross);
+                self.apply(&gain, &innov.residual, &innov.cross, &s_used, step)?;
                 (Outcome::Reweighted, gain)
             }
             Decision::GainCovariance(c) => {
-                let gain = Self::gain_from(c, &innov.hp, z.len(), step)?;
-                self.apply(&gain, &innov.residual, &innov.hp, &innov.s, step)?;
+                let gain = Self::gain_from(c, &innov.cross, z.len(), step)?;
+                self.apply(&gain, &innov.residual, &innov.cross, &innov.s, step)?;
                 (Outcome::AdaptiveGain, gain)
             }
             Decision::LimitWithGainCovariance {
@@ -364,8 +407,8 @@ where
             } => {
                 check::shape(&residual, (z.len(), 1), step, Matrix::Innovation)?;
                 check::finite(&residual, step, Matrix::Innovation)?;
-                let gain = Self::gain_from(covariance, &innov.hp, z.len(), step)?;
-                self.apply(&gain, &residual, &innov.hp, &innov.s, step)?;
+                let gain = Self::gain_from(covariance, &innov.cross, z.len(), step)?;
+                self.apply(&gain, &residual, &innov.cross, &innov.s, step)?;
                 (Outcome::Limited, gain)
             }
         };
@@ -378,18 +421,26 @@ where
         })
     }
 
-    /// K = P Hᵀ C⁻¹ from a Cholesky factor of C, solving C Kᵀ = H P (C, P symmetric).
-    fn gain<M: Dim>(chol: &Cholesky<f64, M>, hp: &OMatrix<f64, M, N>) -> OMatrix<f64, N, M>
+    /// K = P Hᵀ C⁻¹ from a Cholesky factor of C, solving C Kᵀ = H P (C, P
+    /// symmetric), given `cross` = P Hᵀ.
+    fn gain<M: Dim>(chol: &Cholesky<f64, M>, cross: &OMatrix<f64, N, M>) -> OMatrix<f64, N, M>
     where
         DefaultAllocator: FilterAllocator<N, M>,
     {
-        chol.solve(hp).transpose()
+        let (n, m) = cross.shape();
+        if m <= dense::MAX_GAIN_SOLVE && dense::use_kernel::<N, M, M>(n, m, m) {
+            let mut gain = cross.clone();
+            dense::solve_gain_in_place(&mut gain, chol.l_dirty());
+            gain
+        } else {
+            chol.solve(&cross.transpose()).transpose()
+        }
     }
 
     /// K = P⁻ Hᵀ C⁻¹ for a policy-supplied C (checked: shape, finite, positive definite).
     fn gain_from<M: Dim>(
         c: OMatrix<f64, M, M>,
-        hp: &OMatrix<f64, M, N>,
+        cross: &OMatrix<f64, N, M>,
         m: usize,
         step: Step,
     ) -> Result<OMatrix<f64, N, M>>
@@ -402,7 +453,7 @@ where
             step,
             matrix: Matrix::S,
         })?;
-        Ok(Self::gain(&chol, hp))
+        Ok(Self::gain(&chol, cross))
     }
 
     /// x += K ν; P by the configured form; symmetrise and check.
@@ -422,7 +473,7 @@ where
         &mut self,
         gain: &OMatrix<f64, N, M>,
         residual: &OVector<f64, M>,
-        hp: &OMatrix<f64, M, N>,
+        cross: &OMatrix<f64, N, M>,
         s_used: &OMatrix<f64, M, M>,
         step: Step,
     ) -> Result<()>
@@ -435,15 +486,14 @@ where
         match self.covariance_update {
             CovarianceUpdate::Joseph => {
                 // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
-                let mut v = hp.transpose();
+                let mut v = cross.clone();
                 dense::gemm(&mut v, 0.5, gain, s_used, -1.0);
-                dense::gemm_nt_lower(&mut p, 1.0, &v, gain, 1.0);
-                dense::gemm_nt_lower(&mut p, 1.0, gain, &v, 1.0);
+                dense::add_rank_2k_lower(&mut p, &v, gain);
                 dense::mirror_lower(&mut p);
             }
             CovarianceUpdate::Standard => {
                 // (I − K H) P = P − K (H P)
-                dense::gemm(&mut p, -1.0, gain, hp, 1.0);
+                dense::gemm(&mut p, -1.0, gain, &cross.transpose(), 1.0);
                 check::symmetrize(&mut p);
             }
         }
@@ -558,4 +608,18 @@ where
     pub chol: Cholesky<f64, M>,
     /// νᵀ S⁻¹ ν.
     pub nis: f64,
+}
+
+/// [`Innovation`] as the update uses it: the cross covariance as P Hᵀ.
+struct Innovated<N: Dim, M: Dim>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    residual: OVector<f64, M>,
+    /// P Hᵀ = (H P)ᵀ.
+    cross: OMatrix<f64, N, M>,
+    hph: OMatrix<f64, M, M>,
+    s: OMatrix<f64, M, M>,
+    chol: Cholesky<f64, M>,
+    nis: f64,
 }
