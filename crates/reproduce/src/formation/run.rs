@@ -16,6 +16,8 @@ use super::simulate::{
     RATE_CHANNEL, RELATIVE_CHANNEL, relative_measurements, relative_rates, stage_one,
 };
 use super::{Denial, FormationResult, FormationScenario, MemberScore, Stage2OwnErrors};
+#[cfg(test)]
+use super::Stage2Motion;
 
 /// One run's per-epoch errors, what [`finish`] combines.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -439,6 +441,8 @@ mod tests {
     /// NEES 1 … 5, velocity below a third of white's, rates better.
     #[test]
     fn correlated_stage_one_errors_make_stage_two_consistent() {
+        // The receiver-model Gauss–Markov stage 2 with the paper's motion
+        // model, as measured (the default before the stage-1 reported one).
         let base = FormationScenario {
             runs: 3,
             duration_s: 240.0,
@@ -448,6 +452,8 @@ mod tests {
                 start_s: 100.0,
                 end_s: 180.0,
             }],
+            stage2_own_errors: Stage2OwnErrors::GaussMarkov,
+            stage2_motion: Stage2Motion::Paper,
             ..FormationScenario::default()
         };
         let go =
@@ -558,6 +564,7 @@ mod tests {
         // errors (the default before the Gauss–Markov model).
         let scenario = |bias: f64, reported: bool| FormationScenario {
             stage2_own_errors: Stage2OwnErrors::White,
+            stage2_motion: Stage2Motion::Paper,
             stage2_own_velocity: false,
             runs: 4,
             duration_s: 300.0,
