@@ -253,7 +253,8 @@ mod tests {
             j.view_mut((0, 0), (STATES, STATES)).copy_from(p);
             let p6 = p.fixed_view::<STATES, 6>(0, 0);
             j.view_mut((0, STATES), (STATES, 6)).copy_from(&p6);
-            j.view_mut((STATES, 0), (6, STATES)).copy_from(&p6.transpose());
+            j.view_mut((STATES, 0), (6, STATES))
+                .copy_from(&p6.transpose());
             j.view_mut((STATES, STATES), (6, 6))
                 .copy_from(&p.fixed_view::<6, 6>(0, 0));
             j
@@ -287,7 +288,10 @@ mod tests {
                 let got = c.take(kf.covariance());
                 let want = Matrix6::from_fn(|i, j| aug.covariance()[(i, STATES + j)]);
                 let scale = want.amax();
-                assert!((got - want).amax() < 1e-9 * scale, "epoch {k}: {got} vs {want}");
+                assert!(
+                    (got - want).amax() < 1e-9 * scale,
+                    "epoch {k}: {got} vs {want}"
+                );
                 // Move the augmented filter's reference to now.
                 let x = aug.state().clone();
                 aug = DynKalmanFilter::new(x, joint(kf.covariance())).unwrap();

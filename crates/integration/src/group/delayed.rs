@@ -485,9 +485,8 @@ mod tests {
         };
         let wobble = |a: f64| (a * (k * 7 + l * 3 + 1) as f64).sin();
         let attitude = UnitQuaternion::from_euler_angles(0.01 * wobble(1.1), 0.02, 0.05 * l as f64);
-        let covariance = Matrix6::from_diagonal(&nalgebra::Vector6::new(
-            4.0, 4.0, 16.0, 0.01, 0.01, 0.02,
-        ));
+        let covariance =
+            Matrix6::from_diagonal(&nalgebra::Vector6::new(4.0, 4.0, 16.0, 0.01, 0.01, 0.02));
         let own = OwnSolution {
             state: LocalLevelState {
                 position: truth(l)

@@ -38,7 +38,20 @@
 //! With [`OwnErrorModel::GaussMarkov`] it carries per member, per axis a
 //! first-order Gauss–Markov state for the correlated part of the stage-1
 //! position (and, when own velocities are fused, velocity) error, and takes
-//! only the rest of the stage-1 covariance as white.
+//! only the rest of the stage-1 covariance as white. With
+//! [`OwnErrorModel::Stage1Reported`] it carries each member's whole stage-1
+//! position–velocity error (6 states) and moves it from epoch to epoch by
+//! the transition stage 1 itself reports: its covariance and the
+//! cross-covariance of its error with the previous epoch's
+//! ([`OwnSolution::error_cross_covariance`], which the stage-1 filters track
+//! through their Φ and gains), turned into `(A, Q)` by
+//! [`stage1_transition`] — no second model of the receiver.
+//!
+//! [`MotionModel`] chooses the constant-velocity model's process noise: the
+//! paper's (a_R T)² on the velocity only, or the same acceleration held over
+//! the step, which also moves the position (a T² / 2) — without it a
+//! velocity tied to precise position increments lags by a T / 2 whenever
+//! the vehicles accelerate.
 //!
 //! ```
 //! use aidnav_integration::group::GroupAxisFilter;
@@ -353,9 +366,16 @@ mod tests {
                 0.03 * (i as f64 - j as f64).sin()
             }
         });
-        let l = Matrix6::from_fn(|i, j| if j <= i { 1.0 + 0.1 * (i + 2 * j) as f64 } else { 0.0 });
+        let l = Matrix6::from_fn(|i, j| {
+            if j <= i {
+                1.0 + 0.1 * (i + 2 * j) as f64
+            } else {
+                0.0
+            }
+        });
         let p = l * l.transpose();
-        let q_true = Matrix6::from_diagonal(&nalgebra::Vector6::new(0.2, 0.2, 0.5, 1e-3, 1e-3, 2e-3));
+        let q_true =
+            Matrix6::from_diagonal(&nalgebra::Vector6::new(0.2, 0.2, 0.5, 1e-3, 1e-3, 2e-3));
         let current = f * p * f.transpose() + q_true;
         let (a, q) = stage1_transition(&p, &(f * p), &current).unwrap();
         assert!((a - f).amax() < 1e-9, "A {a}");

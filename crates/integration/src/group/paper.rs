@@ -178,9 +178,7 @@ impl PaperFusion {
                 let noise = match params.own_errors {
                     OwnErrorModel::White => o.covariance,
                     OwnErrorModel::GaussMarkov(c) => c.white_covariance(&o.covariance),
-                    OwnErrorModel::Stage1Reported => {
-                        o.covariance * STAGE1_WHITE_FRACTION.powi(2)
-                    }
+                    OwnErrorModel::Stage1Reported => o.covariance * STAGE1_WHITE_FRACTION.powi(2),
                 };
                 (l, o, noise)
             })
