@@ -53,6 +53,7 @@ pub(crate) fn print_formation(s: &FormationScenario, o: &jobs::FormationOutcome,
         match s.stage2_own_errors {
             Stage2OwnErrors::GaussMarkov => "Gauss–Markov",
             Stage2OwnErrors::White => "white",
+            Stage2OwnErrors::Stage1Reported => "stage-1 reported",
         },
         if s.stage2_own_velocity {
             "fused"

@@ -10,13 +10,69 @@
 //! with the specific force averaged over the interval; the INS runs at the
 //! IMU rate.
 
-use aidnav_estimation::{EstimationError, FixedKalmanFilter};
+use aidnav_estimation::{EstimationError, FixedKalmanFilter, Matrix as Which, Step};
 use aidnav_models::local_ins::{
-    ACCEL_BIAS, ATTITUDE, GYRO_BIAS, LocalInsModel, Matrix6, POSITION, STATES, VELOCITY, Vector21,
+    ACCEL_BIAS, ATTITUDE, GYRO_BIAS, LocalInsModel, Matrix6, Matrix6x21, POSITION, STATES,
+    VELOCITY, Vector21,
 };
 use nalgebra::{Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
 use aidnav_ins::local_level::LocalLevelState;
+
+/// Cross-covariance `E[x̃ e_refᵀ]` of a 21-state filter's current
+/// estimation error x̃ with the position–velocity error e_ref (6, position
+/// first, at offset 0 of the state) it had at the last reference epoch:
+/// carried through the filter's own Φ and gain, so that stage 2 can model
+/// the time correlation of the solution stage 1 hands it from what stage 1
+/// computes ([`LooselyCoupled::take_error_cross_covariance`]).
+///
+/// The estimation error evolves as x̃ ← Φ x̃ + w (time update) and
+/// x̃ ← (I − K H) x̃ − K v (fix); w and v are independent of e_ref, so the
+/// cross-covariance follows C ← Φ C and C ← (I − K H) C. Closed-loop
+/// feedback moves the estimate into the INS and leaves x̃ unchanged.
+#[derive(Debug, Clone)]
+pub(crate) struct ErrorCrossCovariance {
+    cross: SMatrix<f64, STATES, 6>,
+}
+
+impl ErrorCrossCovariance {
+    /// The reference set to now: C = P's first six columns.
+    pub(crate) fn new(p: &SMatrix<f64, STATES, STATES>) -> Self {
+        Self {
+            cross: p.fixed_columns::<6>(0).into_owned(),
+        }
+    }
+
+    /// Time update with the filter's Φ.
+    pub(crate) fn predict(&mut self, phi: &SMatrix<f64, STATES, STATES>) {
+        self.cross = phi * self.cross;
+    }
+
+    /// Fix with H, R on the predicted covariance `p_prior`: C −= K H C with
+    /// K = P⁻ Hᵀ S⁻¹ (Cholesky solve, S = H P⁻ Hᵀ + R).
+    pub(crate) fn update(
+        &mut self,
+        p_prior: &SMatrix<f64, STATES, STATES>,
+        h: &Matrix6x21,
+        r: &Matrix6,
+    ) -> Result<(), EstimationError> {
+        let s = h * p_prior * h.transpose() + r;
+        let chol = s.cholesky().ok_or(EstimationError::NotPositiveDefinite {
+            step: Step::Update,
+            matrix: Which::S,
+        })?;
+        let hc = h * self.cross;
+        self.cross -= p_prior * h.transpose() * chol.solve(&hc);
+        Ok(())
+    }
+
+    /// `E[e_now e_refᵀ]` (6×6), and the reference moved to now.
+    pub(crate) fn take(&mut self, p: &SMatrix<f64, STATES, STATES>) -> Matrix6 {
+        let out = self.cross.fixed_rows::<6>(0).into_owned();
+        self.cross = p.fixed_columns::<6>(0).into_owned();
+        out
+    }
+}
 
 /// INS + 21-state loosely coupled filter, closed loop.
 #[derive(Debug, Clone)]
@@ -29,6 +85,7 @@ pub struct LooselyCoupled {
     filter_dt_s: f64,
     pending_s: f64,
     force_sum: Vector3<f64>,
+    cross: ErrorCrossCovariance,
 }
 
 impl LooselyCoupled {
@@ -40,7 +97,9 @@ impl LooselyCoupled {
         filter_dt_s: f64,
     ) -> Result<Self, EstimationError> {
         let p0 = SMatrix::<f64, STATES, STATES>::from_diagonal(&prior_sigmas.map(|s| s * s));
+        let cross = ErrorCrossCovariance::new(&p0);
         Ok(Self {
+            cross,
             model,
             ins,
             accel_bias: Vector3::zeros(),
@@ -68,6 +127,16 @@ impl LooselyCoupled {
             .covariance()
             .fixed_view::<6, 6>(POSITION, POSITION)
             .into_owned()
+    }
+
+    /// `E[e_now e_prevᵀ]`: the cross-covariance (6×6, position first) of
+    /// the INS* position–velocity error now with the one at the previous
+    /// call (the first call: at the start), carried through the filter's Φ
+    /// and gains; the reference then moves to now. Call once per output
+    /// epoch: with [`Self::position_velocity_covariance`] at both epochs it
+    /// gives the error's transition from one epoch to the next.
+    pub fn take_error_cross_covariance(&mut self) -> Matrix6 {
+        self.cross.take(self.kf.covariance())
     }
 
     /// Covariance of the INS* attitude error ψ.
@@ -104,6 +173,7 @@ impl LooselyCoupled {
         let c_bn = self.ins.attitude.to_rotation_matrix().into_inner();
         let (phi, q) = self.model.discrete(&f_nav, &c_bn, self.pending_s);
         self.kf.predict(&phi, &q)?;
+        self.cross.predict(&phi);
         self.pending_s = 0.0;
         self.force_sum = Vector3::zeros();
         Ok(())
@@ -139,7 +209,9 @@ impl LooselyCoupled {
         let dp = position - self.ins.position;
         let dv = velocity - self.ins.velocity;
         let z = SVector::<f64, 6>::from([dp.x, dp.y, dp.z, dv.x, dv.y, dv.z]);
+        let p_prior = *self.kf.covariance();
         self.kf.update(&z, &h, r)?;
+        self.cross.update(&p_prior, &h, r)?;
         self.feedback()
     }
 
@@ -162,6 +234,70 @@ impl LooselyCoupled {
 mod tests {
     use super::*;
     use aidnav_ins::local_level::GRAVITY_ENU;
+
+    /// The tracked cross-covariance equals the cross block of the joint
+    /// covariance of [x̃; e_ref] (27 states, e_ref never observed nor
+    /// moved) run through the engine's Joseph-form filter: time updates,
+    /// fixes, and a second reference epoch.
+    #[test]
+    fn error_cross_covariance_equals_the_augmented_filter() {
+        use aidnav_estimation::DynKalmanFilter;
+        use nalgebra::{DMatrix, DVector};
+        let model = LocalInsModel::default();
+        let sig = model.prior_sigmas(3.0, 0.2, Vector3::new(1e-3, 1e-3, 5e-3));
+        let p0 = SMatrix::<f64, STATES, STATES>::from_diagonal(&sig.map(|s| s * s));
+        let mut c = ErrorCrossCovariance::new(&p0);
+        let n = STATES + 6;
+        let joint = |p: &SMatrix<f64, STATES, STATES>| {
+            let mut j = DMatrix::zeros(n, n);
+            j.view_mut((0, 0), (STATES, STATES)).copy_from(p);
+            let p6 = p.fixed_view::<STATES, 6>(0, 0);
+            j.view_mut((0, STATES), (STATES, 6)).copy_from(&p6);
+            j.view_mut((STATES, 0), (6, STATES))
+                .copy_from(&p6.transpose());
+            j.view_mut((STATES, STATES), (6, 6))
+                .copy_from(&p.fixed_view::<6, 6>(0, 0));
+            j
+        };
+        let mut aug = DynKalmanFilter::new(DVector::zeros(n), joint(&p0)).unwrap();
+        let mut kf = FixedKalmanFilter::<STATES>::new(SVector::zeros(), p0).unwrap();
+        let (h, r) = model.measurement();
+        let mut h_aug = DMatrix::zeros(6, n);
+        h_aug.view_mut((0, 0), (6, STATES)).copy_from(&h);
+        let r_aug = DMatrix::from_fn(6, 6, |i, j| r[(i, j)]);
+        for k in 0..40 {
+            let f_nav = Vector3::new(0.3 * (k as f64).sin(), 0.5, 9.8);
+            let c_bn = UnitQuaternion::from_euler_angles(0.1, -0.05, 0.02 * k as f64)
+                .to_rotation_matrix()
+                .into_inner();
+            let (phi, q) = model.discrete(&f_nav, &c_bn, 0.1);
+            kf.predict(&phi, &q).unwrap();
+            c.predict(&phi);
+            let mut phi_aug = DMatrix::identity(n, n);
+            phi_aug.view_mut((0, 0), (STATES, STATES)).copy_from(&phi);
+            let mut q_aug = DMatrix::zeros(n, n);
+            q_aug.view_mut((0, 0), (STATES, STATES)).copy_from(&q);
+            aug.predict(&phi_aug, &q_aug).unwrap();
+            if k % 10 == 9 {
+                let p_prior = *kf.covariance();
+                kf.update(&SVector::<f64, 6>::zeros(), &h, &r).unwrap();
+                c.update(&p_prior, &h, &r).unwrap();
+                aug.update(&DVector::zeros(6), &h_aug, &r_aug).unwrap();
+            }
+            if k == 19 || k == 39 {
+                let got = c.take(kf.covariance());
+                let want = Matrix6::from_fn(|i, j| aug.covariance()[(i, STATES + j)]);
+                let scale = want.amax();
+                assert!(
+                    (got - want).amax() < 1e-9 * scale,
+                    "epoch {k}: {got} vs {want}"
+                );
+                // Move the augmented filter's reference to now.
+                let x = aug.state().clone();
+                aug = DynKalmanFilter::new(x, joint(kf.covariance())).unwrap();
+            }
+        }
+    }
 
     /// Static INS with a vertical accelerometer bias (observable: no tilt
     /// can mimic it) and error-free fixes: the filter finds the bias and

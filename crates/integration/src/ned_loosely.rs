@@ -29,6 +29,8 @@ use aidnav_models::ned_ins::{
 };
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
+use crate::local_level::ErrorCrossCovariance;
+
 /// Number of states.
 pub const STATES: usize = 21;
 /// The NED model's states kept (δr, δv, φ, b_g, b_a).
@@ -154,6 +156,7 @@ pub struct NedLooselyCoupled {
     filter_dt_s: f64,
     pending_s: f64,
     delta_velocity_sum: Vector3<f64>,
+    cross: ErrorCrossCovariance,
 }
 
 impl NedLooselyCoupled {
@@ -166,7 +169,9 @@ impl NedLooselyCoupled {
         filter_dt_s: f64,
     ) -> Result<Self, EstimationError> {
         let p0 = Matrix21::from_diagonal(&prior_sigmas.map(|s| s * s));
+        let cross = ErrorCrossCovariance::new(&p0);
         Ok(Self {
+            cross,
             model,
             ins: NedMechanization::new(ins),
             gyro_bias: Vector3::zeros(),
@@ -195,6 +200,13 @@ impl NedLooselyCoupled {
             .covariance()
             .fixed_view::<6, 6>(POSITION, POSITION)
             .into_owned()
+    }
+
+    /// `E[e_now e_prevᵀ]` (6×6, NED, position first) of the INS*
+    /// position–velocity error now with the one at the previous call, as
+    /// [`crate::local_level::LooselyCoupled::take_error_cross_covariance`].
+    pub fn take_error_cross_covariance(&mut self) -> Matrix6 {
+        self.cross.take(self.kf.covariance())
     }
 
     /// Covariance of the INS* attitude error φ (NED).
@@ -232,6 +244,7 @@ impl NedLooselyCoupled {
         let (f, qc) = continuous(&self.model, &c_bn, &f_body, &s.position, &s.velocity);
         let (phi, q) = discrete(&f, &qc, self.pending_s);
         self.kf.predict(&phi, &q)?;
+        self.cross.predict(&phi);
         self.pending_s = 0.0;
         self.delta_velocity_sum = Vector3::zeros();
         Ok(())
@@ -269,7 +282,9 @@ impl NedLooselyCoupled {
         let dp = s.position.ned_to(position).raw();
         let dv = (*velocity - s.velocity).raw();
         let z = SVector::<f64, 6>::from([dp.x, dp.y, dp.z, dv.x, dv.y, dv.z]);
+        let p_prior = *self.kf.covariance();
         self.kf.update(&z, &h, r)?;
+        self.cross.update(&p_prior, &h, r)?;
         self.feedback()
     }
 

@@ -20,7 +20,9 @@
 
 use aidnav_estimation::{EstimationError, SparseInformation, SubspaceUpdate};
 use aidnav_models::GaussMarkov;
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix2, Vector3};
+
+use super::MotionModel;
 
 /// Correlated errors of the members' own fixes on one axis, carried as
 /// first-order Gauss–Markov states ([`GroupAxisFilter::with_own_errors`]).
@@ -46,6 +48,9 @@ pub struct GroupAxisFilter {
     /// Per own-error state block after `[R, V]` (position block, then
     /// velocity block): its (φ, q) per step.
     own_errors: Vec<(f64, f64)>,
+    /// Process noise on each position and its cross term with the
+    /// velocity, `(q_RR, q_RV)` ([`MotionModel`]; zero in the paper's).
+    position_noise: (f64, f64),
 }
 
 impl GroupAxisFilter {
@@ -93,7 +98,104 @@ impl GroupAxisFilter {
             info: SparseInformation::new(block),
             update: SubspaceUpdate::new(n, block),
             own_errors: Vec::new(),
+            position_noise: (0.0, 0.0),
         })
+    }
+
+    /// The same filter with the motion model `motion` (the acceleration
+    /// disturbance and step of [`Self::new`]).
+    pub fn with_motion(self, motion: MotionModel) -> Self {
+        let a = self.velocity_variance.sqrt() / self.dt_s;
+        let (q_rr, q_rv, _) = motion.process_noise(a, self.dt_s);
+        Self {
+            position_noise: (q_rr, q_rv),
+            ..self
+        }
+    }
+
+    /// The state extended by `steps.len()` own-error blocks of M states
+    /// after `[R, V]`, zero mean and zero covariance; each block's (φ, q)
+    /// per step from `steps`. Every state is then observed.
+    fn extended(self, steps: Vec<(f64, f64)>) -> Self {
+        let m = self.members;
+        let n = 2 * m + m * steps.len();
+        let mut x = DVector::zeros(n);
+        x.rows_mut(0, 2 * m).copy_from(&self.x.rows(0, 2 * m));
+        let mut p = DMatrix::zeros(n, n);
+        p.view_mut((0, 0), (2 * m, 2 * m))
+            .copy_from(&self.p.view((0, 0), (2 * m, 2 * m)));
+        Self {
+            x,
+            p,
+            info: SparseInformation::new(n),
+            update: SubspaceUpdate::new(n, n),
+            own_errors: steps,
+            ..self
+        }
+    }
+
+    /// The same filter with the whole error of each member's own fixes as
+    /// states `[b_R, b_V]` (state `[R, V, b_R, b_V]`), started at
+    /// `initial[l]` (the 2×2 covariance of member l's position and velocity
+    /// error on this axis) and moved each step by
+    /// [`Self::transition_own_errors`] (no transition of their own): an own
+    /// fix observes `R + b_R` (`V + b_V`).
+    pub fn with_reported_own_errors(self, initial: &[Matrix2<f64>]) -> Self {
+        let m = self.members;
+        let mut f = self.extended(vec![(1.0, 0.0); 2]);
+        for (l, c) in initial.iter().enumerate().take(m) {
+            let (r, v) = (2 * m + l, 3 * m + l);
+            f.p[(r, r)] = c[(0, 0)];
+            f.p[(v, v)] = c[(1, 1)];
+            f.p[(r, v)] = c[(0, 1)];
+            f.p[(v, r)] = c[(1, 0)];
+        }
+        f
+    }
+
+    /// After [`Self::predict`], move each member's own-error states
+    /// `[b_R, b_V]` by its `(A, Q)`: b ← A b + w, Cov(w) = Q (only with
+    /// [`Self::with_reported_own_errors`]; one pair per member).
+    pub fn transition_own_errors(
+        &mut self,
+        per_member: &[(Matrix2<f64>, Matrix2<f64>)],
+    ) -> Result<(), EstimationError> {
+        let m = self.members;
+        if self.own_errors.len() != 2 || per_member.len() != m {
+            return Err(EstimationError::DimensionMismatch {
+                step: aidnav_estimation::Step::Predict,
+                matrix: aidnav_estimation::Matrix::Phi,
+                rows: 2 * per_member.len(),
+                cols: 2 * per_member.len(),
+                expected_rows: 2 * m,
+                expected_cols: 2 * m,
+            });
+        }
+        let n = self.x.len();
+        let p = &mut self.p;
+        for (l, (a, q)) in per_member.iter().enumerate() {
+            let (r, v) = (2 * m + l, 3 * m + l);
+            let (xr, xv) = (self.x[r], self.x[v]);
+            self.x[r] = a[(0, 0)] * xr + a[(0, 1)] * xv;
+            self.x[v] = a[(1, 0)] * xr + a[(1, 1)] * xv;
+            // P ← G P Gᵀ with G the identity but for this member's block:
+            // rows, then columns.
+            for j in 0..n {
+                let (pr, pv) = (p[(r, j)], p[(v, j)]);
+                p[(r, j)] = a[(0, 0)] * pr + a[(0, 1)] * pv;
+                p[(v, j)] = a[(1, 0)] * pr + a[(1, 1)] * pv;
+            }
+            for i in 0..n {
+                let (pr, pv) = (p[(i, r)], p[(i, v)]);
+                p[(i, r)] = a[(0, 0)] * pr + a[(0, 1)] * pv;
+                p[(i, v)] = a[(1, 0)] * pr + a[(1, 1)] * pv;
+            }
+            p[(r, r)] += q[(0, 0)];
+            p[(r, v)] += q[(0, 1)];
+            p[(v, r)] += q[(1, 0)];
+            p[(v, v)] += q[(1, 1)];
+        }
+        Ok(())
     }
 
     /// The same filter with the correlated errors of the own fixes as
@@ -185,8 +287,12 @@ impl GroupAxisFilter {
                 p[(m + i, j)] = vr + t * vv;
             }
         }
+        let (q_rr, q_rv) = self.position_noise;
         for l in 0..m {
             p[(m + l, m + l)] += self.velocity_variance;
+            p[(l, l)] += q_rr;
+            p[(l, m + l)] += q_rv;
+            p[(m + l, l)] += q_rv;
         }
         // Own-error states b ← φ b: the cross terms with R pick up T times
         // those with V, all of a b's row and column scale by its φ.
@@ -329,6 +435,96 @@ mod tests {
     use super::*;
     use aidnav_estimation::KalmanFilter;
     use aidnav_models::AxisGroup;
+
+    /// The motion model with the position's share of the acceleration and
+    /// the own-error states moved by given transitions equal the dense
+    /// model (Φ and Q written out) run through the engine's filter.
+    #[test]
+    fn reported_own_errors_and_acceleration_in_step_match_the_dense_model() {
+        let (m, t, a_r) = (2, 0.5, 0.8);
+        let init = [
+            Matrix2::new(4.0, 0.1, 0.1, 0.01),
+            Matrix2::new(9.0, -0.2, -0.2, 0.02),
+        ];
+        let mut f = GroupAxisFilter::new(m, t, a_r, true, &[0.0, 150.0], &[60.0, 61.0], 10.0, 1.0)
+            .unwrap()
+            .with_motion(MotionModel::PiecewiseConstantAcceleration)
+            .with_reported_own_errors(&init);
+        // Dense reference, state [R1 R2 V1 V2 bR1 bR2 bV1 bV2].
+        let n = 4 * m;
+        let mut p0 = DMatrix::zeros(n, n);
+        for l in 0..m {
+            p0[(l, l)] = 100.0;
+            p0[(m + l, m + l)] = 1.0;
+            let (r, v) = (2 * m + l, 3 * m + l);
+            p0[(r, r)] = init[l][(0, 0)];
+            p0[(v, v)] = init[l][(1, 1)];
+            p0[(r, v)] = init[l][(0, 1)];
+            p0[(v, r)] = init[l][(1, 0)];
+        }
+        let x0 = DVector::from_vec(vec![0.0, 150.0, 60.0, 61.0, 0.0, 0.0, 0.0, 0.0]);
+        let mut dense = KalmanFilter::new(x0, p0).unwrap();
+        for k in 0..6 {
+            let trans: Vec<(Matrix2<f64>, Matrix2<f64>)> = (0..m)
+                .map(|l| {
+                    let s = 0.01 * (k + l) as f64;
+                    (
+                        Matrix2::new(0.95 - s, 0.3, -0.01, 0.9 + s),
+                        Matrix2::new(0.2, 0.01, 0.01, 0.003),
+                    )
+                })
+                .collect();
+            f.predict();
+            f.transition_own_errors(&trans).unwrap();
+            let mut phi = DMatrix::identity(n, n);
+            let mut q = DMatrix::zeros(n, n);
+            let qa = (a_r * t).powi(2);
+            for l in 0..m {
+                phi[(l, m + l)] = t;
+                q[(l, l)] = qa * t * t / 4.0;
+                q[(l, m + l)] = qa * t / 2.0;
+                q[(m + l, l)] = qa * t / 2.0;
+                q[(m + l, m + l)] = qa;
+                let (r, v) = (2 * m + l, 3 * m + l);
+                let (a, qb) = trans[l];
+                for (i, ii) in [r, v].into_iter().enumerate() {
+                    for (j, jj) in [r, v].into_iter().enumerate() {
+                        phi[(ii, jj)] = a[(i, j)];
+                        q[(ii, jj)] = qb[(i, j)];
+                    }
+                }
+            }
+            dense.predict(&phi, &q).unwrap();
+            // Own position and velocity fixes and one relative position.
+            let zs = [
+                (vec![(0, 1.0), (4, 1.0)], 1.0 + k as f64, 0.3),
+                (vec![(1, 1.0), (5, 1.0)], 151.0 - k as f64, 0.4),
+                (vec![(2, 1.0), (6, 1.0)], 60.1, 0.02),
+                (vec![(3, 1.0), (7, 1.0)], 60.9, 0.03),
+                (vec![(0, 1.0), (1, -1.0)], -149.5, 0.5),
+            ];
+            let mut h = DMatrix::zeros(zs.len(), n);
+            let mut z = DVector::zeros(zs.len());
+            let mut r = DMatrix::zeros(zs.len(), zs.len());
+            for (i, (row, zi, sigma)) in zs.iter().enumerate() {
+                for &(j, c) in row {
+                    h[(i, j)] = c;
+                }
+                z[i] = *zi;
+                r[(i, i)] = sigma * sigma;
+            }
+            f.observe_own_position(0, z[0], 0.3).unwrap();
+            f.observe_own_position(1, z[1], 0.4).unwrap();
+            f.observe_own_velocity(0, z[2], 0.02).unwrap();
+            f.observe_own_velocity(1, z[3], 0.03).unwrap();
+            f.observe_relative(0, 1, z[4], 0.5).unwrap();
+            f.update().unwrap();
+            dense.update(&z, &h, &r).unwrap();
+            let dx = (dense.state() - &f.x).amax();
+            let dp = (dense.covariance() - &f.p).amax();
+            assert!(dx < 1e-8 && dp < 1e-8, "epoch {k}: {dx:e}, {dp:e}");
+        }
+    }
 
     /// The sparse filter with every ordered pair observed equals the paper's
     /// dense model run through the engine's Joseph-form filter.

@@ -415,7 +415,9 @@ mod tests {
         assert_eq!(f.next_epoch(), 6);
     }
 
-    use crate::group::{CorrelatedOwnErrors, EkfFusion, FusionParams, OwnErrorModel, PaperFusion};
+    use crate::group::{
+        CorrelatedOwnErrors, EkfFusion, FusionParams, MotionModel, OwnErrorModel, PaperFusion,
+    };
     use aidnav_ins::local_level::LocalLevelState;
     use aidnav_models::GaussMarkov;
     use aidnav_models::local_ins::Matrix6;
@@ -433,6 +435,18 @@ mod tests {
             initial_position_sigma_m: 10.0,
             initial_velocity_sigma_mps: 1.0,
             own_errors: OwnErrorModel::White,
+            motion: MotionModel::Paper,
+        }
+    }
+
+    /// Stage 2 on stage 1's reported error transition (own-error states of
+    /// position and velocity), the motion with the position's share of the
+    /// acceleration, rates measured.
+    fn params_stage1_reported() -> FusionParams {
+        FusionParams {
+            own_errors: OwnErrorModel::Stage1Reported,
+            motion: MotionModel::PiecewiseConstantAcceleration,
+            ..params_gauss_markov()
         }
     }
 
@@ -471,6 +485,8 @@ mod tests {
         };
         let wobble = |a: f64| (a * (k * 7 + l * 3 + 1) as f64).sin();
         let attitude = UnitQuaternion::from_euler_angles(0.01 * wobble(1.1), 0.02, 0.05 * l as f64);
+        let covariance =
+            Matrix6::from_diagonal(&nalgebra::Vector6::new(4.0, 4.0, 16.0, 0.01, 0.01, 0.02));
         let own = OwnSolution {
             state: LocalLevelState {
                 position: truth(l)
@@ -478,10 +494,10 @@ mod tests {
                 velocity: Vector3::new(60.0 + 0.1 * wobble(2.3), 0.05 * wobble(0.9), 0.0),
                 attitude,
             },
-            covariance: Matrix6::from_diagonal(&nalgebra::Vector6::new(
-                4.0, 4.0, 16.0, 0.01, 0.01, 0.02,
-            )),
+            covariance,
             attitude_covariance: Matrix3::from_diagonal_element(1e-6),
+            // An error correlated 0.9 from one epoch to the next.
+            error_cross_covariance: Some(covariance * 0.9),
         };
         let relative = (0..MEMBERS)
             .filter(|&m| m != l)
@@ -557,6 +573,7 @@ mod tests {
     fn late_packet_fused_by_rewind_equals_on_time_fusion_in_both_filters() {
         late_packet_fused_by_rewind(params());
         late_packet_fused_by_rewind(params_gauss_markov());
+        late_packet_fused_by_rewind(params_stage1_reported());
     }
 
     /// The rewind test with `params`; the reference runs `epoch_with_new_own`

@@ -22,7 +22,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use super::delayed::check_packets;
 use super::{
     EpochFusion, FusionParams, MemberPacket, OwnErrorModel, OwnSolution, RelativeMeasurement,
-    RelativeRate, attitude_covariance_on,
+    RelativeRate, STAGE1_WHITE_FRACTION, Stage1Errors, attitude_covariance_on,
 };
 
 /// Stage 2, EKF form: state [R¹ V¹ … R^M V^M], 3-D each.
@@ -35,6 +35,9 @@ pub struct EkfFusion {
     members: usize,
     /// Own-error state blocks carried (0, 1 position, 2 position and velocity).
     own_error_blocks: usize,
+    /// Under [`OwnErrorModel::Stage1Reported`]: what turns each epoch's
+    /// solutions into the own-error states' transition.
+    stage1: Option<Stage1Errors>,
 }
 
 impl EkfFusion {
@@ -46,21 +49,28 @@ impl EkfFusion {
             OwnErrorModel::White => 0,
             OwnErrorModel::GaussMarkov(_) if params.own_velocity => 2,
             OwnErrorModel::GaussMarkov(_) => 1,
+            OwnErrorModel::Stage1Reported => 2,
         };
         let n = 6 * m + 3 * m * own_error_blocks;
         let mut x = DVector::zeros(n);
         let mut p0 = DVector::zeros(n);
         let mut phi = DMatrix::identity(n, n);
         let mut q = DMatrix::zeros(n, n);
-        let qv = (params.accel_sigma_m_s2 * params.interval_s).powi(2);
+        let (qr, qrv, qv) = params
+            .motion
+            .process_noise(params.accel_sigma_m_s2, params.interval_s);
         for (l, o) in first.iter().enumerate() {
             for a in 0..3 {
-                x[6 * l + a] = o.state.position[a];
-                x[6 * l + 3 + a] = o.state.velocity[a];
-                p0[6 * l + a] = params.initial_position_sigma_m.powi(2);
-                p0[6 * l + 3 + a] = params.initial_velocity_sigma_mps.powi(2);
-                phi[(6 * l + a, 6 * l + 3 + a)] = params.interval_s;
-                q[(6 * l + 3 + a, 6 * l + 3 + a)] = qv;
+                let (r, v) = (6 * l + a, 6 * l + 3 + a);
+                x[r] = o.state.position[a];
+                x[v] = o.state.velocity[a];
+                p0[r] = params.initial_position_sigma_m.powi(2);
+                p0[v] = params.initial_velocity_sigma_mps.powi(2);
+                phi[(r, v)] = params.interval_s;
+                q[(r, r)] = qr;
+                q[(r, v)] = qrv;
+                q[(v, r)] = qrv;
+                q[(v, v)] = qv;
             }
         }
         if let OwnErrorModel::GaussMarkov(c) = params.own_errors {
@@ -77,14 +87,52 @@ impl EkfFusion {
                 }
             }
         }
+        let mut p0 = DMatrix::from_diagonal(&p0);
+        let stage1 = (params.own_errors == OwnErrorModel::Stage1Reported).then(|| {
+            // The own-error states start at stage 1's covariance (position
+            // and velocity blocks and their cross terms); Φ = I, Q = 0 here,
+            // each epoch's transition comes from the solutions.
+            for (l, o) in first.iter().enumerate() {
+                let idx = |i: usize| 6 * m + 3 * ((i / 3) * m + l) + i % 3;
+                for i in 0..6 {
+                    for j in 0..6 {
+                        p0[(idx(i), idx(j))] = o.covariance[(i, j)];
+                    }
+                }
+            }
+            Stage1Errors::new(first)
+        });
         Ok(Self {
             params,
-            kf: DynKalmanFilter::new(x, DMatrix::from_diagonal(&p0))?,
+            kf: DynKalmanFilter::new(x, p0)?,
             phi,
             q,
             members: m,
             own_error_blocks,
+            stage1,
         })
+    }
+
+    /// Time update; under [`OwnErrorModel::Stage1Reported`] with each
+    /// member's own-error transition from its solution `own[l]` (if it
+    /// arrived).
+    fn predict(&mut self, own: &[Option<&OwnSolution>]) -> Result<(), EstimationError> {
+        let m = self.members;
+        let Some(stage1) = self.stage1.as_mut() else {
+            return self.kf.predict(&self.phi, &self.q);
+        };
+        let mut phi = self.phi.clone();
+        let mut q = self.q.clone();
+        for (l, (a, qb)) in stage1.step(own).into_iter().enumerate() {
+            let idx = |i: usize| 6 * m + 3 * ((i / 3) * m + l) + i % 3;
+            for i in 0..6 {
+                for j in 0..6 {
+                    phi[(idx(i), idx(j))] = a[(i, j)];
+                    q[(idx(i), idx(j))] = qb[(i, j)];
+                }
+            }
+        }
+        self.kf.predict(&phi, &q)
     }
 
     /// Index of the first (east) own-error state of `block` (0 position, 1
@@ -116,7 +164,7 @@ impl EkfFusion {
         predict: bool,
     ) -> Result<(), EstimationError> {
         if predict {
-            self.kf.predict(&self.phi, &self.q)?;
+            self.predict(&own.iter().map(Some).collect::<Vec<_>>())?;
         }
         for (l, o) in own.iter().enumerate() {
             if own_new.get(l).copied().unwrap_or(true) {
@@ -145,7 +193,11 @@ impl EkfFusion {
         // own-error states follow the members' [R V] blocks.
         check_packets(packets, self.members)?;
         if predict {
-            self.kf.predict(&self.phi, &self.q)?;
+            let mut own = vec![None; self.members];
+            for p in packets {
+                own[p.member] = Some(&p.own);
+            }
+            self.predict(&own)?;
         }
         for p in packets {
             if p.own_new {
@@ -190,6 +242,7 @@ impl EkfFusion {
         let noise: Matrix6 = match self.params.own_errors {
             OwnErrorModel::White => o.covariance,
             OwnErrorModel::GaussMarkov(c) => c.white_covariance(&o.covariance),
+            OwnErrorModel::Stage1Reported => o.covariance * STAGE1_WHITE_FRACTION.powi(2),
         };
         let r = DMatrix::from_fn(k, k, |i, j| noise[(i, j)]);
         self.kf.update(&z, &h, &r)?;

@@ -38,7 +38,20 @@
 //! With [`OwnErrorModel::GaussMarkov`] it carries per member, per axis a
 //! first-order Gauss–Markov state for the correlated part of the stage-1
 //! position (and, when own velocities are fused, velocity) error, and takes
-//! only the rest of the stage-1 covariance as white.
+//! only the rest of the stage-1 covariance as white. With
+//! [`OwnErrorModel::Stage1Reported`] it carries each member's whole stage-1
+//! position–velocity error (6 states) and moves it from epoch to epoch by
+//! the transition stage 1 itself reports: its covariance and the
+//! cross-covariance of its error with the previous epoch's
+//! ([`OwnSolution::error_cross_covariance`], which the stage-1 filters track
+//! through their Φ and gains), turned into `(A, Q)` by
+//! [`stage1_transition`] — no second model of the receiver.
+//!
+//! [`MotionModel`] chooses the constant-velocity model's process noise: the
+//! paper's (a_R T)² on the velocity only, or the same acceleration held over
+//! the step, which also moves the position (a T² / 2) — without it a
+//! velocity tied to precise position increments lags by a T / 2 whenever
+//! the vehicles accelerate.
 //!
 //! ```
 //! use aidnav_integration::group::GroupAxisFilter;
@@ -89,6 +102,76 @@ pub enum OwnErrorModel {
     White,
     /// Correlated part as Gauss–Markov states, the rest white.
     GaussMarkov(CorrelatedOwnErrors),
+    /// The whole stage-1 position–velocity error as states (per member,
+    /// 6), propagated from epoch to epoch with the transition and driving
+    /// noise that stage 1's own covariance and error cross-covariance
+    /// ([`OwnSolution::error_cross_covariance`]) give ([`stage1_transition`]):
+    /// no second model of the receiver. An own fix observes `[R V] + b`
+    /// with only a numerical white floor ([`STAGE1_WHITE_FRACTION`]).
+    Stage1Reported,
+}
+
+/// Under [`OwnErrorModel::Stage1Reported`], the white noise left on an own
+/// fix as a fraction of stage 1's σ (its covariance times the square): a
+/// numerical floor that keeps the information form's R⁻¹ finite, not a
+/// model of anything (stage 1's output has no white part of its own: its
+/// filter averages the receiver's white noise).
+pub const STAGE1_WHITE_FRACTION: f64 = 1e-2;
+
+/// How stage 2 propagates each member's position and velocity between
+/// epochs (both the constant-velocity model with a_R).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MotionModel {
+    /// The paper's item 7: `R_i = R_{i−1} + V_{i−1} T`,
+    /// `V_i = V_{i−1} + a_R T w`; Q = (a_R T)² on each velocity, zero on
+    /// the positions — an acceleration during the step moves the velocity
+    /// but not the position, so a velocity estimate tied to position
+    /// increments lags by a T / 2 under acceleration a.
+    #[default]
+    Paper,
+    /// The same acceleration held over the step (discrete white-noise
+    /// acceleration): `R_i = R_{i−1} + V_{i−1} T + a T² / 2`,
+    /// `V_i = V_{i−1} + a T`, a ~ N(0, a_R²); Q = a_R² [T⁴/4, T³/2; T³/2,
+    /// T²] per axis, the paper's velocity variance with the position's
+    /// share of the same acceleration.
+    PiecewiseConstantAcceleration,
+}
+
+impl MotionModel {
+    /// Per-axis process noise `(q_RR, q_RV, q_VV)` for step `t` and
+    /// acceleration σ `a`.
+    pub fn process_noise(self, a: f64, t: f64) -> (f64, f64, f64) {
+        let qv = (a * t).powi(2);
+        match self {
+            Self::Paper => (0.0, 0.0, qv),
+            Self::PiecewiseConstantAcceleration => (qv * t * t / 4.0, qv * t / 2.0, qv),
+        }
+    }
+}
+
+/// Transition `(A, Q)` of a stage-1 error process from one epoch to the
+/// next: with `previous` = Cov(e_{k−1}), `cross` = E[e_k e_{k−1}ᵀ] and
+/// `current` = Cov(e_k), the best linear predictor e_k = A e_{k−1} + w has
+/// A = C P_{k−1}⁻¹ (Cholesky solve) and Cov(w) = Q = P_k − A C ᵀ,
+/// symmetrised with its eigenvalues raised to ≥ 0. `None` when `previous`
+/// is not positive definite or a result is not finite.
+pub fn stage1_transition(
+    previous: &Matrix6,
+    cross: &Matrix6,
+    current: &Matrix6,
+) -> Option<(Matrix6, Matrix6)> {
+    let chol = previous.cholesky()?;
+    // A Pₖ₋₁ = C  ⇔  Pₖ₋₁ Aᵀ = Cᵀ.
+    let a = chol.solve(&cross.transpose()).transpose();
+    let q = current - a * cross.transpose();
+    let q = 0.5 * (q + q.transpose());
+    let mut eig = q.symmetric_eigen();
+    for v in eig.eigenvalues.iter_mut() {
+        *v = v.max(0.0);
+    }
+    let q = eig.recompose();
+    let q = 0.5 * (q + q.transpose());
+    (a.iter().chain(q.iter()).all(|v| v.is_finite())).then_some((a, q))
 }
 
 impl CorrelatedOwnErrors {
@@ -169,6 +252,8 @@ pub struct FusionParams {
     pub initial_velocity_sigma_mps: f64,
     /// How the errors of each member's own solution are modelled.
     pub own_errors: OwnErrorModel,
+    /// How positions and velocities are propagated between epochs.
+    pub motion: MotionModel,
 }
 
 /// What stage 1 hands to stage 2 for one member at one epoch.
@@ -180,6 +265,11 @@ pub struct OwnSolution {
     pub covariance: Matrix6,
     /// Covariance of its attitude error ψ \[rad²\].
     pub attitude_covariance: Matrix3<f64>,
+    /// `E[e_k e_{k−1}ᵀ]`: cross-covariance (6×6, position first) of this
+    /// solution's position–velocity error with the member's previous
+    /// epoch's, when stage 1 tracks it (needed by
+    /// [`OwnErrorModel::Stage1Reported`]).
+    pub error_cross_covariance: Option<Matrix6>,
 }
 
 /// A relative measurement of member `to` by member `from`, in `from`'s
@@ -211,9 +301,88 @@ pub struct RelativeRate {
     pub body_velocity_mps: Option<Vector3<f64>>,
 }
 
+/// Under [`OwnErrorModel::Stage1Reported`]: each member's last stage-1
+/// covariance, which turns the next solution's error cross-covariance into
+/// a transition ([`stage1_transition`]).
+#[derive(Debug, Clone)]
+pub(crate) struct Stage1Errors {
+    last: Vec<Matrix6>,
+}
+
+impl Stage1Errors {
+    pub(crate) fn new(first: &[OwnSolution]) -> Self {
+        Self {
+            last: first.iter().map(|o| o.covariance).collect(),
+        }
+    }
+
+    /// This epoch's `(A, Q)` per member, from its solution where it is
+    /// available (`own[l]`), and the covariances recorded for the next
+    /// epoch. A member whose solution did not arrive (a lost packet) keeps
+    /// its error (A = I, Q = 0: one epoch's change of a slowly varying
+    /// error is neglected) and its last covariance; a solution without a
+    /// cross-covariance (or with one that gives no transition) starts a
+    /// fresh error of its covariance (A = 0, Q = P: the white treatment).
+    pub(crate) fn step(&mut self, own: &[Option<&OwnSolution>]) -> Vec<(Matrix6, Matrix6)> {
+        own.iter()
+            .zip(self.last.iter_mut())
+            .map(|(o, last)| match o {
+                None => (Matrix6::identity(), Matrix6::zeros()),
+                Some(o) => {
+                    let t = o
+                        .error_cross_covariance
+                        .and_then(|c| stage1_transition(last, &c, &o.covariance))
+                        .unwrap_or((Matrix6::zeros(), o.covariance));
+                    *last = o.covariance;
+                    t
+                }
+            })
+            .collect()
+    }
+}
+
 /// Covariance added to a line of sight `d` (nav frame) by the observer's
 /// attitude uncertainty: δd = d × ψ.
 fn attitude_covariance_on(d: &Vector3<f64>, p_psi: &Matrix3<f64>) -> Matrix3<f64> {
     let s = d.cross_matrix();
     s * p_psi * s.transpose()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use aidnav_models::local_ins::Matrix6;
+
+    /// A 6-state first-order process e_k = F e_{k−1} + w: the transition
+    /// from Cov(e_{k−1}), E[e_k e_{k−1}ᵀ] = F P and Cov(e_k) = F P Fᵀ + Q is
+    /// F and Q again; a cross-covariance larger than the covariances allow
+    /// gives a Q raised to ≥ 0, not a negative one.
+    #[test]
+    fn stage1_transition_recovers_a_first_order_process() {
+        let f = Matrix6::from_fn(|i, j| {
+            if i == j {
+                0.9 - 0.02 * i as f64
+            } else {
+                0.03 * (i as f64 - j as f64).sin()
+            }
+        });
+        let l = Matrix6::from_fn(|i, j| {
+            if j <= i {
+                1.0 + 0.1 * (i + 2 * j) as f64
+            } else {
+                0.0
+            }
+        });
+        let p = l * l.transpose();
+        let q_true =
+            Matrix6::from_diagonal(&nalgebra::Vector6::new(0.2, 0.2, 0.5, 1e-3, 1e-3, 2e-3));
+        let current = f * p * f.transpose() + q_true;
+        let (a, q) = stage1_transition(&p, &(f * p), &current).unwrap();
+        assert!((a - f).amax() < 1e-9, "A {a}");
+        assert!((q - q_true).amax() < 1e-9, "Q {q}");
+        // Perfectly correlated (Q = 0) and then some: Q clamped at 0.
+        let (_, q) = stage1_transition(&p, &(f * p * 1.01), &(f * p * f.transpose())).unwrap();
+        assert!(q.symmetric_eigenvalues().min() >= -1e-9);
+        assert!(stage1_transition(&Matrix6::zeros(), &p, &p).is_none());
+    }
 }

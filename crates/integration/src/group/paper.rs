@@ -10,19 +10,29 @@
 
 use aidnav_estimation::EstimationError;
 use aidnav_models::local_ins::Matrix6;
-use nalgebra::Vector3;
+use nalgebra::{Matrix2, Vector3};
 
 use super::delayed::check_packets;
 use super::{
     AxisOwnErrors, EpochFusion, FusionParams, GroupAxisFilter, MemberPacket, OwnErrorModel,
-    OwnSolution, RelativeMeasurement, RelativeRate, attitude_covariance_on,
+    OwnSolution, RelativeMeasurement, RelativeRate, STAGE1_WHITE_FRACTION, Stage1Errors,
+    attitude_covariance_on,
 };
+
+/// Axis `a`'s 2×2 block (position, velocity) of a 6×6 position–velocity
+/// matrix: the paper's decoupling drops the cross-axis terms.
+fn axis_block(m: &Matrix6, a: usize) -> Matrix2<f64> {
+    Matrix2::new(m[(a, a)], m[(a, 3 + a)], m[(3 + a, a)], m[(3 + a, 3 + a)])
+}
 
 /// Stage 2, paper form: three axis filters over all members.
 #[derive(Debug, Clone)]
 pub struct PaperFusion {
     params: FusionParams,
     axes: Vec<GroupAxisFilter>,
+    /// Under [`OwnErrorModel::Stage1Reported`]: what turns each epoch's
+    /// solutions into the own-error states' transition.
+    stage1: Option<Stage1Errors>,
 }
 
 impl PaperFusion {
@@ -43,17 +53,44 @@ impl PaperFusion {
                     &v,
                     params.initial_position_sigma_m,
                     params.initial_velocity_sigma_mps,
-                )?;
+                )?
+                .with_motion(params.motion);
                 Ok(match params.own_errors {
                     OwnErrorModel::White => f,
                     OwnErrorModel::GaussMarkov(c) => f.with_own_errors(AxisOwnErrors {
                         position: c.position[a],
                         velocity: params.own_velocity.then_some(c.velocity[a]),
                     }),
+                    OwnErrorModel::Stage1Reported => f.with_reported_own_errors(
+                        &first
+                            .iter()
+                            .map(|o| axis_block(&o.covariance, a))
+                            .collect::<Vec<_>>(),
+                    ),
                 })
             })
             .collect::<Result<_, _>>()?;
-        Ok(Self { params, axes })
+        let stage1 =
+            (params.own_errors == OwnErrorModel::Stage1Reported).then(|| Stage1Errors::new(first));
+        Ok(Self {
+            params,
+            axes,
+            stage1,
+        })
+    }
+
+    /// Under [`OwnErrorModel::Stage1Reported`] and when predicting: each
+    /// member's own-error transition from its solution `own[l]` (if it
+    /// arrived).
+    fn transitions(
+        &mut self,
+        own: &[Option<&OwnSolution>],
+        predict: bool,
+    ) -> Option<Vec<(Matrix6, Matrix6)>> {
+        if !predict {
+            return None;
+        }
+        self.stage1.as_mut().map(|s| s.step(own))
     }
 
     /// One epoch: predict (unless it is the first), then fuse every
@@ -78,7 +115,9 @@ impl PaperFusion {
         relative: &[RelativeMeasurement],
         predict: bool,
     ) -> Result<(), EstimationError> {
+        let transitions = self.transitions(&own.iter().map(Some).collect::<Vec<_>>(), predict);
         self.fuse(
+            transitions,
             own.iter()
                 .enumerate()
                 .filter(|(l, _)| own_new.get(*l).copied().unwrap_or(true)),
@@ -100,7 +139,13 @@ impl PaperFusion {
         predict: bool,
     ) -> Result<(), EstimationError> {
         check_packets(packets, self.axes[0].members())?;
+        let mut own = vec![None; self.axes[0].members()];
+        for p in packets {
+            own[p.member] = Some(&p.own);
+        }
+        let transitions = self.transitions(&own, predict);
         self.fuse(
+            transitions,
             packets
                 .iter()
                 .filter(|p| p.own_new)
@@ -122,6 +167,7 @@ impl PaperFusion {
     /// `(observer's solution, measurement)`, one update.
     fn fuse<'a>(
         &mut self,
+        transitions: Option<Vec<(Matrix6, Matrix6)>>,
         own: impl Iterator<Item = (usize, &'a OwnSolution)>,
         relative: impl Iterator<Item = (&'a OwnSolution, &'a RelativeMeasurement)> + Clone,
         predict: bool,
@@ -132,6 +178,7 @@ impl PaperFusion {
                 let noise = match params.own_errors {
                     OwnErrorModel::White => o.covariance,
                     OwnErrorModel::GaussMarkov(c) => c.white_covariance(&o.covariance),
+                    OwnErrorModel::Stage1Reported => o.covariance * STAGE1_WHITE_FRACTION.powi(2),
                 };
                 (l, o, noise)
             })
@@ -139,6 +186,13 @@ impl PaperFusion {
         for (a, f) in self.axes.iter_mut().enumerate() {
             if predict {
                 f.predict();
+                if let Some(t) = &transitions {
+                    let per_axis: Vec<(Matrix2<f64>, Matrix2<f64>)> = t
+                        .iter()
+                        .map(|(phi, q)| (axis_block(phi, a), axis_block(q, a)))
+                        .collect();
+                    f.transition_own_errors(&per_axis)?;
+                }
             }
             for &(l, o, r) in &own {
                 f.observe_own_position(l, o.state.position[a], r[(a, a)].sqrt())?;

@@ -83,14 +83,33 @@ pub use run::{RunErrors, finish, run, run_range};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Stage2OwnErrors {
+    /// Each member's whole stage-1 position–velocity error as states,
+    /// carried from epoch to epoch by the transition its own stage-1
+    /// filter reports (its covariance and the cross-covariance of its error
+    /// with the previous epoch's, which it tracks through its Φ and gains):
+    /// no second model of the receiver.
+    #[default]
+    Stage1Reported,
     /// The correlated part of each member's stage-1 position (and velocity)
     /// error as first-order Gauss–Markov states, with σ and τ from the
     /// receiver model (`model.gnss`); the rest of the stage-1 covariance,
     /// at least the receiver's white σ, as white noise.
-    #[default]
     GaussMarkov,
     /// The paper's treatment: each epoch's stage-1 covariance as white noise.
     White,
+}
+
+/// How stage 2 propagates positions and velocities between epochs
+/// (`stage2_motion`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage2Motion {
+    /// The acceleration disturbance a_R held over each step moves the
+    /// position too (Q = a_R² [T⁴/4, T³/2; T³/2, T²]).
+    #[default]
+    PiecewiseConstantAcceleration,
+    /// The paper's item 7: Q = (a_R T)² on the velocity only.
+    Paper,
 }
 
 /// Names of the three solutions compared per member.
@@ -214,8 +233,13 @@ pub struct FormationScenario {
     /// `position_correlation_s`) — and becomes overconfident and lags.
     pub stage2_own_velocity: bool,
     /// How stage 2 treats the errors of each member's stage-1 solution.
-    /// Default `"gauss_markov"`; `"white"` is the paper's treatment.
+    /// Default `"stage1_reported"`; `"gauss_markov"` (the receiver model's
+    /// σ and τ), `"white"` (the paper's treatment).
     pub stage2_own_errors: Stage2OwnErrors,
+    /// How stage 2 propagates positions and velocities: default
+    /// `"piecewise_constant_acceleration"`, or `"paper"` (Q on the
+    /// velocities only).
+    pub stage2_motion: Stage2Motion,
     /// Stage 1's INS and error model, `"ned"` or `"flat"`. Default `"ned"`.
     pub ins_model: InsModel,
     /// Latitude of the tangent plane's origin \[deg\], within ±85 (`ned`
@@ -262,7 +286,8 @@ impl Default for FormationScenario {
             spacing_m: 150.0,
             group_accel_sigma_m_s2: 1.0,
             stage2_own_velocity: true,
-            stage2_own_errors: Stage2OwnErrors::GaussMarkov,
+            stage2_own_errors: Stage2OwnErrors::Stage1Reported,
+            stage2_motion: Stage2Motion::PiecewiseConstantAcceleration,
             ins_model: InsModel::Ned,
             origin_latitude_deg: 45.0,
             origin_longitude_deg: 0.0,

@@ -156,6 +156,7 @@ fn snapshot_bytes(sc: &FormationScenario) -> f64 {
         Stage2OwnErrors::White => 0,
         Stage2OwnErrors::GaussMarkov if sc.stage2_own_velocity => 2,
         Stage2OwnErrors::GaussMarkov => 1,
+        Stage2OwnErrors::Stage1Reported => 2,
     };
     let ekf = ((6 + 3 * blocks) * sc.members) as f64;
     let axis = ((2 + blocks) * sc.members) as f64;

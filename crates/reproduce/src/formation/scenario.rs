@@ -2,12 +2,12 @@
 //! climbing path and the V behind it) and what it gives stage 2.
 
 use aidnav_ins::local_level::LocalLevelState;
-use aidnav_integration::group::{CorrelatedOwnErrors, FusionParams, OwnErrorModel};
+use aidnav_integration::group::{CorrelatedOwnErrors, FusionParams, MotionModel, OwnErrorModel};
 use aidnav_io::config::{Invalid, Validate, all_in_range, count_in_range, in_range};
 use aidnav_models::GaussMarkov;
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::{Degradation, Denial, FormationScenario, Stage2OwnErrors};
+use super::{Degradation, Denial, FormationScenario, Stage2Motion, Stage2OwnErrors};
 
 /// Stage 2's prior σ of each position coordinate around the first stage-1
 /// solution \[m\] (a few times the GNSS σ).
@@ -248,12 +248,15 @@ impl FormationScenario {
     /// are fused, the inter-vehicle sensor, the prior σ (10 m, 1 m/s), and
     /// the own-error model: with `stage2_own_errors = "gauss_markov"` the
     /// receiver's correlated position and velocity errors (σ, τ of
-    /// `model.gnss`) and its white σ as the least white noise.
+    /// `model.gnss`) and its white σ as the least white noise; with
+    /// `"stage1_reported"` the transition each member's stage 1 reports;
+    /// and the motion model (`stage2_motion`).
     pub fn fusion_params(&self) -> FusionParams {
         let gnss = &self.model.gnss;
         let gm = |tau: f64, sigma: f64| GaussMarkov::new(tau, sigma).expect("validated");
         let own_errors = match self.stage2_own_errors {
             Stage2OwnErrors::White => OwnErrorModel::White,
+            Stage2OwnErrors::Stage1Reported => OwnErrorModel::Stage1Reported,
             Stage2OwnErrors::GaussMarkov => {
                 let p = gnss.position_sigmas();
                 OwnErrorModel::GaussMarkov(CorrelatedOwnErrors {
@@ -267,6 +270,12 @@ impl FormationScenario {
         };
         FusionParams {
             own_errors,
+            motion: match self.stage2_motion {
+                Stage2Motion::Paper => MotionModel::Paper,
+                Stage2Motion::PiecewiseConstantAcceleration => {
+                    MotionModel::PiecewiseConstantAcceleration
+                }
+            },
             interval_s: self.fix_interval_s,
             accel_sigma_m_s2: self.group_accel_sigma_m_s2,
             own_velocity: self.stage2_own_velocity,

@@ -214,6 +214,7 @@ pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, Es
                 state: *lc.solution(),
                 covariance: lc.position_velocity_covariance(),
                 attitude_covariance: lc.attitude_covariance(),
+                error_cross_covariance: Some(lc.take_error_cross_covariance()),
             });
             truth_e.push(prev);
         }

@@ -109,6 +109,18 @@ fn rotate6(p: &Matrix6, r: &Matrix3<f64>) -> Matrix6 {
     (out + out.transpose()) * 0.5
 }
 
+/// A 6×6 cross-covariance E[e_k e_jᵀ] of position–velocity errors turned
+/// by `r_k` on the left and `r_j` on the right (each in both blocks).
+fn rotate6_between(c: &Matrix6, r_k: &Matrix3<f64>, r_j: &Matrix3<f64>) -> Matrix6 {
+    let block = |r: &Matrix3<f64>| {
+        let mut big = Matrix6::zeros();
+        big.fixed_view_mut::<3, 3>(0, 0).copy_from(r);
+        big.fixed_view_mut::<3, 3>(3, 3).copy_from(r);
+        big
+    };
+    block(r_k) * c * block(r_j).transpose()
+}
+
 /// Stage 1 of member `l` over the flight: per epoch, its INS* solution (in
 /// the tangent plane) and the truth.
 pub(super) fn member(
@@ -158,6 +170,8 @@ pub(super) fn member(
         ENU_NED * attitude_sigma,
     );
     let mut lc = NedLooselyCoupled::new(model, ins0, &prior, sc.filter_dt_s)?;
+    // NED → ENU rotation at the error cross-covariance's reference epoch.
+    let mut back_previous = frame.to_tangent_plane(lc.solution()).1.transpose();
     let mut accel_bias = gauss3(&mut rng, &Vector3::repeat(imu.accel_bias_sigma_m_s2));
     let mut gyro_bias = gauss3(&mut rng, &Vector3::repeat(imu.gyro_bias_sigma_rad_s));
     let mut gnss_position = gauss3(&mut rng, &gnss_pos_sigma);
@@ -238,6 +252,11 @@ pub(super) fn member(
                     let a = back * lc.attitude_covariance() * t_ins;
                     (a + a.transpose()) * 0.5
                 },
+                error_cross_covariance: Some(rotate6_between(
+                    &lc.take_error_cross_covariance(),
+                    &back,
+                    &std::mem::replace(&mut back_previous, back),
+                )),
             },
             prev,
         ));
