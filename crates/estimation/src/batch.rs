@@ -312,8 +312,15 @@ where
     nis: f64,
     outcome: Outcome,
     /// (x⁻, P⁻), with [`BatchKeep::forward`].
-    predicted: Option<(OVector<f64, N>, OMatrix<f64, N, N>)>,
+    predicted: Option<Prediction<N>>,
 }
+
+/// A prediction (x⁻, P⁻).
+type Prediction<N> = (OVector<f64, N>, OMatrix<f64, N, N>);
+
+/// An epoch's measurement and the rows of H and of R (and columns) of its
+/// components present.
+type Selected<N, M> = (OVector<f64, M>, OMatrix<f64, M, N>, OMatrix<f64, M, M>);
 
 /// Predict (when `predict`) and update with the `present` components of
 /// `row` in `M`-sized matrices (`md`): in the steady state of `steady`
@@ -422,7 +429,7 @@ where
         && rec.outcome == Outcome::Accepted
         && same_bits(kf.covariance(), &model.previous)
     {
-        *steady = find_steady(kf, model, (z, hc, rc), &x_predicted, &rec, present, k)?;
+        *steady = find_steady(kf, model, (z, hc, rc), &x_predicted, &rec, present, k);
     }
     Ok(EpochUpdate {
         nis: rec.nis,
@@ -436,22 +443,23 @@ where
 /// epoch's innovation (from a probe filter), K from `rec`. The steady
 /// path's arithmetic is checked against this epoch's full step (residual,
 /// NIS and state, bit for bit); if it disagrees the steady path is switched
-/// off for the batch.
+/// off for the batch. None too when the probe fails (the next epoch, with
+/// these components or others, finds out in its own full step).
 fn find_steady<N: Dim, M: Dim>(
     kf: &KalmanFilter<N>,
     model: &mut BatchModel<'_, N>,
-    (z, hc, rc): (OVector<f64, M>, OMatrix<f64, M, N>, OMatrix<f64, M, M>),
+    (z, hc, rc): Selected<N, M>,
     x_predicted: &OVector<f64, N>,
     rec: &crate::kalman::UpdateRecord<N, M>,
     present: &[usize],
     k: usize,
-) -> Result<Option<Steady<N, M>>>
+) -> Option<Steady<N, M>>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
     let mut probe = kf.clone();
-    probe.predict_covariance(model.phi, model.q)?;
-    let innovation = probe.innovation(&z, &hc, &rc)?;
+    probe.predict_covariance(model.phi, model.q).ok()?;
+    let innovation = probe.innovation(&z, &hc, &rc).ok()?;
     let residual = &z - &hc * x_predicted;
     let nis = residual.dot(&innovation.chol.solve(&residual));
     let mut x = x_predicted.clone();
@@ -462,9 +470,9 @@ where
         && same_bits(&x, kf.state());
     if !agrees {
         model.steady_allowed = false;
-        return Ok(None);
+        return None;
     }
-    Ok(Some(Steady {
+    Some(Steady {
         present: present.to_vec(),
         p_filtered: kf.covariance().clone(),
         p_predicted: probe.covariance().clone(),
@@ -475,7 +483,7 @@ where
         chol: innovation.chol,
         gain: rec.gain.clone(),
         current_after: Some(k),
-    }))
+    })
 }
 
 /// The batch loop behind [`filter_batch`] and [`filter_batch_plain`].
