@@ -88,7 +88,12 @@ class KalmanFilter:
         GIL released: predict with (F, Q), update with the components
         present under ``policy``. Each epoch's update runs in fixed-size
         matrices (≤ 6 components present; 1–6, 9, 12, 15, 18, 21, 24
-        states), allocating nothing without a policy."""
+        states), allocating nothing without a policy. Once an accepted
+        update leaves P bit for bit as the previous epoch's (the Riccati
+        recursion's fixed point, reached by some time-invariant models),
+        the following epochs with the same components present and an
+        accepted update compute the state only — the same numbers, bit for
+        bit; ``steady_epochs`` in the result counts them."""
     def copy(self) -> "KalmanFilter": ...
 
 def rts_smooth(

@@ -242,6 +242,7 @@ struct Batch {
     nis: Vec<f64>,
     outcomes: Vec<&'static str>,
     smoothed: Option<(Vec<f64>, Vec<f64>)>,
+    steady_epochs: usize,
 }
 
 /// The plain update with M fixed: the same arithmetic as the `Dyn` path.
@@ -390,6 +391,7 @@ where
             nis: out.nis,
             outcomes: out.outcomes.iter().map(|o| o.as_str()).collect(),
             smoothed,
+            steady_epochs: out.steady_epochs,
         })
     }
     fn boxed_clone(&self) -> Box<dyn AnyFilter> {
@@ -663,7 +665,9 @@ impl KalmanFilter {
     /// under `policy`. The filter ends at the last epoch. Returns a dict of
     /// arrays: `x` (epochs × n), `residual` (epochs × m), `nis`, `outcome`
     /// (strings); with `covariances=True` also `P` (epochs × n × n); with
-    /// `smooth=True` also the RTS-smoothed `x_smooth` and `P_smooth`.
+    /// `smooth=True` also the RTS-smoothed `x_smooth` and `P_smooth`;
+    /// `steady_epochs`: the epochs computed in the Riccati recursion's
+    /// steady state (state only, bit for bit the full step's numbers).
     /// Each epoch's update runs in fixed-size matrices (the components
     /// present, up to six, copied into stack matrices: no allocation per
     /// epoch without a policy), with the GIL released.
@@ -718,6 +722,7 @@ impl KalmanFilter {
         )?;
         d.set_item("nis", PyArray1::from_vec(py, out.nis))?;
         d.set_item("outcome", out.outcomes)?;
+        d.set_item("steady_epochs", out.steady_epochs)?;
         if covariances {
             d.set_item(
                 "P",

@@ -101,18 +101,30 @@ impl MonteCarlo {
         F: Fn(usize, &mut RunRng) -> T + Sync,
     {
         let bar = self.bar();
-        let out = range
+        // Once the token is set, the runs not yet started are skipped
+        // (None) rather than unwound one by one: rayon catches a job's
+        // unwinding, waits for its sibling and unwinds again at every join,
+        // and its splitter keeps splitting the rest among the threads, so a
+        // campaign of 100 000 runs spent 1.5 s in some 10⁵ unwindings after
+        // the token was set (a run lasting 0.1 s). One unwinding, here, after
+        // the parallel loop.
+        let out: Vec<Option<T>> = range
             .into_par_iter()
             .map(|k| {
-                self.cancel.stop_if_cancelled();
+                if self.cancel.is_cancelled() {
+                    return None;
+                }
                 let mut rng = run_rng(self.seed, k as u64);
                 let r = f(k, &mut rng);
                 bar.inc(1);
-                r
+                Some(r)
             })
             .collect();
         bar.finish_and_clear();
-        out
+        self.cancel.stop_if_cancelled();
+        // A run is skipped only once the token is set, and the token is
+        // never unset: every run is here.
+        out.into_iter().flatten().collect()
     }
 
     /// As [`run`](Self::run) for fallible runs: the first error (lowest run index) wins.
@@ -182,6 +194,8 @@ impl MonteCarlo {
         let mut first = 0;
         while first < self.runs {
             let last = (first + chunk).min(self.runs);
+            // A chunk is a few runs per thread: unwinding from each of its
+            // runs once the token is set costs little (see `run_range`).
             let results: Vec<Result<T, E>> = (first..last)
                 .into_par_iter()
                 .map(|k| {
@@ -290,6 +304,30 @@ mod tests {
         let r: Result<Result<f64, ()>, _> =
             Cancel::catch(|| mc.try_fold(0.0, |_, _| Ok(1.0), |a: &mut f64, _, x| *a += x));
         assert_eq!(r, Err(Cancelled));
+    }
+
+    /// A campaign cancelled at its first run skips the rest without
+    /// unwinding from each: a million runs end in about a millisecond (each
+    /// unwinding took some 15 µs, so a million of them would take seconds;
+    /// the bound leaves a wide margin for a loaded machine).
+    #[test]
+    fn a_cancelled_campaign_of_a_million_runs_stops_at_once() {
+        let cancel = Cancel::new();
+        let mc = MonteCarlo::new(1_000_000, 1)
+            .quiet()
+            .with_cancel(cancel.clone());
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        let t = std::time::Instant::now();
+        let r = Cancel::catch(|| {
+            mc.run(|_, _| {
+                cancel.cancel();
+                done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            })
+        });
+        let elapsed = t.elapsed().as_secs_f64();
+        assert_eq!(r, Err(Cancelled));
+        assert!(done.into_inner() <= rayon::current_num_threads());
+        assert!(elapsed < 1.0, "{elapsed} s");
     }
 
     #[test]
