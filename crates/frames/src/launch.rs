@@ -38,9 +38,21 @@ pub struct LaunchAttitude {
 impl LaunchAttitude {
     /// The orientation matrix D (`x_B = D x_L`).
     pub fn orientation(&self) -> Matrix3<f64> {
-        let (sp, cp) = self.yaw.sin_cos();
-        let (st, ct) = self.pitch.sin_cos();
-        let (sg, cg) = self.roll.sin_cos();
+        Self::orientation_from_sin_cos(
+            self.yaw.sin_cos(),
+            self.pitch.sin_cos(),
+            self.roll.sin_cos(),
+        )
+    }
+
+    /// [`orientation`](Self::orientation) from the (sine, cosine) of yaw,
+    /// pitch and roll, for a caller that already holds some of them (the
+    /// same arithmetic, so the same matrix).
+    pub fn orientation_from_sin_cos(
+        (sp, cp): (f64, f64),
+        (st, ct): (f64, f64),
+        (sg, cg): (f64, f64),
+    ) -> Matrix3<f64> {
         Matrix3::new(
             cp * ct,
             st,
