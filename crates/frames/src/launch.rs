@@ -48,6 +48,7 @@ impl LaunchAttitude {
     /// [`orientation`](Self::orientation) from the (sine, cosine) of yaw,
     /// pitch and roll, for a caller that already holds some of them (the
     /// same arithmetic, so the same matrix).
+    #[inline]
     pub fn orientation_from_sin_cos(
         (sp, cp): (f64, f64),
         (st, ct): (f64, f64),
@@ -120,6 +121,7 @@ impl LaunchAttitude {
 }
 
 /// Central gravity at launch-frame position r: `−μ (r + R_E e_y) / |r + R_E e_y|³`.
+#[inline]
 pub fn central_gravity(r: &Vector3<f64>) -> Vector3<f64> {
     let from_centre = r + Vector3::new(0.0, EARTH_MEAN_RADIUS_M, 0.0);
     let d = from_centre.norm();
