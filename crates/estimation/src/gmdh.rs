@@ -683,8 +683,11 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
 struct SharedFits {
     regularity: f64,
     /// Coefficients fitted to the earlier and the later half.
-    halves: Option<(Vec<f64>, Vec<f64>)>,
+    halves: Option<HalfFits>,
 }
+
+/// Coefficients of one structure fitted to the earlier and the later half.
+type HalfFits = (Vec<f64>, Vec<f64>);
 
 /// [`select`] once per forecast horizon (`None`: regularity alone), as if
 /// each were [`GmdhConfig::horizon_s`], with identical results, but every
@@ -823,7 +826,7 @@ pub fn select_for_horizons(
     let table = DesignTable::new(&candidates, t, t_mid, half_span);
     let mut cache: std::collections::HashMap<Vec<usize>, Option<SharedFits>> =
         std::collections::HashMap::new();
-    let mut shared = |set: &[usize]| -> Option<(f64, Option<(Vec<f64>, Vec<f64>)>)> {
+    let mut shared = |set: &[usize]| -> Option<(f64, Option<HalfFits>)> {
         let fits = cache.entry(set.to_vec()).or_insert_with(|| {
             let coef = fit_set(set, &table, &window, &train)?;
             let regularity = criterion_set(set, &coef, &table, &window, &check);

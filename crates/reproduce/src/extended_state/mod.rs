@@ -555,8 +555,11 @@ fn branches(flight: &Flight<'_>, snapshot: &Snapshot) -> ThresholdRun {
 fn branch_ratio(flight: &Flight<'_>, snapshot: &Snapshot) -> f64 {
     let from = (snapshot.time_s / flight.traj.dt_s).round() as usize;
     if snapshot.estimate == [0.0; ESTIMATED] {
+        // Proposed is the outputs-only flight (see `branches`): the same
+        // division, so NaN, not 1, for an error of 0 or ∞.
         let [outputs_only_m] = flight.fly_many([Correction::None], snapshot.ins, from);
-        return outputs_only_m / outputs_only_m;
+        let proposed_m = outputs_only_m;
+        return outputs_only_m / proposed_m;
     }
     let estimated = LaunchInstrumentErrors::from_estimate(&snapshot.estimate);
     let [outputs_only_m, proposed_m] = flight.fly_many(
