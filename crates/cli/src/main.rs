@@ -11,7 +11,7 @@ use aidnav::reproduce::MonteCarloScenario;
 use aidnav::reproduce::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
 use aidnav::reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario, SwitchKind};
-use aidnav::reproduce::formation::FormationScenario;
+use aidnav::reproduce::formation::{FormationScenario, Network, NetworkSweepScenario};
 use aidnav::reproduce::group::{GroupResult, GroupScenario};
 use aidnav::reproduce::outages::{OutageScores, OutagesResult, OutagesScenario};
 use anyhow::{Context, Result};
@@ -327,6 +327,8 @@ enum Experiment {
     Group,
     /// Spec 30 beyond the paper: 3-D formation, INS/GNSS per member, paper fusion vs EKF, GNSS denial.
     Formation,
+    /// Spec 30 beyond the paper: the formation's exchange as a network, accuracy per latency × loss rate (a quick grid; the full one: examples/formation_network.toml).
+    FormationNetwork,
 }
 
 #[derive(Debug, Args)]
@@ -510,6 +512,7 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
             Experiment::Outages,
             Experiment::Group,
             Experiment::Formation,
+            Experiment::FormationNetwork,
         ],
         e => vec![e],
     };
@@ -529,9 +532,18 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
                 }
                 Experiment::Outages => ("outages", toml::to_string(&OutagesScenario::default())?),
                 Experiment::Group => ("group", toml::to_string(&GroupScenario::default())?),
-                Experiment::Formation => {
-                    ("formation", toml::to_string(&FormationScenario::default())?)
-                }
+                Experiment::Formation => (
+                    "formation",
+                    format!(
+                        "{}{}",
+                        toml::to_string(&FormationScenario::default())?,
+                        absent_network_table()?
+                    ),
+                ),
+                Experiment::FormationNetwork => (
+                    "formation-network",
+                    toml::to_string(&NetworkSweepScenario::default())?,
+                ),
                 Experiment::All => continue,
             };
             println!("# aidnav reproduce {name} — default scenario\n{text}");
@@ -577,10 +589,30 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
                     .context("formation flight")?;
                 print_formation(&s, &r, &out);
             }
+            Experiment::FormationNetwork => {
+                let (s, out) =
+                    scenario_and_out::<NetworkSweepScenario>(&a, &root, "formation_network")?;
+                let sweep = jobs::formation_network(&s, &out, a.mc.quiet)
+                    .context("formation network sweep")?;
+                print_formation_network(&s.0, &sweep, &out);
+            }
             Experiment::All => unreachable!("expanded above"),
         }
     }
     Ok(())
+}
+
+/// The `[network]` table `reproduce formation`'s defaults leave out (no
+/// table: the ideal exchange), as TOML comments with its keys' defaults.
+fn absent_network_table() -> Result<String> {
+    let keys = toml::to_string(&Network::default())?;
+    let mut text = String::from(
+        "\n# [network]  (absent: the ideal exchange; with it, packets have latency and loss,\n# and [network.sweep] runs a grid: see `reproduce formation-network --print-scenario`)\n",
+    );
+    for line in keys.lines() {
+        text.push_str(&format!("# {line}\n"));
+    }
+    Ok(text)
 }
 
 fn run_scenario(a: RunArgs) -> Result<()> {

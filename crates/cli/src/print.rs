@@ -143,45 +143,7 @@ pub(crate) fn print_formation(s: &FormationScenario, o: &jobs::FormationOutcome,
         );
     }
     if !o.sweep.is_empty() {
-        println!(
-            "network sweep (same stage 1 and measurements per run): members keeping GNSS, mean 3-D position RMS [m] (filter σ in brackets){}",
-            if o.sweep[0].denied_max_error_m.is_some() {
-                "; denied members' largest error while denied [m]"
-            } else {
-                ""
-            }
-        );
-        println!(
-            "{:>11} {:>6} {:>7} {:>7} {:>8} {:>17} {:>17} {:>26}",
-            "latency [s]",
-            "loss",
-            "lost",
-            "late",
-            "alone",
-            "paper",
-            "EKF",
-            "denied alone/paper/EKF"
-        );
-        for c in &o.sweep {
-            println!(
-                "{:>11} {:>5.0}% {:>6.1}% {:>6.1}% {:>8.3} {:>17} {:>17} {:>26}",
-                c.latency_s,
-                100.0 * c.loss_probability,
-                100.0 * c.network.lost_fraction(),
-                100.0 * c.network.late_fraction(),
-                c.kept_rms_m[0],
-                cell(c.kept_rms_m[1], c.kept_sigma_m[1]),
-                cell(c.kept_rms_m[2], c.kept_sigma_m[2]),
-                c.denied_max_error_m.map_or_else(
-                    || "—".to_string(),
-                    |d| format!("{:.2} / {:.2} / {:.2}", d[0], d[1], d[2])
-                )
-            );
-        }
-        println!(
-            "wrote {}/{{network_sweep.csv, network_sweep.svg}}",
-            out.display()
-        );
+        print_network_sweep(&o.sweep, out);
     }
     println!(
         "wrote {}/{{formation_errors.svg, formation.csv, summary.json}}",
@@ -551,4 +513,68 @@ pub(crate) fn print_outages(s: &OutagesScenario, r: &OutagesResult, out: &Path) 
         "improvement = 1 − RMS(δV − prediction) / RMS(δV) (uncorrected INS); vs reset INS = 1 − RMS / RMS(hold) (INS corrected until the outage, free after); wrote {}/{{outage_example.csv, outage_predictors.svg (Fig. 9), efficiency.svg, fig10_recovery_errors.svg, summary.json}}",
         out.display()
     );
+}
+
+/// The network sweep's table (`reproduce formation` with a sweep, and
+/// `reproduce formation-network`).
+fn print_network_sweep(sweep: &[aidnav::reproduce::formation::SweepCell], out: &Path) {
+    let cell = |rms: f64, sigma: f64| format!("{rms:.3} ({sigma:.3})");
+    println!(
+        "network sweep (same stage 1 and measurements per run): members keeping GNSS, mean 3-D position RMS [m] (filter σ in brackets){}",
+        if sweep[0].denied_max_error_m.is_some() {
+            "; denied members' largest error while denied [m]"
+        } else {
+            ""
+        }
+    );
+    println!(
+        "{:>11} {:>6} {:>7} {:>7} {:>8} {:>17} {:>17} {:>26}",
+        "latency [s]", "loss", "lost", "late", "alone", "paper", "EKF", "denied alone/paper/EKF"
+    );
+    for c in sweep {
+        println!(
+            "{:>11} {:>5.0}% {:>6.1}% {:>6.1}% {:>8.3} {:>17} {:>17} {:>26}",
+            c.latency_s,
+            100.0 * c.loss_probability,
+            100.0 * c.network.lost_fraction(),
+            100.0 * c.network.late_fraction(),
+            c.kept_rms_m[0],
+            cell(c.kept_rms_m[1], c.kept_sigma_m[1]),
+            cell(c.kept_rms_m[2], c.kept_sigma_m[2]),
+            c.denied_max_error_m.map_or_else(
+                || "—".to_string(),
+                |d| format!("{:.2} / {:.2} / {:.2}", d[0], d[1], d[2])
+            )
+        );
+    }
+    println!(
+        "wrote {}/{{network_sweep.csv, network_sweep.svg}}",
+        out.display()
+    );
+}
+
+/// `reproduce formation-network`: the scenario line and the sweep's table.
+pub(crate) fn print_formation_network(
+    s: &FormationScenario,
+    sweep: &[aidnav::reproduce::formation::SweepCell],
+    out: &Path,
+) {
+    let net = s.network.clone().unwrap_or_default();
+    println!(
+        "Formation network sweep (spec 30 pipeline) — {} members, {:.0} s, {} runs, scored from {:.0} s, jitter ≤ {} s, {}, late packets fused up to {} s back, seed {}, aidnav {}",
+        s.members,
+        s.duration_s,
+        s.runs,
+        s.settle_s,
+        net.jitter_s,
+        net.max_neighbours.map_or_else(
+            || "all neighbours".to_string(),
+            |n| format!("at most {n} neighbours")
+        ),
+        net.history_s,
+        s.seed,
+        aidnav::VERSION
+    );
+    print_network_sweep(sweep, out);
+    println!("wrote {}/summary.json", out.display());
 }

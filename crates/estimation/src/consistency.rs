@@ -27,10 +27,36 @@ pub fn chi2_quantile(dof: usize, probability: f64) -> f64 {
     if probability >= 1.0 {
         return f64::INFINITY;
     }
-    match ChiSquared::new(dof as f64) {
+    // Gates ask for the same few quantiles at every update, and the inverse
+    // CDF is an iterative search (most of a gated filter's time): the last
+    // few are kept per thread, the same numbers as computing them again.
+    let key = (dof, probability.to_bits());
+    if let Some(q) =
+        RECENT_QUANTILES.with(|r| r.borrow().iter().find(|(k, _)| *k == key).map(|&(_, q)| q))
+    {
+        return q;
+    }
+    let q = match ChiSquared::new(dof as f64) {
         Ok(dist) => dist.inverse_cdf(probability),
         Err(_) => f64::NAN,
-    }
+    };
+    RECENT_QUANTILES.with(|r| {
+        let mut r = r.borrow_mut();
+        if r.len() == RECENT_QUANTILES_KEPT {
+            r.remove(0);
+        }
+        r.push((key, q));
+    });
+    q
+}
+
+/// How many quantiles [`chi2_quantile`] keeps per thread.
+const RECENT_QUANTILES_KEPT: usize = 16;
+
+thread_local! {
+    /// [`chi2_quantile`]'s last results: ((dof, probability's bits), quantile).
+    static RECENT_QUANTILES: std::cell::RefCell<Vec<((usize, u64), f64)>> =
+        const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Two-sided `confidence` bounds on the *mean* of `samples` independent χ²(`dof`) values.
@@ -113,5 +139,26 @@ impl Chi2Mean {
         let (lo, hi) = self.bounds(confidence);
         let m = self.mean();
         m >= lo && m <= hi
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The kept quantiles are the computed ones, before and after more
+    /// distinct quantiles than are kept have pushed them out.
+    #[test]
+    fn kept_quantiles_are_the_computed_ones() {
+        let direct = |dof: usize, p: f64| ChiSquared::new(dof as f64).unwrap().inverse_cdf(p);
+        for round in 0..3 {
+            for dof in 1..=2 * RECENT_QUANTILES_KEPT {
+                for p in [0.95, 0.999] {
+                    let q = chi2_quantile(dof, p);
+                    assert_eq!(q.to_bits(), direct(dof, p).to_bits(), "{round} {dof} {p}");
+                    assert_eq!(chi2_quantile(dof, p).to_bits(), q.to_bits());
+                }
+            }
+        }
     }
 }

@@ -422,8 +422,30 @@ struct Window<'a> {
 
 /// Least-squares coefficients of `units` on the samples `idx`, or None if rank-deficient.
 fn fit(units: &[Unit], w: &Window<'_>, idx: &[usize]) -> Option<Vec<f64>> {
-    let (t, y, t_mid, half_span) = (w.t, w.y, w.t_mid, w.half_span);
+    let (t, t_mid, half_span) = (w.t, w.t_mid, w.half_span);
     let cols: usize = units.iter().map(Unit::columns).sum();
+    fit_rows(cols, w, idx, |row, i| {
+        push_row(row, units, t[i], t_mid, half_span);
+    })
+}
+
+/// [`fit`] of the candidates `set` with their values read from `table`
+/// (the same rows, so the same coefficients).
+fn fit_set(set: &[usize], table: &DesignTable, w: &Window<'_>, idx: &[usize]) -> Option<Vec<f64>> {
+    fit_rows(table.columns(set), w, idx, |row, i| {
+        table.push_row(row, set, i)
+    })
+}
+
+/// Least-squares coefficients on the samples `idx` with `cols` columns, the
+/// row of sample i written by `row_of`, or None if rank-deficient.
+fn fit_rows(
+    cols: usize,
+    w: &Window<'_>,
+    idx: &[usize],
+    mut row_of: impl FnMut(&mut Vec<f64>, usize),
+) -> Option<Vec<f64>> {
+    let y = w.y;
     if idx.len() <= cols {
         return None;
     }
@@ -431,7 +453,7 @@ fn fit(units: &[Unit], w: &Window<'_>, idx: &[usize]) -> Option<Vec<f64>> {
     let mut row = Vec::with_capacity(cols);
     for (r, &i) in idx.iter().enumerate() {
         row.clear();
-        push_row(&mut row, units, t[i], t_mid, half_span);
+        row_of(&mut row, i);
         for (c, v) in row.iter().enumerate() {
             a[(r, c)] = *v;
         }
@@ -474,6 +496,85 @@ fn criterion(units: &[Unit], coef: &[f64], w: &Window<'_>, check: &[usize]) -> f
         var += (y[i] - mean).powi(2);
     }
     err / var.max(f64::MIN_POSITIVE)
+}
+
+/// [`criterion`] of the candidates `set` with their values read from
+/// `table`: the same products summed in the same order as
+/// [`GmdhModel::predict`], so the same number.
+fn criterion_set(
+    set: &[usize],
+    coef: &[f64],
+    table: &DesignTable,
+    w: &Window<'_>,
+    check: &[usize],
+) -> f64 {
+    let y = w.y;
+    let mean = check.iter().map(|&i| y[i]).sum::<f64>() / check.len() as f64;
+    let (mut err, mut var) = (0.0, 0.0);
+    let mut row = Vec::with_capacity(coef.len());
+    for &i in check {
+        row.clear();
+        table.push_row(&mut row, set, i);
+        let predicted: f64 = row.iter().zip(coef).map(|(a, c)| a * c).sum();
+        err += (y[i] - predicted).powi(2);
+        var += (y[i] - mean).powi(2);
+    }
+    err / var.max(f64::MIN_POSITIVE)
+}
+
+/// Every candidate unit's value(s) at a list of times, computed once: the
+/// selection fits thousands of candidate sets on the same samples, and a
+/// harmonic's sine and cosine cost more than the rest of a row. The values
+/// are those [`push_row`] computes, so the rows are the same.
+struct DesignTable {
+    /// Per time, per candidate: its first and (harmonics) second column.
+    values: Vec<Vec<(f64, f64)>>,
+    /// Per candidate: whether it has two columns.
+    two: Vec<bool>,
+}
+
+impl DesignTable {
+    fn new(candidates: &[Unit], times: &[f64], t_mid: f64, half_span: f64) -> Self {
+        let values = times
+            .iter()
+            .map(|&t| {
+                let tau = (t - t_mid) / half_span;
+                candidates
+                    .iter()
+                    .map(|u| match *u {
+                        Unit::Power { p } => (tau.powi(p as i32), 0.0),
+                        Unit::Harmonic { omega } => ((omega * t).sin(), (omega * t).cos()),
+                    })
+                    .collect()
+            })
+            .collect();
+        let two = candidates.iter().map(|u| u.columns() == 2).collect();
+        Self { values, two }
+    }
+
+    /// Number of columns of the candidates `set`.
+    fn columns(&self, set: &[usize]) -> usize {
+        set.iter().map(|&k| 1 + usize::from(self.two[k])).sum()
+    }
+
+    /// The row of the candidates `set` at time index i.
+    fn push_row(&self, row: &mut Vec<f64>, set: &[usize], i: usize) {
+        let at = &self.values[i];
+        for &k in set {
+            row.push(at[k].0);
+            if self.two[k] {
+                row.push(at[k].1);
+            }
+        }
+    }
+
+    /// [`GmdhModel::predict`] of the candidates `set` with `coef` at time
+    /// index i (the same products in the same order).
+    fn predict(&self, set: &[usize], coef: &[f64], i: usize) -> f64 {
+        let mut row = Vec::with_capacity(coef.len());
+        self.push_row(&mut row, set, i);
+        row.iter().zip(coef).map(|(a, c)| a * c).sum()
+    }
 }
 
 /// Training-part residual of {polynomial up to `degree`, harmonic at ω}: what
@@ -581,8 +682,12 @@ pub fn select(t: &[f64], y: &[f64], config: &GmdhConfig) -> Result<GmdhSelection
 /// the earlier and later halves for the balance of forecasts.
 struct SharedFits {
     regularity: f64,
-    halves: Option<(GmdhModel, GmdhModel)>,
+    /// Coefficients fitted to the earlier and the later half.
+    halves: Option<HalfFits>,
 }
+
+/// Coefficients of one structure fitted to the earlier and the later half.
+type HalfFits = (Vec<f64>, Vec<f64>);
 
 /// [`select`] once per forecast horizon (`None`: regularity alone), as if
 /// each were [`GmdhConfig::horizon_s`], with identical results, but every
@@ -717,23 +822,16 @@ pub fn select_for_horizons(
         .min_improvement
         .max(config.noise_guard / check.len() as f64);
 
+    // Every candidate's values at the samples, computed once for all sets.
+    let table = DesignTable::new(&candidates, t, t_mid, half_span);
     let mut cache: std::collections::HashMap<Vec<usize>, Option<SharedFits>> =
         std::collections::HashMap::new();
-    let mut shared = |set: &[usize]| -> Option<(f64, Option<(GmdhModel, GmdhModel)>)> {
+    let mut shared = |set: &[usize]| -> Option<(f64, Option<HalfFits>)> {
         let fits = cache.entry(set.to_vec()).or_insert_with(|| {
-            let units: Vec<Unit> = set.iter().map(|&k| candidates[k]).collect();
-            let coef = fit(&units, &window, &train)?;
-            let regularity = criterion(&units, &coef, &window, &check);
-            let model = |idx: &[usize]| {
-                fit(&units, &window, idx).map(|coefficients| GmdhModel {
-                    units: units.clone(),
-                    coefficients,
-                    t_mid,
-                    half_span,
-                })
-            };
+            let coef = fit_set(set, &table, &window, &train)?;
+            let regularity = criterion_set(set, &coef, &table, &window, &check);
             let halves = if needs_halves {
-                model(&early).zip(model(&late))
+                fit_set(set, &table, &window, &early).zip(fit_set(set, &table, &window, &late))
             } else {
                 None
             };
@@ -749,15 +847,18 @@ pub fn select_for_horizons(
                 .collect(),
             None => Vec::new(),
         };
+        // The candidates' values on the forecast horizon, once per horizon.
+        let horizon_table = DesignTable::new(&candidates, &horizon_grid, t_mid, half_span);
         let mut score = |set: &[usize]| -> Option<f64> {
             let (regularity, halves) = shared(set)?;
             if horizon_grid.is_empty() {
                 return Some(regularity);
             }
             let (a, b) = halves?;
-            let balance = horizon_grid
-                .iter()
-                .map(|&t| (a.predict(t) - b.predict(t)).powi(2))
+            let balance = (0..horizon_grid.len())
+                .map(|j| {
+                    (horizon_table.predict(set, &a, j) - horizon_table.predict(set, &b, j)).powi(2)
+                })
                 .sum::<f64>()
                 / horizon_grid.len() as f64
                 / check_variance;

@@ -38,9 +38,22 @@ pub struct LaunchAttitude {
 impl LaunchAttitude {
     /// The orientation matrix D (`x_B = D x_L`).
     pub fn orientation(&self) -> Matrix3<f64> {
-        let (sp, cp) = self.yaw.sin_cos();
-        let (st, ct) = self.pitch.sin_cos();
-        let (sg, cg) = self.roll.sin_cos();
+        Self::orientation_from_sin_cos(
+            self.yaw.sin_cos(),
+            self.pitch.sin_cos(),
+            self.roll.sin_cos(),
+        )
+    }
+
+    /// [`orientation`](Self::orientation) from the (sine, cosine) of yaw,
+    /// pitch and roll, for a caller that already holds some of them (the
+    /// same arithmetic, so the same matrix).
+    #[inline]
+    pub fn orientation_from_sin_cos(
+        (sp, cp): (f64, f64),
+        (st, ct): (f64, f64),
+        (sg, cg): (f64, f64),
+    ) -> Matrix3<f64> {
         Matrix3::new(
             cp * ct,
             st,
@@ -108,6 +121,7 @@ impl LaunchAttitude {
 }
 
 /// Central gravity at launch-frame position r: `−μ (r + R_E e_y) / |r + R_E e_y|³`.
+#[inline]
 pub fn central_gravity(r: &Vector3<f64>) -> Vector3<f64> {
     let from_centre = r + Vector3::new(0.0, EARTH_MEAN_RADIUS_M, 0.0);
     let d = from_centre.norm();

@@ -7,7 +7,9 @@ use aidnav_io::writers::{Summary, write_table};
 use aidnav_reproduce::anomalies::{AnomaliesResult, AnomaliesScenario, ESTIMATORS};
 use aidnav_reproduce::consistency::{ConsistencyResult, ConsistencyScenario};
 use aidnav_reproduce::extended_state::{ExtendedStateResult, ExtendedStateScenario};
-use aidnav_reproduce::formation::{FormationResult, FormationScenario, SOLUTIONS, SweepCell};
+use aidnav_reproduce::formation::{
+    FormationResult, FormationScenario, NetworkSweepScenario, SOLUTIONS, SweepCell,
+};
 use aidnav_reproduce::group::{GroupResult, GroupScenario};
 use aidnav_reproduce::outages::{OutagesResult, OutagesScenario, PREDICTORS};
 use aidnav_sim::MonteCarlo;
@@ -258,6 +260,33 @@ pub fn formation(
     }
     summary.write(out)?;
     Ok(FormationOutcome { result, sweep })
+}
+
+/// Run only the formation's network sweep (`reproduce formation-network`:
+/// the latency × loss grid of `[network.sweep]`, each cell's stage 2 on the
+/// same stage 1 and measurements per run) and write `network_sweep.csv`,
+/// `network_sweep.svg` and `summary.json` (list `network_sweep`) into `out`.
+pub fn formation_network(
+    scenario: &NetworkSweepScenario,
+    out: &Path,
+    quiet: bool,
+) -> JobResult<Vec<SweepCell>> {
+    let s = &scenario.0;
+    let mc = campaign(s.runs, s.seed, "formation-network", quiet);
+    let sweep = aidnav_reproduce::formation::sweep(s, &mc)
+        .map_err(estimation("formation network sweep"))?;
+    aidnav_io::writers::begin_outputs(out)?;
+    write_network_sweep(&sweep, s.members, out)?;
+    aidnav_reproduce::figures::network_sweep_figure(s, &sweep, out)?;
+    let mut summary = Summary::new(
+        "reproduce formation-network",
+        VERSION,
+        Some(s.seed),
+        scenario,
+    );
+    summary.insert("network_sweep", &sweep);
+    summary.write(out)?;
+    Ok(sweep)
 }
 
 /// `network_sweep.csv`: one row per latency × loss cell of the formation's

@@ -88,6 +88,7 @@ fn linearise(
             normal += ht_r * h;
             rhs -= ht_r * nu;
         };
+    let mut thrust = EstimateThrust::new(flight, &correction);
     let (first, rest) = fixes.split_first().expect("at least one fix");
     add_fix(first, &ins, &jr, &jv);
     let mut k = first.step;
@@ -113,8 +114,7 @@ fn linearise(
         }
         let from = ins.position;
         while k < fix.step {
-            let thrust = flight.live_thrust(Correction::Estimate(&correction), k);
-            ins.step_with_thrust(dt, &thrust);
+            ins.step_with_thrust(dt, &thrust.at(k));
             k += 1;
         }
         let g = gravity_gradient(&((from + ins.position) * 0.5));

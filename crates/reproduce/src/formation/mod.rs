@@ -70,12 +70,14 @@ use aidnav_models::relative_sensor::RelativeSensor;
 use serde::{Deserialize, Serialize};
 
 mod network;
+mod network_sweep;
 mod run;
 mod scenario;
 mod simulate;
 mod stage_one_ned;
 
 pub use network::{Network, NetworkStats, NetworkSweep, SweepCell, sweep};
+pub use network_sweep::{NetworkSweepScenario, QUICK_SWEEP_RUNS};
 pub use run::{RunErrors, finish, run, run_range};
 
 /// How stage 2 treats the errors of each member's stage-1 solution

@@ -33,7 +33,8 @@ use serde::{Deserialize, Serialize};
 
 use super::run::{RunErrors, own_new};
 use super::simulate::{
-    RATE_CHANNEL, RELATIVE_CHANNEL, relative_measurements, relative_rates, stage_one,
+    RATE_CHANNEL, RELATIVE_CHANNEL, StageOnePaths, relative_measurements, relative_rates,
+    stage_one_on,
 };
 use super::{FormationScenario, Stage2OwnErrors};
 
@@ -437,8 +438,9 @@ pub fn sweep(sc: &FormationScenario, mc: &MonteCarlo) -> Result<Vec<SweepCell>, 
     let settled: Vec<usize> = (0..epochs)
         .filter(|&k| (k + 1) as f64 * sc.fix_interval_s >= sc.settle_s)
         .collect();
+    let paths = StageOnePaths::new(sc);
     let runs = mc.try_run(|run, _rng| -> Result<Vec<CellRun>, EstimationError> {
-        let (own, truth) = stage_one(sc, run as u64)?;
+        let (own, truth) = stage_one_on(sc, run as u64, &paths)?;
         cells
             .iter()
             .map(|net| {

@@ -15,7 +15,8 @@ use serde::{Deserialize, Serialize};
 use super::Stage2Motion;
 use super::network::{self, NetworkStats};
 use super::simulate::{
-    RATE_CHANNEL, RELATIVE_CHANNEL, relative_measurements, relative_rates, stage_one,
+    RATE_CHANNEL, RELATIVE_CHANNEL, StageOnePaths, relative_measurements, relative_rates,
+    stage_one_on,
 };
 use super::{Denial, FormationResult, FormationScenario, MemberScore, Stage2OwnErrors};
 
@@ -126,8 +127,12 @@ impl RunErrors {
     }
 }
 
-fn run_once(sc: &FormationScenario, run: u64) -> Result<RunErrors, EstimationError> {
-    let (own, truth) = stage_one(sc, run)?;
+fn run_once(
+    sc: &FormationScenario,
+    run: u64,
+    paths: &StageOnePaths,
+) -> Result<RunErrors, EstimationError> {
+    let (own, truth) = stage_one_on(sc, run, paths)?;
     match &sc.network {
         Some(net) => network::stage_two(sc, net, run, &own, &truth),
         None => ideal_stage_two(sc, run, &own, &truth),
@@ -177,7 +182,8 @@ pub fn run_range(
     mc: &MonteCarlo,
     range: std::ops::Range<usize>,
 ) -> Result<Vec<RunErrors>, EstimationError> {
-    mc.try_run_range(range, |run, _rng| run_once(sc, run as u64))
+    let paths = StageOnePaths::new(sc);
+    mc.try_run_range(range, |run, _rng| run_once(sc, run as u64, &paths))
 }
 
 /// The result from every run, in run order (the chunks of [`run_range`]

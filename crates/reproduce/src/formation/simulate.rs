@@ -115,10 +115,41 @@ impl ErrorProcesses {
 /// Per epoch, per member: stage-1 solutions and the truth.
 type StageOne = (Vec<Vec<OwnSolution>>, Vec<Vec<LocalLevelState>>);
 
-/// Stage 1 of every member over the whole flight: per epoch, each member's
-/// INS* solution (in the tangent plane, whichever `ins_model`). Also returns
-/// the truth at each epoch.
+/// [`stage_one_on`] computing the paths itself (the tests').
+#[cfg(test)]
 pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, EstimationError> {
+    stage_one_on(sc, run, &StageOnePaths::new(sc))
+}
+
+/// The members' flight paths of the Earth-frame stage 1
+/// ([`MemberPath`](super::stage_one_ned::MemberPath): the truth and the
+/// perfect IMU, the same in every run), computed once per campaign; empty
+/// for the flat model.
+pub(super) struct StageOnePaths(Vec<super::stage_one_ned::MemberPath>);
+
+impl StageOnePaths {
+    /// Every member's path (none for `ins_model = "flat"`).
+    pub(super) fn new(sc: &FormationScenario) -> Self {
+        if sc.ins_model != InsModel::Ned {
+            return Self(Vec::new());
+        }
+        Self(
+            (0..sc.members)
+                .map(|l| super::stage_one_ned::MemberPath::new(sc, l))
+                .collect(),
+        )
+    }
+}
+
+/// Stage 1 of every member over the whole flight: per epoch, each member's
+/// INS* solution (in the tangent plane, whichever `ins_model`) and the
+/// truth, with the members' paths computed beforehand
+/// ([`StageOnePaths::new`]).
+pub(super) fn stage_one_on(
+    sc: &FormationScenario,
+    run: u64,
+    paths: &StageOnePaths,
+) -> Result<StageOne, EstimationError> {
     let m = sc.members;
     let epochs = sc.epochs();
     let steps = sc.imu_steps_per_fix();
@@ -145,7 +176,7 @@ pub(super) fn stage_one(sc: &FormationScenario, run: u64) -> Result<StageOne, Es
     let i = &sc.initial;
     for l in 0..m {
         if sc.ins_model == InsModel::Ned {
-            let member = super::stage_one_ned::member(sc, run, l)?;
+            let member = super::stage_one_ned::member(sc, run, l, &paths.0[l])?;
             for ((out_e, truth_e), (own, truth)) in
                 out.iter_mut().zip(truth_by_epoch.iter_mut()).zip(member)
             {

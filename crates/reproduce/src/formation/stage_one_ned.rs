@@ -121,12 +121,63 @@ fn rotate6_between(c: &Matrix6, r_k: &Matrix3<f64>, r_j: &Matrix3<f64>) -> Matri
     block(r_k) * c * block(r_j).transpose()
 }
 
+/// What stage 1 of one member takes from the formation's flight alone: the
+/// truth in the tangent plane and on the Earth and what a perfect IMU
+/// measures along it. The same in every run, so computed once per campaign
+/// ([`MemberPath::new`]) and read by every run's [`member`]: the same
+/// numbers as computing them in each run.
+pub(super) struct MemberPath {
+    /// The truth at t = 0, on the Earth, and the ENU → NED rotation there.
+    start: (LocalLevelState, NedState, Matrix3<f64>),
+    /// Per IMU step, the perfect IMU's increment ([`ideal_increment`]).
+    ideal: Vec<ImuIncrement>,
+    /// Per epoch, the truth at the epoch, on the Earth, and the ENU → NED
+    /// rotation there.
+    epochs: Vec<(LocalLevelState, NedState, Matrix3<f64>)>,
+}
+
+impl MemberPath {
+    /// The path of member `l` over the flight.
+    pub(super) fn new(sc: &FormationScenario, l: usize) -> Self {
+        let frame = EarthFrame::new(sc);
+        let (epochs, steps, dt) = (sc.epochs(), sc.imu_steps_per_fix(), sc.imu_dt_s);
+        let start = sc.truth(l, 0.0);
+        let (start_e, t0) = frame.to_earth(&start);
+        let mut ideal = Vec::with_capacity(epochs * steps);
+        let mut at_epochs = Vec::with_capacity(epochs);
+        let mut prev = start;
+        let mut prev_e = start_e;
+        let mut previous: Option<ImuIncrement> = None;
+        for epoch in 0..epochs {
+            for s in 0..steps {
+                let t = (epoch * steps + s + 1) as f64 * dt;
+                let next = sc.truth(l, t);
+                let (next_e, _) = frame.to_earth(&next);
+                let increment = ideal_increment(previous.as_ref(), &prev_e, &next_e, dt);
+                ideal.push(increment);
+                previous = Some(increment);
+                prev = next;
+                prev_e = next_e;
+            }
+            let (_, t_true) = frame.to_earth(&prev);
+            at_epochs.push((prev, prev_e, t_true));
+        }
+        Self {
+            start: (start, start_e, t0),
+            ideal,
+            epochs: at_epochs,
+        }
+    }
+}
+
 /// Stage 1 of member `l` over the flight: per epoch, its INS* solution (in
-/// the tangent plane) and the truth.
+/// the tangent plane) and the truth; `path` is the member's
+/// [`MemberPath`].
 pub(super) fn member(
     sc: &FormationScenario,
     run: u64,
     l: usize,
+    path: &MemberPath,
 ) -> Result<Vec<(OwnSolution, LocalLevelState)>, EstimationError> {
     let frame = EarthFrame::new(sc);
     let epochs = sc.epochs();
@@ -150,8 +201,7 @@ pub(super) fn member(
     } = ErrorProcesses::new(sc);
     let i = &sc.initial;
     let mut rng = channel_rng(sc.seed, run, l as u64);
-    let start = sc.truth(l, 0.0);
-    let (start_e, t0) = frame.to_earth(&start);
+    let (_, start_e, t0) = path.start;
     // The flat model's draws (ENU), turned into the local NED.
     let psi = t0 * gauss3(&mut rng, &attitude_sigma);
     let dp0 = t0 * gauss3(&mut rng, &Vector3::repeat(i.position_sigma_m));
@@ -177,15 +227,9 @@ pub(super) fn member(
     let mut gnss_position = gauss3(&mut rng, &gnss_pos_sigma);
     let mut gnss_velocity = gauss3(&mut rng, &Vector3::repeat(gnss.velocity_sigma_mps));
     let mut out = Vec::with_capacity(epochs);
-    let mut prev = start;
-    let mut prev_e = start_e;
-    let mut previous: Option<ImuIncrement> = None;
     for epoch in 0..epochs {
         for s in 0..steps {
-            let t = (epoch * steps + s + 1) as f64 * dt;
-            let next = sc.truth(l, t);
-            let (next_e, _) = frame.to_earth(&next);
-            let ideal = ideal_increment(previous.as_ref(), &prev_e, &next_e, dt);
+            let ideal = &path.ideal[epoch * steps + s];
             // Draw as the flat model does (body forward–left–up), then turn.
             let gyro_err = gyro_bias + gauss3(&mut rng, &Vector3::repeat(gyro_noise));
             let accel_err = accel_bias + gauss3(&mut rng, &Vector3::repeat(accel_noise));
@@ -201,17 +245,14 @@ pub(super) fn member(
             lc.step_increment(&raw)?;
             accel_bias = accel_bias * ba_phi + gauss3(&mut rng, &Vector3::repeat(ba_q.sqrt()));
             gyro_bias = gyro_bias * bg_phi + gauss3(&mut rng, &Vector3::repeat(bg_q.sqrt()));
-            previous = Some(ideal);
-            prev = next;
-            prev_e = next_e;
         }
+        let (prev, prev_e, t_true) = path.epochs[epoch];
         let t = (epoch + 1) as f64 * sc.fix_interval_s;
         gnss_position = gnss_position * ep_phi
             + gauss3(&mut rng, &(gnss_pos_sigma * (1.0 - ep_phi * ep_phi).sqrt()));
         gnss_velocity = gnss_velocity * ev_phi + gauss3(&mut rng, &Vector3::repeat(ev_q.sqrt()));
         let white_p = gauss3(&mut rng, &Vector3::repeat(gnss.position_white_sigma_m));
         let white_v = gauss3(&mut rng, &Vector3::repeat(gnss.velocity_white_sigma_mps));
-        let (_, t_true) = frame.to_earth(&prev);
         let fix = |position_err_enu: Vector3<f64>, bias_ned: Vector3<f64>, velocity_err_enu| {
             (
                 prev_e
