@@ -85,7 +85,7 @@ nm=$(median "${n_times[@]}")
 km=$(median "${k_times[@]}")
 echo "== $(date -u +%Y-%m-%d), $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //'), $(nproc) cores; medians of $runs interleaved runs (wall time, process start to exit)"
 awk -v a="$am" -v n="$nm" -v k="$km" 'BEGIN {
-    printf "| program | median [s] | / KF-GINS | KF-GINS / it |\n| --- | --- | --- | --- |\n"
+    printf "| program | median \\[s\\] | / KF-GINS | KF-GINS / it |\n| --- | --- | --- | --- |\n"
     printf "| aidnav process --no-score, drive_0708.toml (RTS smoother on) | %.3f | %.3f | %.1f× |\n", a, a / k, k / a
     printf "| aidnav process --no-score, smoother off | %.3f | %.3f | %.1f× |\n", n, n / k, k / n
     printf "| KF-GINS (Release), same drive via aidnav convert | %.3f | 1 | 1× |\n", k

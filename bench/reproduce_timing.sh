@@ -69,7 +69,7 @@ awk -v cores="$cores" '
         return n % 2 ? v[(n + 1) / 2] : (v[n / 2] + v[n / 2 + 1]) / 2
     }
     END {
-        print "| job | wall [s] | CPU [s] | peak memory [MB] |"
+        print "| job | wall \\[s\\] | CPU \\[s\\] | peak memory \\[MB\\] |"
         print "| --- | --- | --- | --- |"
         printf "| `aidnav reproduce all --quiet` | %.2f | %.2f | %.1f |\n", median(wall["reproduce_all"]), median(cpu["reproduce_all"]), median(peak["reproduce_all"]) / 1024
         printf "| `aidnav process examples/drive_0708.toml` (scoring, smoothing) | %.2f | %.2f | %.1f |\n", median(wall["drive_process"]), median(cpu["drive_process"]), median(peak["drive_process"]) / 1024
