@@ -56,7 +56,7 @@ use nalgebra::{Matrix1, Matrix3, Vector1, Vector3};
 use serde::{Deserialize, Serialize};
 
 use aidnav_sim::faults::{FaultSpec, Outage, SigmaRange, plan};
-use aidnav_sim::monte_carlo::MonteCarlo;
+use aidnav_sim::monte_carlo::{Cancel, MonteCarlo};
 use aidnav_sim::rng::{channel_rng, standard_normal};
 
 /// One row of the experiment: which scheme (measurement policy and
@@ -769,7 +769,7 @@ pub fn illustrate(
 /// Run the experiment: [`finish`] of every run ([`run_range`] over
 /// `0..mc.runs`).
 pub fn run(sc: &AnomaliesScenario, mc: &MonteCarlo) -> Result<AnomaliesResult, EstimationError> {
-    finish(sc, run_range(sc, mc, 0..mc.runs)?)
+    finish_cancellable(sc, run_range(sc, mc, 0..mc.runs)?, &mc.cancel)
 }
 
 /// Runs `range` of the campaign (run k draws stream k of the seed and
@@ -796,6 +796,17 @@ pub fn run_range(
 pub fn finish(
     sc: &AnomaliesScenario,
     per_run: Vec<RunOut>,
+) -> Result<AnomaliesResult, EstimationError> {
+    finish_cancellable(sc, per_run, &Cancel::default())
+}
+
+/// [`finish`] whose per-type campaign (the runs it computes itself) stops
+/// when `cancel` is set, unwinding with [`Cancelled`](aidnav_sim::Cancelled) as
+/// the main campaign's runs do.
+pub fn finish_cancellable(
+    sc: &AnomaliesScenario,
+    per_run: Vec<RunOut>,
+    cancel: &Cancel,
 ) -> Result<AnomaliesResult, EstimationError> {
     let n = sc.epochs as f64;
     let rms = rms_per_estimator(&per_run, sc.epochs);
@@ -830,7 +841,7 @@ pub fn finish(
         example,
         outlier: illustrate(sc, &[fixed(1)], il.epochs)?,
         burst: illustrate(sc, &[fixed(il.burst_length)], il.epochs)?,
-        per_type: per_type(sc)?,
+        per_type: per_type(sc, cancel)?,
     })
 }
 
@@ -853,7 +864,7 @@ fn epoch_fraction(per_run: &[RunOut], epochs: usize, count: fn(&RunOut) -> usize
 /// same truth for every type and as run k of the main table) and stream
 /// `CHANNEL_PER_TYPE + type` of run k for the faults. Computed whole by
 /// [`finish`] (not in [`run_range`]'s chunks: it is a fixed, small campaign).
-fn per_type(sc: &AnomaliesScenario) -> Result<Vec<TypeScores>, EstimationError> {
+fn per_type(sc: &AnomaliesScenario, cancel: &Cancel) -> Result<Vec<TypeScores>, EstimationError> {
     let pt = &sc.per_type;
     if pt.runs == 0 {
         return Ok(Vec::new());
@@ -864,7 +875,9 @@ fn per_type(sc: &AnomaliesScenario) -> Result<Vec<TypeScores>, EstimationError> 
     let mut table = Vec::with_capacity(ANOMALY_TYPES.len());
     for (t, name) in ANOMALY_TYPES.iter().enumerate() {
         // No bar of its own: a few seconds beside the main campaign's.
-        let campaign = MonteCarlo::new(pt.runs, sc.seed).quiet();
+        let campaign = MonteCarlo::new(pt.runs, sc.seed)
+            .quiet()
+            .with_cancel(cancel.clone());
         let (specs, outages) = pt.faults(t, sc.epochs);
         let per_run = campaign.try_run(|k, rng| -> Result<RunOut, EstimationError> {
             let mut fault_rng = channel_rng(sc.seed, k as u64, CHANNEL_PER_TYPE + t as u64);
@@ -994,6 +1007,32 @@ mod tests {
                 .per_type
                 .is_empty()
         );
+    }
+
+    /// The per-type table's own campaign stops when the caller's token is
+    /// set, as the main campaign does: finishing the main runs with a set
+    /// token unwinds with `Cancelled` instead of computing the table.
+    #[test]
+    fn the_per_type_campaign_honours_the_cancel_token() {
+        let sc = AnomaliesScenario {
+            runs: 2,
+            per_type: PerTypeScenario {
+                runs: 2,
+                ..PerTypeScenario::default()
+            },
+            ..AnomaliesScenario::default()
+        };
+        let mc = MonteCarlo::new(sc.runs, sc.seed).quiet();
+        let per_run = run_range(&sc, &mc, 0..sc.runs).unwrap();
+        let cancel = Cancel::new();
+        cancel.cancel();
+        let r = Cancel::catch(|| finish_cancellable(&sc, per_run.clone(), &cancel));
+        assert!(matches!(r, Err(aidnav_sim::Cancelled)));
+        // Not set: the same table as `finish`.
+        let whole = finish(&sc, per_run.clone()).unwrap();
+        let again = finish_cancellable(&sc, per_run, &Cancel::new()).unwrap();
+        assert_eq!(whole.per_type.len(), again.per_type.len());
+        assert!(!whole.per_type.is_empty());
     }
 
     /// The scenario's new keys are range-checked by name.

@@ -261,6 +261,11 @@ impl Campaign {
     /// of [`run_chunk`](Self::run_chunk)) in run order, covering every run
     /// once: the same value, bit for bit, as [`summary`](Self::summary).
     pub fn finish(&self, chunks: &[Vec<u8>]) -> JobResult<Summary> {
+        // The anomalies' per-type table is a campaign of its own, run here.
+        Cancel::catch(|| self.finish_uncancelled(chunks))?
+    }
+
+    fn finish_uncancelled(&self, chunks: &[Vec<u8>]) -> JobResult<Summary> {
         let runs = self.runs();
         Ok(match &self.scenario {
             Scenario::Consistency(s) => {
@@ -273,8 +278,12 @@ impl Campaign {
                 &aidnav_reproduce::extended_state::finish(s, joined(chunks, runs)?)?,
             ),
             Scenario::Anomalies(s) => {
-                let r = aidnav_reproduce::anomalies::finish(s, joined(chunks, runs)?)
-                    .map_err(estimation("anomalies experiment"))?;
+                let r = aidnav_reproduce::anomalies::finish_cancellable(
+                    s,
+                    joined(chunks, runs)?,
+                    &self.cancel,
+                )
+                .map_err(estimation("anomalies experiment"))?;
                 anomalies_summary(s, &r)
             }
             Scenario::Outages(s) => outages_summary(
