@@ -149,13 +149,15 @@ impl EkfFusion {
         relative: &[RelativeMeasurement],
         predict: bool,
     ) -> Result<(), EstimationError> {
-        self.epoch_with_new_own(own, &vec![true; own.len()], relative, predict)
+        self.epoch_with_new_own(own, &[], relative, predict)
     }
 
     /// [`Self::epoch`] fusing member l's own solution only where `own_new[l]`
     /// (its stage 1 had a GNSS fix since the last epoch; otherwise its
     /// solution is a prediction from information already fused). Its
-    /// attitude still serves its relative measurements.
+    /// attitude still serves its relative measurements. Members beyond
+    /// `own_new`'s length count as new (`&[]`: every member, as
+    /// [`Self::epoch`]).
     pub fn epoch_with_new_own(
         &mut self,
         own: &[OwnSolution],
