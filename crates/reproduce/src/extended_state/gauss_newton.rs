@@ -41,6 +41,22 @@ fn gravity_gradient(r: &Vector3<f64>) -> Matrix3<f64> {
     (u * u.transpose() * 3.0 - Matrix3::identity()) * mu_over_d3
 }
 
+/// What parameters θ say: the instrument correction of its instrument
+/// part, and the INS at the first fix with its position and velocity
+/// errors (θ's first six) removed.
+fn apply_parameters(
+    start: &LaunchIns,
+    theta: &SVector<f64, STATES>,
+) -> (LaunchInstrumentErrors, LaunchIns) {
+    let m: [f64; ESTIMATED] = std::array::from_fn(|i| theta[NAVIGATION + i]);
+    let mut ins = *start;
+    for i in 0..3 {
+        ins.position[i] -= theta[i];
+        ins.velocity[i] -= theta[3 + i];
+    }
+    (LaunchInstrumentErrors::from_estimate(&m), ins)
+}
+
 /// The INS of parameters θ flown from the first fix to the last of
 /// `fixes`: J(θ), the normal matrix `P(0)⁻¹ + Σ Hᵀ R⁻¹ H` and the
 /// right-hand side `−(Σ Hᵀ R⁻¹ ν + P(0)⁻¹ θ)`, with ν = y − z and
@@ -55,13 +71,7 @@ fn linearise(
     r_inv: &SMatrix<f64, NAVIGATION, NAVIGATION>,
 ) -> (f64, Matrix14, SVector<f64, STATES>) {
     let dt = flight.traj.dt_s;
-    let m: [f64; ESTIMATED] = std::array::from_fn(|i| theta[NAVIGATION + i]);
-    let correction = LaunchInstrumentErrors::from_estimate(&m);
-    let mut ins = *start;
-    for i in 0..3 {
-        ins.position[i] -= theta[i];
-        ins.velocity[i] -= theta[3 + i];
-    }
+    let (correction, mut ins) = apply_parameters(start, theta);
     // ∂(position, velocity)/∂θ.
     let mut jr = SMatrix::<f64, 3, STATES>::zeros();
     let mut jv = SMatrix::<f64, 3, STATES>::zeros();
@@ -69,7 +79,7 @@ fn linearise(
         jr[(i, i)] = -1.0;
         jv[(i, 3 + i)] = -1.0;
     }
-    let scale = 1.0 / (1.0 + m[3]);
+    let scale = 1.0 / (1.0 + theta[NAVIGATION + 3]);
     let mut cost = (theta.transpose() * prior_information * theta)[0];
     let mut normal = *prior_information;
     let mut rhs = -(prior_information * theta);
@@ -178,13 +188,7 @@ pub(super) fn gauss_newton(
     if final_cost {
         costs.push(linearise(flight, start, fixes, &theta, &prior_information, &r_inv).0);
     }
-    let m: [f64; ESTIMATED] = std::array::from_fn(|i| theta[NAVIGATION + i]);
-    let correction = LaunchInstrumentErrors::from_estimate(&m);
-    let mut ins = *start;
-    for i in 0..3 {
-        ins.position[i] -= theta[i];
-        ins.velocity[i] -= theta[3 + i];
-    }
+    let (correction, ins) = apply_parameters(start, &theta);
     let error_m = flight.fly(
         Correction::Estimate(&correction),
         ins,
