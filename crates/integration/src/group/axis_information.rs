@@ -328,12 +328,7 @@ impl GroupAxisFilter {
         z: f64,
         sigma: f64,
     ) -> Result<(), EstimationError> {
-        match self.own_error_index(0, l) {
-            Some(b) => self
-                .info
-                .add_scalar(&[(l, 1.0), (b, 1.0)], sigma * sigma, z),
-            None => self.info.add_scalar(&[(l, 1.0)], sigma * sigma, z),
-        }
+        self.observe_own(l, 0, z, sigma)
     }
 
     /// Own velocity fix of member l (only with `observe_velocity`).
@@ -343,12 +338,24 @@ impl GroupAxisFilter {
         z: f64,
         sigma: f64,
     ) -> Result<(), EstimationError> {
-        let v = self.members + l;
-        match self.own_error_index(1, l) {
+        self.observe_own(l, 1, z, sigma)
+    }
+
+    /// Own fix of member l's position (`block` 0) or velocity (1): the
+    /// state plus, with own-error states, that block's error state.
+    fn observe_own(
+        &mut self,
+        l: usize,
+        block: usize,
+        z: f64,
+        sigma: f64,
+    ) -> Result<(), EstimationError> {
+        let state = block * self.members + l;
+        match self.own_error_index(block, l) {
             Some(b) => self
                 .info
-                .add_scalar(&[(v, 1.0), (b, 1.0)], sigma * sigma, z),
-            None => self.info.add_scalar(&[(v, 1.0)], sigma * sigma, z),
+                .add_scalar(&[(state, 1.0), (b, 1.0)], sigma * sigma, z),
+            None => self.info.add_scalar(&[(state, 1.0)], sigma * sigma, z),
         }
     }
 
