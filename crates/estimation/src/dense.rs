@@ -70,12 +70,32 @@ fn columns<I: Iterator<Item = usize> + Clone>(
         for kk in inner.clone() {
             let s = alpha * b(kk, j);
             let ac = &a[kk * r + row0..][..len];
-            for (o, &x) in oc.iter_mut().zip(ac) {
-                *o += x * s;
-            }
+            axpy(oc, ac, s);
         }
     }
 }
+
+/// `o += x · s` element by element (o and x of one length), in groups of
+/// [`LANES`]: each group is one vector operation whatever the instruction
+/// set (two SSE2 registers, one AVX2 register), which the compiler does not
+/// always find in a plain loop of a length such as 21 when AVX2 is enabled.
+/// The operations on each element are the plain loop's.
+#[inline(always)]
+fn axpy(o: &mut [f64], x: &[f64], s: f64) {
+    let (o4, o_rest) = o.as_chunks_mut::<LANES>();
+    let (x4, x_rest) = x.as_chunks::<LANES>();
+    for (o, x) in o4.iter_mut().zip(x4) {
+        for (o, &x) in o.iter_mut().zip(x) {
+            *o += x * s;
+        }
+    }
+    for (o, &x) in o_rest.iter_mut().zip(x_rest) {
+        *o += x * s;
+    }
+}
+
+/// Elements per group in [`axpy`].
+const LANES: usize = 4;
 
 /// out = α · a · B + β · out (see [`columns`]); with `lower`, a square out's
 /// lower triangle only, in [`LOWER_BLOCKS`] column blocks that each start at
@@ -319,8 +339,12 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
         gemm_nt_lower(out, 1.0, k, v, 1.0);
         return;
     }
-    let (vs, ks) = (v.as_slice(), k.as_slice());
-    let os = out.as_mut_slice();
+    rank_2k_lower_kernel(n, m, v.as_slice(), k.as_slice(), out.as_mut_slice());
+}
+
+/// The kernel of [`add_rank_2k_lower`] on column-major slices (v, k: n × m).
+#[inline(always)]
+fn rank_2k_lower_kernel(n: usize, m: usize, vs: &[f64], ks: &[f64], os: &mut [f64]) {
     let (s1, s2, s3) = lower_block_starts(n);
     rank_2k_columns(n, m, (0, 0..s1), vs, ks, os);
     rank_2k_columns(n, m, (s1, s1..s2), vs, ks, os);
@@ -354,16 +378,12 @@ fn rank_2k_columns(
         for l in 0..m {
             let s = ks[l * n + j];
             let ac = &vs[l * n + row0..][..len];
-            for (o, &x) in oc.iter_mut().zip(ac) {
-                *o += x * s;
-            }
+            axpy(oc, ac, s);
         }
         for l in 0..m {
             let s = vs[l * n + j];
             let ac = &ks[l * n + row0..][..len];
-            for (o, &x) in oc.iter_mut().zip(ac) {
-                *o += x * s;
-            }
+            axpy(oc, ac, s);
         }
     }
 }
@@ -493,13 +513,178 @@ pub(crate) fn solve_gain_in_place<N: Dim, M: Dim>(
     }
 }
 
+/// `out = Φ p Φᵀ + out` for a symmetric `out` and `p` (the time update's
+/// covariance, `out` holding Q on entry): Φ P as [`gemm`] computes it, then
+/// the lower triangle of (Φ P) Φᵀ as [`gemm_nt_lower`] does, and
+/// [`mirror_lower`]: the same operations in the same order, bit for bit,
+/// through [`run_widest`] (wider vectors where the CPU has them).
+pub(crate) fn add_congruence<D: Dim>(
+    out: &mut OMatrix<f64, D, D>,
+    phi: &OMatrix<f64, D, D>,
+    p: &OMatrix<f64, D, D>,
+) where
+    DefaultAllocator: Allocator<D, D>,
+{
+    let (nd, _) = p.shape_generic();
+    let n = nd.value();
+    let mut phi_p = OMatrix::<f64, D, D>::zeros_generic(nd, nd);
+    if use_kernel::<D, D, D>(n, n, n) {
+        run_widest(
+            Congruence { n: nd },
+            out.as_mut_slice(),
+            phi_p.as_mut_slice(),
+            phi.as_slice(),
+            p.as_slice(),
+        );
+    } else {
+        gemm(&mut phi_p, 1.0, phi, p, 0.0);
+        gemm_nt_lower(out, 1.0, &phi_p, phi, 1.0);
+        mirror_lower(out);
+    }
+}
+
+/// [`add_congruence`] on the column-major slices: `out` (n × n), `scratch`
+/// for Φ P (n × n), `a` = Φ, `b` = P.
+struct Congruence<D: Dim> {
+    n: D,
+}
+
+impl<D: Dim> Widened for Congruence<D> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
+        let n = self.n.value();
+        let nn = n * n;
+        let (out, phi_p, phi, p) = (&mut out[..nn], &mut scratch[..nn], &a[..nn], &b[..nn]);
+        // Φ P, as gemm(Φ P): b(kk, j) = P(kk, j).
+        let read_p = |kk: usize, j: usize| p[j * n + kk];
+        kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
+        // (Φ P) Φᵀ, lower, as gemm_nt_lower: b(kk, j) = Φ(j, kk).
+        let read_phi = |kk: usize, j: usize| phi[kk * n + j];
+        kernel((n, n), 0..n, 1.0, phi_p, read_phi, 1.0, out, true);
+        mirror_lower_slice(n, out);
+    }
+}
+
+/// The Joseph update's covariance in place, `p + V Kᵀ + K Vᵀ` with
+/// `V = α K S + β W` (`v` holds W on entry, V on return): V as [`gemm`]
+/// computes it, then [`add_rank_2k_lower`] and [`mirror_lower`]: the same
+/// operations in the same order, bit for bit, through [`run_widest`].
+pub(crate) fn joseph_rank_2k<N: Dim, M: Dim>(
+    p: &mut OMatrix<f64, N, N>,
+    v: &mut OMatrix<f64, N, M>,
+    gain: &OMatrix<f64, N, M>,
+    s: &OMatrix<f64, M, M>,
+    (alpha, beta): (f64, f64),
+) where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
+{
+    let (nd, md) = v.shape_generic();
+    let (n, m) = (nd.value(), md.value());
+    if use_kernel::<N, M, N>(n, m, n) && use_kernel::<N, M, M>(n, m, m) {
+        run_widest(
+            JosephRank2k {
+                n: nd,
+                m: md,
+                alpha,
+                beta,
+            },
+            p.as_mut_slice(),
+            v.as_mut_slice(),
+            gain.as_slice(),
+            s.as_slice(),
+        );
+    } else {
+        gemm(v, alpha, gain, s, beta);
+        add_rank_2k_lower(p, v, gain);
+        mirror_lower(p);
+    }
+}
+
+/// [`joseph_rank_2k`] on the column-major slices: `out` = P (n × n),
+/// `scratch` = W, then V (n × m), `a` = K (n × m), `b` = S (m × m).
+struct JosephRank2k<N: Dim, M: Dim> {
+    n: N,
+    m: M,
+    alpha: f64,
+    beta: f64,
+}
+
+impl<N: Dim, M: Dim> Widened for JosephRank2k<N, M> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
+        let (n, m) = (self.n.value(), self.m.value());
+        let (p, v, gain, s) = (
+            &mut out[..n * n],
+            &mut scratch[..n * m],
+            &a[..n * m],
+            &b[..m * m],
+        );
+        // V = α K S + β W, as gemm: b(kk, j) = S(kk, j).
+        let read_s = |kk: usize, j: usize| s[j * m + kk];
+        kernel((n, m), 0..m, self.alpha, gain, read_s, self.beta, v, false);
+        rank_2k_lower_kernel(n, m, v, gain, p);
+        mirror_lower_slice(n, p);
+    }
+}
+
+/// Work that [`run_widest`] may compile for a wider instruction set, on
+/// column-major slices: `out` and `scratch` written, `a` and `b` read.
+/// Every implementation marks `run` `#[inline(always)]`, so that its body
+/// (and the `#[inline(always)]` kernels it calls) is compiled into the
+/// dispatching function with that function's target features; the slices
+/// are that function's arguments, so the compiler knows that they do not
+/// overlap (matrices reached through a struct's fields lose that, and the
+/// output columns are no longer kept in registers).
+trait Widened {
+    /// Do the work.
+    fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]);
+}
+
+/// Run `work` with the widest vectors worth having on this CPU: on x86-64
+/// when AVX2 is not enabled at compile time (the default, portable build)
+/// but the CPU has it (detected once, then a cached load), the work
+/// compiled with AVX2; otherwise as compiled.
+///
+/// The result is the same bit for bit: the kernels are element-wise loops
+/// (each output element's multiplies and adds in a fixed order whatever the
+/// vector width; the compiler never reassociates floating-point sums), and
+/// FMA is not enabled (AVX2 does not imply it, and Rust never contracts a
+/// multiply and an add anyway), so only the number of elements per
+/// instruction changes.
+#[inline(always)]
+fn run_widest<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: `run_avx2`'s only requirement is that the CPU executes
+        // AVX2 instructions, which was just detected at run time.
+        unsafe {
+            run_avx2(work, out, scratch, a, b)
+        };
+        return;
+    }
+    work.run(out, scratch, a, b);
+}
+
+/// `work` compiled with AVX2 (see [`run_widest`]).
+#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+#[target_feature(enable = "avx2")]
+fn run_avx2<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
+    work.run(out, scratch, a, b);
+}
+
 /// Copy the lower triangle of a square matrix onto the upper one.
 pub(crate) fn mirror_lower<D: Dim>(m: &mut OMatrix<f64, D, D>)
 where
     DefaultAllocator: Allocator<D, D>,
 {
     let n = m.nrows();
-    let s = m.as_mut_slice();
+    mirror_lower_slice(n, m.as_mut_slice());
+}
+
+/// [`mirror_lower`] on a column-major n × n slice.
+#[inline(always)]
+fn mirror_lower_slice(n: usize, s: &mut [f64]) {
     for j in 1..n {
         for i in 0..j {
             s[j * n + i] = s[i * n + j];
@@ -510,7 +695,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{DMatrix, SMatrix};
+    use nalgebra::{DMatrix, Dyn, SMatrix};
 
     #[test]
     fn kernels_match_nalgebra() {
@@ -681,5 +866,113 @@ mod tests {
         add_rank_2k_lower(&mut fused, &v, &k);
         mirror_lower(&mut fused);
         assert_eq!(fused, two);
+    }
+
+    /// Seeded Gaussian n × c matrix.
+    fn random_matrix(rng: &mut rand_chacha::ChaCha8Rng, n: usize, c: usize) -> DMatrix<f64> {
+        use rand_distr::{Distribution, StandardNormal};
+        DMatrix::from_fn(n, c, |_, _| StandardNormal.sample(rng))
+    }
+
+    /// Seeded random symmetric positive definite n × n matrix.
+    fn random_covariance(rng: &mut rand_chacha::ChaCha8Rng, n: usize) -> DMatrix<f64> {
+        let a = random_matrix(rng, n, n);
+        let p = &a * a.transpose() / n as f64 + DMatrix::identity(n, n) * 0.1;
+        (&p + p.transpose()) * 0.5
+    }
+
+    /// The dispatched kernels (AVX2 on a CPU that has it, in the default
+    /// build) give the portable kernels' P bit for bit, exactly symmetric,
+    /// and the dense products' to rounding, on random inputs of several
+    /// sizes, run-time and compile-time sized.
+    #[test]
+    fn dispatched_kernels_equal_the_portable_ones_bit_for_bit() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+        for (n, m) in [
+            (1, 1),
+            (2, 1),
+            (3, 2),
+            (5, 3),
+            (8, 4),
+            (15, 6),
+            (21, 6),
+            (24, 8),
+            (32, 6),
+        ] {
+            for _ in 0..3 {
+                let phi = random_matrix(&mut rng, n, n) * 0.3 + DMatrix::identity(n, n);
+                let p = random_covariance(&mut rng, n);
+                let q = random_covariance(&mut rng, n) * 1e-3;
+                // Time update: dispatched, portable, dense reference.
+                let mut dispatched = q.clone();
+                add_congruence(&mut dispatched, &phi, &p);
+                let mut portable = q.clone();
+                let mut scratch = DMatrix::zeros(n, n);
+                let work = Congruence { n: Dyn(n) };
+                work.run(
+                    portable.as_mut_slice(),
+                    scratch.as_mut_slice(),
+                    phi.as_slice(),
+                    p.as_slice(),
+                );
+                assert_eq!(dispatched, portable, "Φ P Φᵀ + Q, n = {n}");
+                assert_eq!(dispatched, dispatched.transpose(), "symmetric, n = {n}");
+                let reference = &phi * &p * phi.transpose() + &q;
+                let scale = reference.abs().max();
+                assert!(
+                    (&dispatched - &reference).abs().max() <= 1e-12 * scale,
+                    "n = {n}"
+                );
+                // Joseph update: dispatched, portable, dense reference.
+                let gain = random_matrix(&mut rng, n, m) * 0.2;
+                let s = random_covariance(&mut rng, m) + DMatrix::identity(m, m);
+                let w = random_matrix(&mut rng, n, m);
+                let (mut p_dispatched, mut v_dispatched) = (p.clone(), w.clone());
+                joseph_rank_2k(&mut p_dispatched, &mut v_dispatched, &gain, &s, (0.5, -1.0));
+                let (mut p_portable, mut v_portable) = (p.clone(), w.clone());
+                let work = JosephRank2k {
+                    n: Dyn(n),
+                    m: Dyn(m),
+                    alpha: 0.5,
+                    beta: -1.0,
+                };
+                work.run(
+                    p_portable.as_mut_slice(),
+                    v_portable.as_mut_slice(),
+                    gain.as_slice(),
+                    s.as_slice(),
+                );
+                assert_eq!(v_dispatched, v_portable, "V, {n}×{m}");
+                assert_eq!(p_dispatched, p_portable, "Joseph P, {n}×{m}");
+                assert_eq!(p_dispatched, p_dispatched.transpose());
+                let v = &gain * &s * 0.5 - &w;
+                let reference = &p + &v * gain.transpose() + &gain * v.transpose();
+                let scale = reference.abs().max();
+                assert!((&p_dispatched - &reference).abs().max() <= 1e-12 * scale);
+            }
+        }
+        // Compile-time sizes (constant lengths, the bench's and the
+        // navigation filters' case) against the run-time sized portable run.
+        fn fixed<const N: usize>(rng: &mut rand_chacha::ChaCha8Rng) {
+            let phi = random_matrix(rng, N, N) * 0.3 + DMatrix::identity(N, N);
+            let p = random_covariance(rng, N);
+            let q = random_covariance(rng, N) * 1e-3;
+            let fixed = |m: &DMatrix<f64>| SMatrix::<f64, N, N>::from_column_slice(m.as_slice());
+            let mut dispatched = fixed(&q);
+            add_congruence(&mut dispatched, &fixed(&phi), &fixed(&p));
+            let mut portable = q.clone();
+            let mut scratch = DMatrix::zeros(N, N);
+            Congruence { n: Dyn(N) }.run(
+                portable.as_mut_slice(),
+                scratch.as_mut_slice(),
+                phi.as_slice(),
+                p.as_slice(),
+            );
+            assert_eq!(dispatched.as_slice(), portable.as_slice(), "N = {N}");
+        }
+        fixed::<15>(&mut rng);
+        fixed::<21>(&mut rng);
+        fixed::<9>(&mut rng);
     }
 }

@@ -240,16 +240,12 @@ where
         check::shape(q, (n, n), step, Matrix::Q)?;
         check::finite(q, step, Matrix::Q)?;
         let q_exactly_symmetric = check::symmetric(q, step, Matrix::Q)?;
-        let (nd, _) = self.p.shape_generic();
-        let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
-        dense::gemm(&mut phi_p, 1.0, phi, &self.p, 0.0);
         // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
         let mut p = q.clone();
         if !q_exactly_symmetric {
             check::symmetrize(&mut p);
         }
-        dense::gemm_nt_lower(&mut p, 1.0, &phi_p, phi, 1.0);
-        dense::mirror_lower(&mut p);
+        dense::add_congruence(&mut p, phi, &self.p);
         check::finite(&p, step, Matrix::P)?;
         self.p = p;
         Ok(())
@@ -487,9 +483,7 @@ where
             CovarianceUpdate::Joseph => {
                 // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
                 let mut v = cross.clone();
-                dense::gemm(&mut v, 0.5, gain, s_used, -1.0);
-                dense::add_rank_2k_lower(&mut p, &v, gain);
-                dense::mirror_lower(&mut p);
+                dense::joseph_rank_2k(&mut p, &mut v, gain, s_used, (0.5, -1.0));
             }
             CovarianceUpdate::Standard => {
                 // (I − K H) P = P − K (H P)
