@@ -84,27 +84,16 @@ fn columns<I: Iterator<Item = usize> + Clone>(
     }
 }
 
-/// `o += x · s` element by element (o and x of one length), in groups of
-/// [`LANES`]: each group is one vector operation whatever the instruction
-/// set (two SSE2 registers, one AVX2 register), which the compiler does not
-/// always find in a plain loop of a length such as 21 when AVX2 is enabled.
-/// The operations on each element are the plain loop's.
+/// `o += x · s` element by element (o and x of one length). (Not in
+/// explicit groups of four: that made run-time sized columns slower, and
+/// the compiler vectorises this plain loop well once it knows that o does
+/// not overlap x, see [`Widened`].)
 #[inline(always)]
 fn axpy(o: &mut [f64], x: &[f64], s: f64) {
-    let (o4, o_rest) = o.as_chunks_mut::<LANES>();
-    let (x4, x_rest) = x.as_chunks::<LANES>();
-    for (o, x) in o4.iter_mut().zip(x4) {
-        for (o, &x) in o.iter_mut().zip(x) {
-            *o += x * s;
-        }
-    }
-    for (o, &x) in o_rest.iter_mut().zip(x_rest) {
+    for (o, &x) in o.iter_mut().zip(x) {
         *o += x * s;
     }
 }
-
-/// Elements per group in [`axpy`].
-const LANES: usize = 4;
 
 /// out = α · a · B + β · out (see [`columns`]); with `lower`, a square out's
 /// lower triangle only, in [`LOWER_BLOCKS`] column blocks that each start at
