@@ -27,9 +27,9 @@
 //! (portable x86-64, SSE2) build, on a CPU with AVX2, the same code compiled
 //! with AVX2 — four elements per instruction instead of two, the same
 //! operations on each element in the same order, no FMA — so P is the same
-//! bit for bit on every machine, and 21 states / 6 measurements run 1.4×
-//! faster. The one `unsafe` call of the crate is that dispatch, after
-//! run-time detection.
+//! bit for bit on every machine, and one predict + update at 21 states /
+//! 6 measurements runs about 1.3× faster. The one `unsafe` call of the
+//! crate is that dispatch, after run-time detection.
 
 use nalgebra::{DefaultAllocator, Dim, OMatrix, allocator::Allocator};
 
@@ -368,7 +368,8 @@ fn rank_2k_columns(
         // matrices as the dispatching function's slice arguments the
         // compiler knows they do not overlap, and the opaque reference,
         // which had stopped it vectorising across the columns j with
-        // gathers, now made the -C target-cpu=native update 1.5× slower.)
+        // gathers, now made the -C target-cpu=native step slower: 21/6,
+        // 7.6 → 6.0 µs without it, interleaved pairs on a loaded machine.)
         // (Two plain loops: a loop over the pair of operands stops the
         // compiler from keeping the column in registers.)
         for l in 0..m {
