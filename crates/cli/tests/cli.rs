@@ -1313,3 +1313,55 @@ fn convert_help_and_errors() {
     ]);
     assert!(err.contains("kf-gins"), "{err}");
 }
+
+/// `reproduce all` runs some experiments beside others (one rayon pool):
+/// every file of those it runs beside is the same as the experiment's run
+/// alone, and the tables come out in the list's order.
+#[test]
+fn reproduce_all_writes_what_each_experiment_writes_alone_in_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let all = dir.path().join("all");
+    let stdout = reproduce("all", &["--runs", "1", "--quiet"], &all);
+    let folders = [
+        "consistency",
+        "extended_state",
+        "anomalies",
+        "outages",
+        "group",
+        "formation",
+        "formation_network",
+    ];
+    let at: Vec<usize> = folders
+        .iter()
+        .map(|f| {
+            let wrote = format!("wrote {}/", all.join(f).display());
+            stdout
+                .find(&wrote)
+                .unwrap_or_else(|| panic!("{wrote} missing in:\n{stdout}"))
+        })
+        .collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "{at:?}\n{stdout}");
+    for (experiment, folder) in [
+        ("outages", "outages"),
+        ("group", "group"),
+        ("formation-network", "formation_network"),
+    ] {
+        let alone = dir.path().join(folder);
+        reproduce(experiment, &["--runs", "1", "--quiet"], &alone);
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&alone)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        files.sort();
+        assert!(!files.is_empty(), "{folder}");
+        for file in files {
+            let name = file.file_name().unwrap();
+            assert!(
+                std::fs::read(&file).unwrap()
+                    == std::fs::read(all.join(folder).join(name)).unwrap(),
+                "{folder}/{} differs",
+                name.to_string_lossy()
+            );
+        }
+    }
+}
