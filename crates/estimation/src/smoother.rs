@@ -19,8 +19,9 @@ use nalgebra::{
 };
 
 use crate::check;
-use crate::dense::{gemm, gemm_nt};
+use crate::dense::gemm;
 use crate::error::{EstimationError, Matrix, Result, Step};
+use crate::structured::{TrailingDiagonal, times_transpose};
 
 /// One epoch of a stored forward pass.
 #[derive(Debug, Clone, PartialEq)]
@@ -200,8 +201,17 @@ impl<const N: usize> RtsStep<N> {
         // P⁻_k = L Lᵀ: C = Z L⁻ᵀ L⁻¹ by two triangular solves from the
         // right (W = Z L⁻ᵀ, then C = W L⁻¹), and C P⁻_k Cᵀ = W Wᵀ.
         let l = chol.l_dirty();
+        // Z = P_j Φᵀ at the cost of Φ's full rows (a navigation filter's
+        // instrument rows are diagonal), bit for bit the dense product.
         let mut w = SMatrix::<f64, N, N>::zeros();
-        gemm_nt(&mut w, 1.0, p_j, phi, 0.0);
+        let full_rows = TrailingDiagonal::of(phi).full_rows();
+        times_transpose(
+            N,
+            full_rows,
+            p_j.as_slice(),
+            phi.as_slice(),
+            w.as_mut_slice(),
+        );
         solve_right_lower_transposed(l, &mut w);
         let mut delta = *p_j;
         add_symmetric_product(&mut delta, &(-w), &w);
@@ -419,9 +429,19 @@ impl<const N: usize> RtsRecorder<N> {
             self.phi = *phi;
         } else if self.map.is_some() {
             // Only the steps after the first mark are ever composed.
+            // Φ (Φ_acc) as ((Φ_acc)ᵀ Φᵀ)ᵀ: the same products in the same
+            // order as the dense Φ Φ_acc, at the cost of Φ's full rows.
+            let full_rows = TrailingDiagonal::of(phi).full_rows();
+            let turned = self.phi.transpose();
             let mut product = SMatrix::<f64, N, N>::zeros();
-            gemm(&mut product, 1.0, phi, &self.phi, 0.0);
-            self.phi = product;
+            times_transpose(
+                N,
+                full_rows,
+                turned.as_slice(),
+                phi.as_slice(),
+                product.as_mut_slice(),
+            );
+            self.phi = product.transpose();
         }
         self.epoch += 1;
         self.x_predicted = *x_predicted;

@@ -81,8 +81,10 @@ impl TrailingDiagonal {
     where
         DefaultAllocator: Allocator<N, N>,
     {
-        phi.nrows() == phi.ncols()
-            && (self.full_rows..phi.nrows()).all(|i| row_is_diagonal(phi, i))
+        let n = phi.nrows();
+        phi.ncols() == n
+            && (self.full_rows >= n
+                || trailing_rows_are_diagonal(n, self.full_rows, phi.as_slice()))
     }
 }
 
@@ -94,6 +96,17 @@ where
     let n = phi.nrows();
     let s = phi.as_slice();
     (0..n).all(|j| j == i || s[j * n + i] == 0.0)
+}
+
+/// Whether the rows from r on of the square (n × n, column-major) `phi`
+/// are zero off the diagonal, read column by column (contiguous).
+fn trailing_rows_are_diagonal(n: usize, r: usize, phi: &[f64]) -> bool {
+    (0..n).all(|j| {
+        phi[j * n + r..(j + 1) * n]
+            .iter()
+            .enumerate()
+            .all(|(t, &v)| v == 0.0 || r + t == j)
+    })
 }
 
 impl<N: Dim> KalmanFilter<N>
@@ -158,8 +171,18 @@ where
         check::finite(q, step, Matrix::Q)?;
         let q_exactly_symmetric = check::symmetric(q, step, Matrix::Q)?;
         let (nd, _) = self.p.shape_generic();
+        let mut scratch = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
         let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
-        phi_times_symmetric(n, r, phi.as_slice(), self.p.as_slice(), phi_p.as_mut_slice());
+        // (Φ P)ᵀ = P Φᵀ column by column (P is exactly symmetric), then
+        // turned over: the second product reads Φ P by columns.
+        times_transpose(
+            n,
+            r,
+            self.p.as_slice(),
+            phi.as_slice(),
+            scratch.as_mut_slice(),
+        );
+        transpose(n, scratch.as_slice(), phi_p.as_mut_slice());
         // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
         let mut p = q.clone();
         if !q_exactly_symmetric {
@@ -173,53 +196,97 @@ where
     }
 }
 
-/// `out = Φ P` (column-major n × n) for a Φ whose rows from r on are
-/// diagonal and a symmetric P. Rows 0..r: each column accumulates
-/// `Φ(0..r, k) P(k, j)` in increasing k, as the dense kernel; rows i ≥ r:
-/// `Φ(i, i) P(i, j)`, after `0 +` so that a zero product is +0 as the dense
-/// sum from +0 gives.
+/// `out = S Φᵀ` (column-major n × n) for a Φ whose rows from r on are
+/// diagonal and any S; with S = P symmetric it is (Φ P)ᵀ. Column j < r
+/// accumulates `S(·, k) Φ(j, k)` in increasing k — element (i, j) is the
+/// dense kernels' `Σ_k Φ(j, k) P(k, i)`, the same products in the same
+/// order — with the whole column in registers for fixed sizes; column
+/// j ≥ r is `S(·, j) Φ(j, j)`, after `0 +` so that a zero product is +0
+/// as the dense sum from +0 gives.
 #[inline]
-fn phi_times_symmetric(n: usize, r: usize, phi: &[f64], p: &[f64], out: &mut [f64]) {
+pub(crate) fn times_transpose(n: usize, r: usize, s: &[f64], phi: &[f64], out: &mut [f64]) {
     for j in 0..n {
-        let (head, tail) = out[j * n..(j + 1) * n].split_at_mut(r);
-        head.fill(0.0);
-        let pj = &p[j * n..(j + 1) * n];
-        for (k, &s) in pj.iter().enumerate() {
-            let a = &phi[k * n..k * n + r];
-            for (o, &x) in head.iter_mut().zip(a) {
-                *o += x * s;
+        let oc = &mut out[j * n..(j + 1) * n];
+        if j < r {
+            oc.fill(0.0);
+            for k in 0..n {
+                let f = phi[k * n + j];
+                let sc = &s[k * n..(k + 1) * n];
+                for (o, &x) in oc.iter_mut().zip(sc) {
+                    *o += x * f;
+                }
             }
-        }
-        for (t, o) in tail.iter_mut().enumerate() {
-            let i = r + t;
-            *o = 0.0 + phi[i * n + i] * pj[i];
+        } else {
+            let f = phi[j * n + j];
+            let sc = &s[j * n..(j + 1) * n];
+            for (o, &x) in oc.iter_mut().zip(sc) {
+                *o = 0.0 + x * f;
+            }
         }
     }
 }
 
-/// The lower triangle of `out += W Φᵀ` (column-major n × n; the elements
-/// above the diagonal are left as they were: follow with a mirror) for
-/// W = Φ P and a Φ whose rows from r on are diagonal. Column j < r: the
-/// rows j..n accumulate `W(·, k) Φ(j, k)` in increasing k, as the dense
-/// kernel; column j ≥ r: `W(·, j) Φ(j, j)`, its only nonzero term.
+/// `out = aᵀ` (column-major n × n).
 #[inline]
-fn add_times_transpose_lower(n: usize, r: usize, w: &[f64], phi: &[f64], out: &mut [f64]) {
-    for j in 0..r {
-        let oc = &mut out[j * n + j..(j + 1) * n];
+fn transpose(n: usize, a: &[f64], out: &mut [f64]) {
+    for j in 0..n {
+        for (i, o) in out[j * n..(j + 1) * n].iter_mut().enumerate() {
+            *o = a[i * n + j];
+        }
+    }
+}
+
+/// First rows of the column blocks 1–3 of a lower-triangle product: even,
+/// at or above the block's first column, a compile-time constant for fixed
+/// sizes (so each block's column length is one), as the dense kernels'.
+#[inline(always)]
+fn lower_block_starts(n: usize) -> (usize, usize, usize) {
+    let start = |b: usize| (b * n / 4) & !1;
+    (start(1), start(2), start(3))
+}
+
+/// Columns `cols` of `out += W Φᵀ`, rows `row0..n`: each accumulates
+/// `W(·, k) Φ(j, k)` in increasing k (the column in registers for fixed
+/// sizes).
+#[inline(always)]
+fn full_columns(
+    n: usize,
+    (row0, cols): (usize, std::ops::Range<usize>),
+    w: &[f64],
+    phi: &[f64],
+    out: &mut [f64],
+) {
+    for j in cols {
+        let oc = &mut out[j * n + row0..(j + 1) * n];
         for k in 0..n {
-            let s = phi[k * n + j];
-            let a = &w[k * n + j..(k + 1) * n];
-            for (o, &x) in oc.iter_mut().zip(a) {
-                *o += x * s;
+            let f = phi[k * n + j];
+            let wc = &w[k * n + row0..(k + 1) * n];
+            for (o, &x) in oc.iter_mut().zip(wc) {
+                *o += x * f;
             }
         }
     }
+}
+
+/// The lower triangle of `out += W Φᵀ` (column-major n × n; elements above
+/// the diagonal are left unspecified: follow with a mirror) for W = Φ P and
+/// a Φ whose rows from r on are diagonal. Columns j < r: `W(·, k) Φ(j, k)`
+/// in increasing k, as the dense kernel, in its column blocks; column
+/// j ≥ r: `W(·, j) Φ(j, j)`, its only nonzero term.
+#[inline]
+fn add_times_transpose_lower(n: usize, r: usize, w: &[f64], phi: &[f64], out: &mut [f64]) {
+    let (s1, s2, s3) = lower_block_starts(n);
+    // Four calls, not a loop: each inlines with its own constant row count.
+    full_columns(n, (0, 0..s1.min(r)), w, phi, out);
+    full_columns(n, (s1, s1..s2.min(r)), w, phi, out);
+    full_columns(n, (s2, s2..s3.min(r)), w, phi, out);
+    full_columns(n, (s3, s3..r), w, phi, out);
     for j in r..n {
-        let s = phi[j * n + j];
+        let f = phi[j * n + j];
         let oc = &mut out[j * n + j..(j + 1) * n];
-        let a = &w[j * n + j..(j + 1) * n];
-        for (o, &x) in oc.iter_mut().zip(a) {
-            *o += x * s;
+        let wc = &w[j * n + j..(j + 1) * n];
+        for (o, &x) in oc.iter_mut().zip(wc) {
+            *o += x * f;
         }
     }
 }
@@ -304,6 +371,29 @@ mod tests {
                 let p = structured.covariance();
                 assert_eq!(p, &p.transpose(), "P exactly symmetric");
             }
+        }
+    }
+
+    /// `S Φᵀ` for any S (the smoother's P Φᵀ and its Φ Φ_acc turned
+    /// over): the dense product bit for bit.
+    #[test]
+    fn the_transpose_product_equals_the_dense_one_bit_for_bit() {
+        let mut rng = StdRng::seed_from_u64(23);
+        for full_rows in [0, 4, 9, 21] {
+            let phi = structured_phi::<21>(&mut rng, full_rows);
+            let s = SMatrix::<f64, 21, 21>::from_fn(|_, _| rng.random_range(-2.0..2.0));
+            let mut out = SMatrix::<f64, 21, 21>::zeros();
+            times_transpose(
+                21,
+                full_rows,
+                s.as_slice(),
+                phi.as_slice(),
+                out.as_mut_slice(),
+            );
+            let mut dense = SMatrix::<f64, 21, 21>::zeros();
+            dense::gemm_nt(&mut dense, 1.0, &s, &phi, 0.0);
+            let bits = |m: &SMatrix<f64, 21, 21>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&out), bits(&dense), "{full_rows} full rows");
         }
     }
 
