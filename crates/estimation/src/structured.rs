@@ -100,13 +100,16 @@ where
 
 /// Whether the rows from r on of the square (n × n, column-major) `phi`
 /// are zero off the diagonal, read column by column (contiguous).
+/// Without early exits, so that the loop vectorises (Φ has the structure
+/// nearly always; a check that stops early saves nothing then).
 fn trailing_rows_are_diagonal(n: usize, r: usize, phi: &[f64]) -> bool {
-    (0..n).all(|j| {
-        phi[j * n + r..(j + 1) * n]
-            .iter()
-            .enumerate()
-            .all(|(t, &v)| v == 0.0 || r + t == j)
-    })
+    let mut off_diagonal = false;
+    for j in 0..n {
+        for (i, &v) in phi[j * n + r..(j + 1) * n].iter().enumerate() {
+            off_diagonal |= (v != 0.0) & (r + i != j);
+        }
+    }
+    !off_diagonal
 }
 
 impl<N: Dim> KalmanFilter<N>
@@ -203,7 +206,7 @@ where
 /// order — with the whole column in registers for fixed sizes; column
 /// j ≥ r is `S(·, j) Φ(j, j)`, after `0 +` so that a zero product is +0
 /// as the dense sum from +0 gives.
-#[inline]
+#[inline(always)]
 pub(crate) fn times_transpose(n: usize, r: usize, s: &[f64], phi: &[f64], out: &mut [f64]) {
     for j in 0..n {
         let oc = &mut out[j * n..(j + 1) * n];
@@ -227,7 +230,7 @@ pub(crate) fn times_transpose(n: usize, r: usize, s: &[f64], phi: &[f64], out: &
 }
 
 /// `out = aᵀ` (column-major n × n).
-#[inline]
+#[inline(always)]
 fn transpose(n: usize, a: &[f64], out: &mut [f64]) {
     for j in 0..n {
         for (i, o) in out[j * n..(j + 1) * n].iter_mut().enumerate() {
@@ -273,7 +276,7 @@ fn full_columns(
 /// a Φ whose rows from r on are diagonal. Columns j < r: `W(·, k) Φ(j, k)`
 /// in increasing k, as the dense kernel, in its column blocks; column
 /// j ≥ r: `W(·, j) Φ(j, j)`, its only nonzero term.
-#[inline]
+#[inline(always)]
 fn add_times_transpose_lower(n: usize, r: usize, w: &[f64], phi: &[f64], out: &mut [f64]) {
     let (s1, s2, s3) = lower_block_starts(n);
     // Four calls, not a loop: each inlines with its own constant row count.
