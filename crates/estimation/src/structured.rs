@@ -67,10 +67,16 @@ impl TrailingDiagonal {
     where
         DefaultAllocator: Allocator<N, N>,
     {
+        // One past the last row with an off-diagonal nonzero, read column
+        // by column without early exits (contiguous, vectorises).
         let n = phi.nrows();
-        let mut full_rows = n;
-        while full_rows > 0 && row_is_diagonal(phi, full_rows - 1) {
-            full_rows -= 1;
+        let s = phi.as_slice();
+        let mut full_rows = 0;
+        for j in 0..n {
+            for (i, &v) in s[j * n..(j + 1) * n].iter().enumerate() {
+                let off = (v != 0.0) & (i != j);
+                full_rows = full_rows.max(if off { i + 1 } else { 0 });
+            }
         }
         Self { full_rows }
     }
@@ -86,16 +92,6 @@ impl TrailingDiagonal {
             && (self.full_rows >= n
                 || trailing_rows_are_diagonal(n, self.full_rows, phi.as_slice()))
     }
-}
-
-/// Whether row i of the square `phi` is zero off the diagonal.
-fn row_is_diagonal<N: Dim>(phi: &OMatrix<f64, N, N>, i: usize) -> bool
-where
-    DefaultAllocator: Allocator<N, N>,
-{
-    let n = phi.nrows();
-    let s = phi.as_slice();
-    (0..n).all(|j| j == i || s[j * n + i] == 0.0)
 }
 
 /// Whether the rows from r on of the square (n × n, column-major) `phi`
@@ -350,6 +346,12 @@ mod tests {
         let mut last_full = SMatrix::<f64, 4, 4>::identity();
         last_full[(3, 0)] = 0.5;
         assert_eq!(TrailingDiagonal::of(&last_full), TrailingDiagonal::new(4));
+        // A diagonal row among full ones does not end the full rows.
+        let mut gap = SMatrix::<f64, 4, 4>::identity();
+        gap[(0, 3)] = 0.1;
+        gap[(2, 1)] = -0.2;
+        assert_eq!(TrailingDiagonal::of(&gap), TrailingDiagonal::new(3));
+        assert!(!TrailingDiagonal::new(1).holds(&gap));
     }
 
     /// Fixed size 21 (the navigation filter's), 9 full rows and others: the
