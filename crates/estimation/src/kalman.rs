@@ -120,7 +120,7 @@ where
     DefaultAllocator: Allocator<N> + Allocator<N, N>,
 {
     x: OVector<f64, N>,
-    p: OMatrix<f64, N, N>,
+    pub(crate) p: OMatrix<f64, N, N>,
     covariance_update: CovarianceUpdate,
 }
 

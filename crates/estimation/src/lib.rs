@@ -14,6 +14,9 @@
 //!   classical robust pre-filters seed 004 lists: running median, Tukey 53H
 //!   ([`prefilter`]).
 //! - sequential scalar update for diagonal R ([`KalmanFilter::update_sequential`]).
+//! - time update for a Φ whose trailing rows are diagonal (states that
+//!   evolve on their own), at the cost of its leading rows only
+//!   ([`KalmanFilter::predict_structured`], [`TrailingDiagonal`]).
 //! - information form and the Fisher / Cramér–Rao recursion ([`InformationFilter`],
 //!   [`FisherInformation`]).
 //! - information-form update for many sparse observations on a dense
@@ -68,6 +71,7 @@ pub mod recovery;
 pub mod riccati;
 pub mod scheme;
 pub mod smoother;
+pub mod structured;
 pub mod subspace;
 
 pub use batch::{
@@ -91,6 +95,7 @@ pub use policy::{
 pub use riccati::{SteadyState, steady_state_covariance};
 pub use scheme::{NoiseRule, Scheme, SchemeParameters, SchemePolicy};
 pub use smoother::{ForwardEpoch, RtsRecorder, SmoothedEpoch, rts_smooth};
+pub use structured::TrailingDiagonal;
 pub use subspace::{SparseInformation, SubspaceUpdate};
 
 /// The linear-algebra crate the engine is written in, re-exported so users

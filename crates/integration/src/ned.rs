@@ -469,7 +469,8 @@ impl NedFilter {
         self.pending_force = Vec3::zeros();
         self.pending_angle = Vec3::zeros();
         self.pending_dt = 0.0;
-        self.kf.predict(&phi, &q)?;
+        self.kf
+            .predict_structured(&phi, &q, NedErrorModel::TRANSITION)?;
         if let Some(m) = self.monitor.as_mut() {
             m.fisher.propagate(&phi)?;
         }

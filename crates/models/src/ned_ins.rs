@@ -29,6 +29,7 @@
 //! assert_eq!(f[(3, 6 + 1)], 9.8);
 //! ```
 
+use aidnav_estimation::TrailingDiagonal;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -251,6 +252,14 @@ pub struct NedErrorModel {
 }
 
 impl NedErrorModel {
+    /// The structure of every Φ of [`discrete`](Self::discrete): rows of
+    /// position, velocity and attitude error may couple to any state, the
+    /// instruments' Gauss–Markov rows (from [`GYRO_BIAS`] on) hold only their
+    /// diagonal element — F's rows there are diagonal, so are those of
+    /// (FΔt)². The filter's time update costs the 9 leading rows only
+    /// ([`KalmanFilter::predict_structured`](aidnav_estimation::KalmanFilter::predict_structured)).
+    pub const TRANSITION: TrailingDiagonal = TrailingDiagonal::new(GYRO_BIAS);
+
     /// F at attitude C_b^n, body specific force f^b and rate ω^b, Earth rate
     /// ω_ie and transport rate ω_en (NED), latitude-free gravity gradient at
     /// about g/R.
@@ -466,6 +475,9 @@ mod tests {
         assert!((phi - dense_phi).abs().max() < 1e-15);
         assert!((q - dense_q).abs().max() < 1e-18);
         assert!((q - q.transpose()).abs().max() == 0.0);
+        // The declared structure holds, and no tighter one does.
+        assert!(NedErrorModel::TRANSITION.holds(&phi));
+        assert_eq!(TrailingDiagonal::of(&phi), NedErrorModel::TRANSITION);
     }
 
     /// The loop over every (k, i, j) that `discrete` replaced: the
