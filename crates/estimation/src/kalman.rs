@@ -623,3 +623,16 @@ where
     chol: Cholesky<f64, M>,
     nis: f64,
 }
+
+impl<N: Dim> KalmanFilter<N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    /// Set the covariance to `p` without the checks of
+    /// [`set_covariance`](Self::set_covariance): for the batch's steady
+    /// state, whose `p` is a covariance this filter's own full step
+    /// computed (finite, symmetric by construction).
+    pub(crate) fn set_covariance_computed(&mut self, p: &OMatrix<f64, N, N>) {
+        self.p.copy_from(p);
+    }
+}
