@@ -12,7 +12,7 @@ use nalgebra::{
 
 use crate::check;
 use crate::error::{EstimationError, Matrix, Result, Step};
-use crate::kalman::{FilterAllocator, KalmanFilter};
+use crate::kalman::{Decided, FilterAllocator, KalmanFilter};
 use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
 use crate::smoother::ForwardEpoch;
 
@@ -291,23 +291,6 @@ where
     }
 }
 
-/// A decision already made, handed to the full update: the steady path
-/// asked the policy and then found it needs the full step (anything but an
-/// accepted update); asking a policy twice could change its state.
-struct Replay<M: Dim>(Option<Decision<M>>)
-where
-    DefaultAllocator: Allocator<M> + Allocator<M, M>;
-
-impl<M: Dim> MeasurementPolicy<M> for Replay<M>
-where
-    DefaultAllocator: Allocator<M> + Allocator<M, M>,
-{
-    fn decide(&mut self, _view: &InnovationView<'_, M>) -> Decision<M> {
-        // The update asks once; Reject is never reached.
-        self.0.take().unwrap_or(Decision::Reject)
-    }
-}
-
 /// Whether two matrices hold the same bits (not `==`: 0.0 and −0.0 differ
 /// here, and a NaN equals itself).
 fn same_bits<R: Dim, C: Dim>(a: &OMatrix<f64, R, C>, b: &OMatrix<f64, R, C>) -> bool
@@ -390,6 +373,13 @@ where
     h: &'a OMatrix<f64, Dyn, N>,
     r: &'a DMatrix<f64>,
     keep: BatchKeep,
+    /// Q as the prediction uses it ((Q + Qᵀ)/2 unless exactly symmetric)
+    /// when Φ, Q, H and R passed their checks once for the batch (shapes,
+    /// finite, Q symmetric, R exactly symmetric: every selection of its
+    /// rows and columns then passes the update's check too): the epochs
+    /// then skip the checks of these constants. None: every epoch checks
+    /// them, and names the epoch where one fails.
+    q_symmetric: Option<OMatrix<f64, N, N>>,
     /// The current run of full steps (to find a cycle).
     recent: Recent<N>,
     /// False once the steady path's arithmetic disagreed with the full
@@ -398,6 +388,53 @@ where
     steady_allowed: bool,
     /// Epochs computed in the steady state.
     steady_epochs: usize,
+}
+
+impl<N: Dim> BatchModel<'_, N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    /// The prediction of the full step, its constants' checks skipped
+    /// when they passed once for the batch.
+    fn predict(&self, kf: &mut KalmanFilter<N>) -> Result<()> {
+        match &self.q_symmetric {
+            Some(q) => kf.predict_prechecked(self.phi, q),
+            None => kf.predict(self.phi, self.q),
+        }
+    }
+}
+
+/// Q as the prediction uses it when Φ, Q, H and R pass the checks every
+/// epoch would make of them (see [`BatchModel::q_symmetric`]); None
+/// otherwise (or with R not exactly symmetric: a selection of its rows and
+/// columns is checked against its own largest element).
+fn prechecked<N: Dim>(
+    phi: &OMatrix<f64, N, N>,
+    q: &OMatrix<f64, N, N>,
+    h: &OMatrix<f64, Dyn, N>,
+    r: &DMatrix<f64>,
+    n: usize,
+) -> Option<OMatrix<f64, N, N>>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    let shapes = phi.shape() == (n, n)
+        && q.shape() == (n, n)
+        && h.ncols() == n
+        && r.shape() == (h.nrows(), h.nrows());
+    let finite = check::all_finite(phi.as_slice())
+        && check::all_finite(q.as_slice())
+        && check::all_finite(h.as_slice())
+        && check::all_finite(r.as_slice());
+    if !(shapes && finite) || check::symmetric(r, Step::Update, Matrix::R) != Ok(true) {
+        return None;
+    }
+    let q_exactly_symmetric = check::symmetric(q, Step::Predict, Matrix::Q).ok()?;
+    let mut q_symmetric = q.clone();
+    if !q_exactly_symmetric {
+        check::symmetrize(&mut q_symmetric);
+    }
+    Some(q_symmetric)
 }
 
 /// One epoch's update and what it reports.
@@ -450,7 +487,11 @@ where
         let ph = &st.phases[j];
         // The full step's arithmetic on the state (kalman.rs: predict_state,
         // innovation, apply), the covariance work skipped.
-        kf.predict_state(model.phi)?;
+        if model.q_symmetric.is_some() {
+            kf.predict_state_prechecked(model.phi)?;
+        } else {
+            kf.predict_state(model.phi)?;
+        }
         let predicted = model
             .keep
             .forward
@@ -496,7 +537,7 @@ where
             .keep
             .forward
             .then(|| (kf.state().clone(), kf.covariance().clone()));
-        let rec = kf.update_with(&z, &st.h, &st.r, &mut Replay(Some(decision)))?;
+        let rec = kf.update_with(&z, &st.h, &st.r, &mut Decided(Some(decision)))?;
         for (j, &i) in present.iter().enumerate() {
             residuals[i] = rec.residual[j];
         }
@@ -512,16 +553,17 @@ where
     let rc =
         OMatrix::<f64, M, M>::from_fn_generic(md, md, |i, j| model.r[(present[i], present[j])]);
     if predict {
-        kf.predict(model.phi, model.q)?;
+        model.predict(kf)?;
     }
     let x_predicted = kf.state().clone();
     let predicted = model
         .keep
         .forward
         .then(|| (x_predicted.clone(), kf.covariance().clone()));
-    let rec = match policy {
-        None => kf.update_with(&z, &hc, &rc, &mut AcceptAll),
-        Some(p) => kf.update_with(&z, &hc, &rc, p),
+    let rec = match (&model.q_symmetric, policy) {
+        (Some(_), policy) => kf.update_prechecked(&z, &hc, &rc, policy),
+        (None, None) => kf.update_with(&z, &hc, &rc, &mut AcceptAll),
+        (None, Some(p)) => kf.update_with(&z, &hc, &rc, p),
     }?;
     for (j, &i) in present.iter().enumerate() {
         residuals[i] = rec.residual[j];
@@ -664,6 +706,7 @@ where
         h,
         r,
         keep,
+        q_symmetric: prechecked(phi, q, h, r, n),
         recent: Recent::new(),
         steady_allowed: true,
         steady_epochs: 0,
@@ -714,7 +757,7 @@ where
             0 => {
                 model.recent.reset();
                 if predict {
-                    kf.predict(phi, q).map_err(|e| e.at_epoch(k))?;
+                    model.predict(kf).map_err(|e| e.at_epoch(k))?;
                 }
                 if let BatchPolicy::Given(p) = policy {
                     p.missing();
@@ -1221,6 +1264,109 @@ mod tests {
         assert!(steady > 700, "{steady} steady epochs of {epochs}");
         assert!(steady_gappy > 0 && steady_gappy < steady, "{steady_gappy}");
         assert!(steady_gated > 0 && steady_gated < steady, "{steady_gated}");
+    }
+
+    /// Φ, Q, H and R are checked once per batch when they pass (the
+    /// epochs then skip those checks): the batch equals the run-time
+    /// sized filter's own predict and update calls bit for bit — with gaps
+    /// and a χ² gate rejecting an outlier — whether Q and R are exactly
+    /// symmetric (checked once), Q only to rounding (symmetrised once, as
+    /// every prediction would), or R only to rounding (checked every
+    /// epoch). A value that changes (z) is still checked at every epoch,
+    /// and the error names the epoch; a constant that fails its check is
+    /// refused at the first epoch that uses it, naming it.
+    #[test]
+    fn constants_checked_once_give_the_checked_steps_bit_for_bit() {
+        let [phi, q, h, r, p0] = bench_model(6, 3);
+        let x0 = DVector::from_vec(vec![0.1, -0.2, 0.3, 0.0, 0.5, -0.1]);
+        let z = {
+            let mut z = measurements(300, 3, 0.1, &[150]);
+            z[3 * 200..3 * 201].fill(f64::NAN);
+            z
+        };
+        let mut q_rounded = q.clone();
+        q_rounded[(0, 1)] = 1e-7;
+        q_rounded[(1, 0)] = 1e-7 * (1.0 + 1e-12);
+        let mut r_rounded = r.clone();
+        r_rounded[(1, 2)] *= 1.0 + 1e-12;
+        for (q, r, constants_once) in [
+            (&q, &r, true),
+            (&q_rounded, &r, true),
+            (&q, &r_rounded, false),
+        ] {
+            assert_eq!(
+                prechecked(&phi, q, &h, r, 6).is_some(),
+                constants_once,
+                "{q} {r}"
+            );
+            let model = (&phi, q, &h, r);
+            let prior = KalmanFilter::<Dyn>::new(x0.clone(), p0.clone()).unwrap();
+            let keep = BatchKeep::default();
+            let plain =
+                filter_batch_plain(&mut prior.clone(), &phi, q, &h, r, &z, true, keep).unwrap();
+            let (states, nis, outcomes) = step_by_step(&x0, &p0, model, &z, &mut AcceptAll);
+            assert_eq!(plain.states, states);
+            assert_eq!(plain.outcomes, outcomes);
+            assert!(
+                plain
+                    .nis
+                    .iter()
+                    .zip(&nis)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            );
+            let gate = || Chi2Gate { probability: 0.999 };
+            let gated = filter_batch(
+                &mut prior.clone(),
+                &phi,
+                q,
+                &h,
+                r,
+                &z,
+                true,
+                &mut gate(),
+                keep,
+            )
+            .unwrap();
+            let (states, _, outcomes) = step_by_step(&x0, &p0, model, &z, &mut gate());
+            assert_eq!(gated.states, states);
+            assert_eq!(gated.outcomes, outcomes);
+            assert!(outcomes.contains(&Outcome::Rejected));
+        }
+        let prior = KalmanFilter::<Dyn>::new(x0, p0).unwrap();
+        let keep = BatchKeep::default();
+        let run = |phi: &DMatrix<f64>, q: &DMatrix<f64>, h: &DMatrix<f64>, z: &[f64]| {
+            filter_batch_plain(&mut prior.clone(), phi, q, h, &r, z, true, keep)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        };
+        let mut bad_z = z.clone();
+        bad_z[3 * 7 + 1] = f64::INFINITY;
+        let e = run(&phi, &q, &h, &bad_z).unwrap_err();
+        assert!(e.starts_with("epoch 7:"), "{e}");
+        let mut bad_phi = phi.clone();
+        bad_phi[(2, 3)] = f64::NAN;
+        let e = run(&bad_phi, &q, &h, &z).unwrap_err();
+        assert!(e.starts_with("epoch 0:") && e.contains("Φ"), "{e}");
+        let mut bad_q = q.clone();
+        bad_q[(0, 1)] = 1.0;
+        let e = run(&phi, &bad_q, &h, &z).unwrap_err();
+        assert!(e.starts_with("epoch 0:") && e.contains('Q'), "{e}");
+        // A row of H whose component is never present is never used.
+        let mut unused_row = h.clone();
+        unused_row[(2, 0)] = f64::NAN;
+        let mut z_without_2 = z.clone();
+        z_without_2
+            .iter_mut()
+            .skip(2)
+            .step_by(3)
+            .for_each(|v| *v = f64::NAN);
+        assert_eq!(run(&phi, &q, &unused_row, &z_without_2), Ok(()));
+        let first_use = (0..300).find(|k| !z[3 * k + 2].is_nan()).unwrap();
+        let e = run(&phi, &q, &unused_row, &z).unwrap_err();
+        assert!(
+            e.starts_with(&format!("epoch {first_use}:")) && e.contains('H'),
+            "{e}"
+        );
     }
 
     /// A model whose covariance never settles (a random walk no
