@@ -46,8 +46,10 @@ where
     /// The forward pass (with [`BatchKeep::forward`]).
     pub forward: Vec<ForwardEpoch<N>>,
     /// Epochs computed in the steady state: once an accepted update leaves
-    /// P⁺ bit for bit as the previous epoch's, the later epochs with the
-    /// same components present and an accepted update have the same P⁻, S,
+    /// P⁺ bit for bit as that of one of the last [`MAX_STEADY_PERIOD`]
+    /// epochs with the same components present (a fixed point, or a cycle
+    /// of up to that many covariances), the later epochs with the same
+    /// components present and an accepted update repeat the cycle's P⁻, S,
     /// K and P⁺, and only the state is computed (bit for bit the full
     /// step's numbers). Any other epoch (a component missing, an update
     /// rejected or changed by the policy) takes the full step.
@@ -444,8 +446,9 @@ where
 {
     nis: f64,
     outcome: Outcome,
-    /// (x⁻, P⁻), with [`BatchKeep::forward`].
-    predicted: Option<Prediction<N>>,
+    /// (x⁻, P⁻), with [`BatchKeep::forward`] (boxed: an epoch's result
+    /// is moved a few times, and without the forward pass it is None).
+    predicted: Option<Box<Prediction<N>>>,
 }
 
 /// A prediction (x⁻, P⁻).
@@ -495,7 +498,7 @@ where
         let predicted = model
             .keep
             .forward
-            .then(|| (kf.state().clone(), ph.p_predicted.clone()));
+            .then(|| Box::new((kf.state().clone(), ph.p_predicted.clone())));
         check::finite(&z, Step::Update, Matrix::Z)?;
         let residual = &z - &st.h * kf.state();
         let nis = residual.dot(&ph.chol.solve(&residual));
@@ -536,7 +539,7 @@ where
         let predicted = model
             .keep
             .forward
-            .then(|| (kf.state().clone(), kf.covariance().clone()));
+            .then(|| Box::new((kf.state().clone(), kf.covariance().clone())));
         let rec = kf.update_with(&z, &st.h, &st.r, &mut Decided(Some(decision)))?;
         for (j, &i) in present.iter().enumerate() {
             residuals[i] = rec.residual[j];
@@ -559,7 +562,7 @@ where
     let predicted = model
         .keep
         .forward
-        .then(|| (x_predicted.clone(), kf.covariance().clone()));
+        .then(|| Box::new((x_predicted.clone(), kf.covariance().clone())));
     let rec = match (&model.q_symmetric, policy) {
         (Some(_), policy) => kf.update_prechecked(&z, &hc, &rc, policy),
         (None, None) => kf.update_with(&z, &hc, &rc, &mut AcceptAll),
@@ -767,7 +770,7 @@ where
                     outcome: Outcome::Missing,
                     predicted: keep
                         .forward
-                        .then(|| (kf.state().clone(), kf.covariance().clone())),
+                        .then(|| Box::new((kf.state().clone(), kf.covariance().clone()))),
                 })
             }
             1 => fixed!(1, steady1),
@@ -805,7 +808,8 @@ where
             // nalgebra is column-major; P is symmetric, so its columns are its rows.
             out.covariances.extend(kf.covariance().iter());
         }
-        if let Some((x_predicted, p_predicted)) = update.predicted {
+        if let Some(prediction) = update.predicted {
+            let (x_predicted, p_predicted) = *prediction;
             out.forward.push(ForwardEpoch {
                 phi: phi.clone(),
                 x_predicted,
@@ -1249,6 +1253,23 @@ mod tests {
     fn a_two_cycle_steady_state_equals_the_full_recursion_bit_for_bit() {
         let epochs = 2600;
         let model = bench_model(6, 3);
+        // The premise, from the filter's own steps: P⁺ ends in a cycle of
+        // two (equal to the one two epochs back, not to the last one).
+        let [phi, q, h, r, p0] = &model;
+        let mut kf = KalmanFilter::<Dyn>::new(DVector::zeros(6), p0.clone()).unwrap();
+        let mut step = || {
+            kf.predict(phi, q).unwrap();
+            kf.update(&DVector::zeros(3), h, r).unwrap();
+            kf.covariance().clone()
+        };
+        for _ in 0..epochs - 3 {
+            step();
+        }
+        let (two_back, one_back, last) = (step(), step(), step());
+        assert!(
+            same_bits(&last, &two_back) && !same_bits(&last, &one_back),
+            "the 6/3 model's P⁺ no longer ends in a two-covariance cycle: pick another model"
+        );
         let full = measurements(epochs, 3, 0.0, &[]);
         let steady = batch_equals_steps::<6>(&model, &full, None);
         let mut gappy = full.clone();
