@@ -291,7 +291,7 @@ pub fn formation_network_summary(scenario: &NetworkSweepScenario, sweep: &[Sweep
         Some(scenario.0.seed),
         scenario,
     );
-    summary.insert("network_sweep", &sweep);
+    summary.insert("network_sweep", sweep);
     summary
 }
 
