@@ -224,8 +224,9 @@ impl<const C: usize, P: MeasurementPolicy<Dyn> + ?Sized> MeasurementPolicy<Const
 
 /// Longest cycle of the Riccati recursion the batch looks for: P⁺ may
 /// settle, bit for bit, not on a fixed point but on a short cycle (the
-/// rounding of one step undone by the next: the 6-state benchmark model's
-/// ends in a cycle of two covariances).
+/// rounding of one step undone by the next: the 6-state model of
+/// bench/filterpy_step.py, with the tests' P₀, ends in a cycle of two
+/// covariances).
 pub const MAX_STEADY_PERIOD: usize = 4;
 
 /// One epoch of a steady cycle: what the full step computes from the
@@ -1175,7 +1176,8 @@ mod tests {
     /// positions measured, R = I, P₀ = I): 2b states, b measurements. Its
     /// Riccati recursion reaches a bit-for-bit fixed point (at epoch 144);
     /// the benchmark model's does not (6/3 settles into a cycle of two
-    /// covariances, the larger ones change still after 3000 epochs).
+    /// covariances at epoch 1801, the larger ones change still after 3000
+    /// epochs).
     fn constant_velocity(b: usize) -> [DMatrix<f64>; 5] {
         let n = 2 * b;
         let phi = DMatrix::from_fn(n, n, |i, j| {
