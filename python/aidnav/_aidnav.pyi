@@ -89,11 +89,14 @@ class KalmanFilter:
         present under ``policy``. Each epoch's update runs in fixed-size
         matrices (≤ 6 components present; 1–6, 9, 12, 15, 18, 21, 24
         states), allocating nothing without a policy. Once an accepted
-        update leaves P bit for bit as the previous epoch's (the Riccati
-        recursion's fixed point, reached by some time-invariant models),
-        the following epochs with the same components present and an
-        accepted update compute the state only — the same numbers, bit for
-        bit; ``steady_epochs`` in the result counts them."""
+        update leaves P bit for bit as one of the last four epochs' with
+        the same components present (the Riccati recursion's fixed point,
+        or a cycle of two to four covariances, reached by some
+        time-invariant models), the following epochs with the same
+        components present and an accepted update compute the state only —
+        the same numbers, bit for bit; ``steady_epochs`` in the result
+        counts them. F, Q, H and R are checked once per call (each epoch
+        checks what changes: z, x, P)."""
     def copy(self) -> "KalmanFilter": ...
 
 def rts_smooth(

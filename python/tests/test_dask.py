@@ -22,9 +22,22 @@ def test_anomalies_campaign_on_two_workers(client):
     assert aidnav.monte_carlo("anomalies", 20, 11, client=client, chunks=7) == local
 
 
+#: formation-network on a 60 s flight (the quick grid: four cells per run).
+SHORT_NETWORK_SWEEP = {
+    "duration_s": 60.0,
+    "settle_s": 10.0,
+    "network": {"sweep": {"latency_s": [0.0, 2.0], "loss_probability": [0.0, 0.3]}},
+}
+
+
 @pytest.mark.parametrize(
     "name, runs, scenario",
-    [("consistency", 6, {"epochs": 40}), ("group", 5, {"epochs": 40}), ("formation", 3, None)],
+    [
+        ("consistency", 6, {"epochs": 40}),
+        ("group", 5, {"epochs": 40}),
+        ("formation", 3, None),
+        ("formation-network", 3, SHORT_NETWORK_SWEEP),
+    ],
 )
 def test_every_reproduction_splits_across_two_workers(client, name, runs, scenario):
     local = aidnav.reproduce(name, runs=runs, seed=3, scenario=scenario)

@@ -617,3 +617,127 @@ where
     chol: Cholesky<f64, M>,
     nis: f64,
 }
+
+impl<N: Dim> KalmanFilter<N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    /// Set the covariance to `p` without the checks of
+    /// [`set_covariance`](Self::set_covariance): for the batch's steady
+    /// state, whose `p` is a covariance this filter's own full step
+    /// computed (finite, symmetric by construction).
+    pub(crate) fn set_covariance_computed(&mut self, p: &OMatrix<f64, N, N>) {
+        self.p.copy_from(p);
+    }
+
+    /// [`predict_state`](Self::predict_state) for a Φ the caller checked
+    /// once for many epochs (shape, finite): the same arithmetic, the
+    /// state's check kept.
+    pub(crate) fn predict_state_prechecked(&mut self, phi: &OMatrix<f64, N, N>) -> Result<()> {
+        self.x = phi * &self.x;
+        check::finite(&self.x, Step::Predict, Matrix::X)
+    }
+
+    /// [`predict`](Self::predict) for a Φ and Q the caller checked once for
+    /// many epochs (shape, finite, Q symmetric; `q_symmetric` is Q as
+    /// `propagate_covariance` uses it, (Q + Qᵀ)/2 unless exactly
+    /// symmetric): the same arithmetic, bit for bit, the checks of what
+    /// changes (x, P) kept.
+    pub(crate) fn predict_prechecked(
+        &mut self,
+        phi: &OMatrix<f64, N, N>,
+        q_symmetric: &OMatrix<f64, N, N>,
+    ) -> Result<()> {
+        self.predict_state_prechecked(phi)?;
+        let (nd, _) = self.p.shape_generic();
+        let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
+        dense::gemm(&mut phi_p, 1.0, phi, &self.p, 0.0);
+        let mut p = q_symmetric.clone();
+        dense::gemm_nt_lower(&mut p, 1.0, &phi_p, phi, 1.0);
+        dense::mirror_lower(&mut p);
+        check::finite(&p, Step::Predict, Matrix::P)?;
+        self.p = p;
+        Ok(())
+    }
+
+    /// [`update_with`](Self::update_with) for an H and R the caller checked
+    /// once for many epochs (shapes, finite, R exactly symmetric): the
+    /// same arithmetic, bit for bit, the checks of what changes (z, x, P,
+    /// the gain) kept. A decision other than Accept is handed to
+    /// `update_with` (its innovation computed again, the same numbers).
+    pub(crate) fn update_prechecked<M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
+        &mut self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+        policy: Option<&mut Pol>,
+    ) -> Result<UpdateRecord<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let step = Step::Update;
+        check::finite(z, step, Matrix::Z)?;
+        // innovate's arithmetic.
+        let (m, n) = (z.len(), self.dim());
+        let residual = z - h * &self.x;
+        let (md, nd) = h.shape_generic();
+        let mut cross = OMatrix::<f64, N, M>::zeros_generic(nd, md);
+        let mut hph = OMatrix::<f64, M, M>::zeros_generic(md, md);
+        if dense::use_kernel::<M, N, N>(m, n, n) {
+            dense::symmetric_times_h_transpose(&mut cross, &self.p, h);
+            dense::h_times_cross(&mut hph, h, &cross);
+        } else {
+            let mut listed = [0; dense::MAX_LISTED];
+            let columns = dense::nonzero_columns(h, &mut listed);
+            let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
+            dense::h_times_symmetric(&mut hp, h, &self.p, columns);
+            dense::times_h_transpose(&mut hph, &hp, h, columns);
+            cross = hp.transpose();
+        }
+        check::symmetrize(&mut hph);
+        let s = &hph + r;
+        let chol = Cholesky::new(s.clone()).ok_or(EstimationError::NotPositiveDefinite {
+            step,
+            matrix: Matrix::S,
+        })?;
+        let nis = residual.dot(&chol.solve(&residual));
+        let decision = match policy {
+            None => Decision::Accept,
+            Some(p) => p.decide(&InnovationView {
+                residual: &residual,
+                hph: &hph,
+                r,
+                s: &s,
+                nis,
+            }),
+        };
+        if !matches!(decision, Decision::Accept) {
+            return self.update_with(z, h, r, &mut Decided(Some(decision)));
+        }
+        let gain = Self::gain(&chol, &cross);
+        self.apply(&gain, &residual, &cross, &s, step)?;
+        Ok(UpdateRecord {
+            residual,
+            s,
+            gain,
+            nis,
+            outcome: Outcome::Accepted,
+        })
+    }
+}
+
+/// A decision already made, handed to [`KalmanFilter::update_with`] (a
+/// policy asked twice could change its state).
+pub(crate) struct Decided<M: Dim>(pub(crate) Option<Decision<M>>)
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>;
+
+impl<M: Dim> MeasurementPolicy<M> for Decided<M>
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    fn decide(&mut self, _view: &InnovationView<'_, M>) -> Decision<M> {
+        // update_with asks once; Reject is never reached.
+        self.0.take().unwrap_or(Decision::Reject)
+    }
+}

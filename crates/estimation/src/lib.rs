@@ -75,8 +75,8 @@ pub mod structured;
 pub mod subspace;
 
 pub use batch::{
-    BatchKeep, BatchOutput, FixedBatchAllocator, MAX_FIXED_MEASUREMENT, filter_batch,
-    filter_batch_plain,
+    BatchKeep, BatchOutput, FixedBatchAllocator, MAX_FIXED_MEASUREMENT, MAX_STEADY_PERIOD,
+    filter_batch, filter_batch_plain,
 };
 pub use cancel::{Cancel, Cancelled};
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};

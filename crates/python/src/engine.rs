@@ -667,7 +667,8 @@ impl KalmanFilter {
     /// (strings); with `covariances=True` also `P` (epochs × n × n); with
     /// `smooth=True` also the RTS-smoothed `x_smooth` and `P_smooth`;
     /// `steady_epochs`: the epochs computed in the Riccati recursion's
-    /// steady state (state only, bit for bit the full step's numbers).
+    /// steady state, a bit-for-bit fixed point or cycle of up to four
+    /// covariances (state only, bit for bit the full step's numbers).
     /// Each epoch's update runs in fixed-size matrices (the components
     /// present, up to six, copied into stack matrices: no allocation per
     /// epoch without a policy), with the GIL released.

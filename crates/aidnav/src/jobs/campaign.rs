@@ -18,7 +18,7 @@ use aidnav_reproduce::MonteCarloScenario;
 use aidnav_reproduce::anomalies::AnomaliesScenario;
 use aidnav_reproduce::consistency::ConsistencyScenario;
 use aidnav_reproduce::extended_state::ExtendedStateScenario;
-use aidnav_reproduce::formation::FormationScenario;
+use aidnav_reproduce::formation::{FormationScenario, NetworkSweepScenario};
 use aidnav_reproduce::group::GroupScenario;
 use aidnav_reproduce::outages::OutagesScenario;
 use aidnav_sim::{Cancel, MonteCarlo};
@@ -41,17 +41,21 @@ pub enum Experiment {
     Group,
     /// `formation`: spec 30's formation pipeline.
     Formation,
+    /// `formation-network`: the formation's exchange as a network, the
+    /// accuracy per latency × loss rate.
+    FormationNetwork,
 }
 
 impl Experiment {
     /// Every experiment, in the order of `reproduce all`.
-    pub const ALL: [Experiment; 6] = [
+    pub const ALL: [Experiment; 7] = [
         Experiment::Consistency,
         Experiment::ExtendedState,
         Experiment::Anomalies,
         Experiment::Outages,
         Experiment::Group,
         Experiment::Formation,
+        Experiment::FormationNetwork,
     ];
 
     /// The name on the command line.
@@ -63,6 +67,7 @@ impl Experiment {
             Experiment::Outages => "outages",
             Experiment::Group => "group",
             Experiment::Formation => "formation",
+            Experiment::FormationNetwork => "formation-network",
         }
     }
 
@@ -111,6 +116,7 @@ enum Scenario {
     Outages(OutagesScenario),
     Group(GroupScenario),
     Formation(FormationScenario),
+    FormationNetwork(NetworkSweepScenario),
 }
 
 /// Parse (or default), override, validate.
@@ -143,6 +149,7 @@ impl Campaign {
             Experiment::Outages => Scenario::Outages(scenario(text, overrides)?),
             Experiment::Group => Scenario::Group(scenario(text, overrides)?),
             Experiment::Formation => Scenario::Formation(scenario(text, overrides)?),
+            Experiment::FormationNetwork => Scenario::FormationNetwork(scenario(text, overrides)?),
         };
         Ok(Self {
             experiment,
@@ -177,6 +184,7 @@ impl Campaign {
             Scenario::Outages(s) => (s.runs, s.seed),
             Scenario::Group(s) => (s.runs, s.seed),
             Scenario::Formation(s) => (s.runs, s.seed),
+            Scenario::FormationNetwork(s) => (s.0.runs, s.0.seed),
         };
         MonteCarlo::new(runs, seed)
             .quiet()
@@ -216,6 +224,11 @@ impl Campaign {
                     .map_err(estimation("formation flight"))?;
                 formation_summary(s, "reproduce formation", &r)
             }
+            Scenario::FormationNetwork(s) => {
+                let sweep = aidnav_reproduce::formation::sweep(&s.0, &mc)
+                    .map_err(estimation("formation network sweep"))?;
+                formation_network_summary(s, &sweep)
+            }
         })
     }
 
@@ -253,6 +266,10 @@ impl Campaign {
             Scenario::Formation(s) => encode(
                 &aidnav_reproduce::formation::run_range(s, &mc, range)
                     .map_err(estimation("formation flight"))?,
+            ),
+            Scenario::FormationNetwork(s) => encode(
+                &aidnav_reproduce::formation::sweep_range(&s.0, &mc, range)
+                    .map_err(estimation("formation network sweep"))?,
             ),
         })?
     }
@@ -299,6 +316,10 @@ impl Campaign {
                 let r = aidnav_reproduce::formation::finish(s, joined(chunks, runs)?)
                     .map_err(estimation("formation flight"))?;
                 formation_summary(s, "reproduce formation", &r)
+            }
+            Scenario::FormationNetwork(s) => {
+                let sweep = aidnav_reproduce::formation::sweep_finish(&s.0, joined(chunks, runs)?);
+                formation_network_summary(s, &sweep)
             }
         })
     }
@@ -388,6 +409,51 @@ mod tests {
         chunks_give_the_whole_summary(Experiment::Group, Some("epochs = 30"), 4);
         chunks_give_the_whole_summary(Experiment::Anomalies, None, 3);
         chunks_give_the_whole_summary(Experiment::Formation, None, 3);
+    }
+
+    /// `formation-network` (the reproduction `reproduce all` runs last) in
+    /// chunks gives its whole summary bit for bit; a short flight keeps
+    /// the sweep (four cells per run) quick.
+    #[test]
+    fn the_formation_network_campaign_in_chunks_gives_the_whole_summary_bit_for_bit() {
+        chunks_give_the_whole_summary(
+            Experiment::FormationNetwork,
+            Some(FORMATION_NETWORK_SHORT),
+            2,
+        );
+        let c = campaign(
+            Experiment::FormationNetwork,
+            Some(FORMATION_NETWORK_SHORT),
+            2,
+        );
+        let summary = json(&c.summary().unwrap());
+        assert!(summary.contains("\"network_sweep\""), "{summary}");
+    }
+
+    /// `formation-network` on a short flight: the quick grid's cells, a
+    /// denied member, 60 s.
+    const FORMATION_NETWORK_SHORT: &str = "duration_s = 60.0\nsettle_s = 10.0\n\
+        [[denial]]\nmembers = [2]\nstart_s = 20.0\nend_s = 50.0\n\
+        [network.sweep]\nlatency_s = [0.0, 2.0]\nloss_probability = [0.0, 0.3]\n";
+
+    /// Every experiment's name is taken, and its campaign splits.
+    #[test]
+    fn every_reproduction_has_a_campaign() {
+        for e in Experiment::ALL {
+            assert_eq!(e.name().parse::<Experiment>().unwrap(), e);
+            assert!(e.splits());
+        }
+        assert!("formation_network".parse::<Experiment>().is_ok());
+        // A formation-network scenario without a sweep is refused, naming
+        // the key.
+        let e = Campaign::new(
+            Experiment::FormationNetwork,
+            Some(("runs = 2\n", Path::new("s.toml"))),
+            &ScenarioOverrides::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("network.sweep"), "{e}");
     }
 
     /// The two long experiments (a minute or more in the test profile).

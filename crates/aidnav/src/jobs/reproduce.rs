@@ -278,15 +278,21 @@ pub fn formation_network(
     aidnav_io::writers::begin_outputs(out)?;
     write_network_sweep(&sweep, s.members, out)?;
     aidnav_reproduce::figures::network_sweep_figure(s, &sweep, out)?;
+    formation_network_summary(scenario, &sweep).write(out)?;
+    Ok(sweep)
+}
+
+/// The `summary.json` of `reproduce formation-network` (list
+/// `network_sweep`).
+pub fn formation_network_summary(scenario: &NetworkSweepScenario, sweep: &[SweepCell]) -> Summary {
     let mut summary = Summary::new(
         "reproduce formation-network",
         VERSION,
-        Some(s.seed),
+        Some(scenario.0.seed),
         scenario,
     );
-    summary.insert("network_sweep", &sweep);
-    summary.write(out)?;
-    Ok(sweep)
+    summary.insert("network_sweep", sweep);
+    summary
 }
 
 /// `network_sweep.csv`: one row per latency × loss cell of the formation's

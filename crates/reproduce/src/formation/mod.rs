@@ -76,7 +76,9 @@ mod scenario;
 mod simulate;
 mod stage_one_ned;
 
-pub use network::{Network, NetworkStats, NetworkSweep, SweepCell, sweep};
+pub use network::{
+    CellRun, Network, NetworkStats, NetworkSweep, SweepCell, sweep, sweep_finish, sweep_range,
+};
 pub use network_sweep::{NetworkSweepScenario, QUICK_SWEEP_RUNS};
 pub use run::{RunErrors, finish, run, run_range};
 

@@ -366,8 +366,10 @@ pub struct SweepCell {
     pub denied_max_error_m: Option<[f64; 3]>,
 }
 
-/// One run's sums for one cell.
-struct CellRun {
+/// One run's sums for one cell of the [`sweep`]; a run's cells are what
+/// [`sweep_range`] computes and [`sweep_finish`] combines.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CellRun {
     /// Per member, per solution: Σ over settled epochs of the squared error.
     position_sq: Vec<[f64; 3]>,
     /// Per member, per solution: Σ over settled epochs of σ.
@@ -413,15 +415,20 @@ fn cell_run(sc: &FormationScenario, e: &RunErrors, settled: &[usize]) -> CellRun
 /// on each run's stage 1 and relative measurements (computed once per run),
 /// with the network's other keys (jitter, neighbour limit, buffer) as
 /// given. Empty without a sweep. Cells are ordered latency-major.
+/// [`sweep_finish`] of every run ([`sweep_range`] over `0..mc.runs`).
 pub fn sweep(sc: &FormationScenario, mc: &MonteCarlo) -> Result<Vec<SweepCell>, EstimationError> {
+    Ok(sweep_finish(sc, sweep_range(sc, mc, 0..mc.runs)?))
+}
+
+/// The cells of the sweep (latency-major), or none without one.
+fn sweep_cells(sc: &FormationScenario) -> Vec<Network> {
     let Some(base) = &sc.network else {
-        return Ok(Vec::new());
+        return Vec::new();
     };
     let Some(grid) = &base.sweep else {
-        return Ok(Vec::new());
+        return Vec::new();
     };
-    let cells: Vec<Network> = grid
-        .latency_s
+    grid.latency_s
         .iter()
         .flat_map(|&latency_s| {
             grid.loss_probability
@@ -433,21 +440,54 @@ pub fn sweep(sc: &FormationScenario, mc: &MonteCarlo) -> Result<Vec<SweepCell>, 
                     ..base.clone()
                 })
         })
-        .collect();
-    let epochs = sc.epochs();
-    let settled: Vec<usize> = (0..epochs)
+        .collect()
+}
+
+/// The epochs scored by the sweep (after `settle_s`).
+fn settled_epochs(sc: &FormationScenario) -> Vec<usize> {
+    (0..sc.epochs())
         .filter(|&k| (k + 1) as f64 * sc.fix_interval_s >= sc.settle_s)
-        .collect();
+        .collect()
+}
+
+/// Runs `range` of the [`sweep`] (run k's streams depend on k alone): per
+/// run, its sums for every cell; a chunk for [`sweep_finish`] to combine
+/// with the others, computed anywhere. Empty runs without a sweep.
+pub fn sweep_range(
+    sc: &FormationScenario,
+    mc: &MonteCarlo,
+    range: std::ops::Range<usize>,
+) -> Result<Vec<Vec<CellRun>>, EstimationError> {
+    let cells = sweep_cells(sc);
+    if cells.is_empty() {
+        return Ok(range.map(|_| Vec::new()).collect());
+    }
+    let settled = settled_epochs(sc);
     let paths = StageOnePaths::new(sc);
-    let runs = mc.try_run(|run, _rng| -> Result<Vec<CellRun>, EstimationError> {
-        let (own, truth) = stage_one_on(sc, run as u64, &paths)?;
-        cells
-            .iter()
-            .map(|net| {
-                stage_two(sc, net, run as u64, &own, &truth).map(|e| cell_run(sc, &e, &settled))
-            })
-            .collect()
-    })?;
+    mc.try_run_range(
+        range,
+        |run, _rng| -> Result<Vec<CellRun>, EstimationError> {
+            let (own, truth) = stage_one_on(sc, run as u64, &paths)?;
+            cells
+                .iter()
+                .map(|net| {
+                    stage_two(sc, net, run as u64, &own, &truth).map(|e| cell_run(sc, &e, &settled))
+                })
+                .collect()
+        },
+    )
+}
+
+/// The sweep's cells from every run's sums, in run order (the chunks of
+/// [`sweep_range`] concatenated): the same numbers, bit for bit, as
+/// [`sweep`]. Empty without a sweep.
+pub fn sweep_finish(sc: &FormationScenario, runs: Vec<Vec<CellRun>>) -> Vec<SweepCell> {
+    let cells = sweep_cells(sc);
+    if cells.is_empty() {
+        return Vec::new();
+    }
+    let epochs = sc.epochs();
+    let settled = settled_epochs(sc);
     let kept: Vec<usize> = (0..sc.members)
         .filter(|&l| {
             let disturbed = (0..epochs).any(|k| {
@@ -459,7 +499,7 @@ pub fn sweep(sc: &FormationScenario, mc: &MonteCarlo) -> Result<Vec<SweepCell>, 
         .collect();
     let n_runs = runs.len() as f64;
     let per_member = settled.len() as f64 * n_runs;
-    Ok(cells
+    cells
         .iter()
         .enumerate()
         .map(|(c, net)| {
@@ -495,7 +535,7 @@ pub fn sweep(sc: &FormationScenario, mc: &MonteCarlo) -> Result<Vec<SweepCell>, 
                     .then(|| denied.map(|d| d / denied_count as f64)),
             }
         })
-        .collect())
+        .collect()
 }
 
 #[cfg(test)]
