@@ -6,8 +6,8 @@
 
 use std::hint::black_box;
 
-use aidnav_estimation::KalmanFilter;
 use aidnav_estimation::nalgebra::{Const, DMatrix, DVector, SMatrix, SVector};
+use aidnav_estimation::{KalmanFilter, TrailingDiagonal};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 /// The matrices of one benchmark problem.
@@ -96,6 +96,41 @@ fn bench_fixed<const N: usize, const M: usize>(c: &mut Criterion, name: &str) {
             black_box(k)
         })
     });
+    // Φ with its rows from 9 on diagonal (an INS error model's instrument
+    // states): the dense predict against the structured one.
+    if N > 9 {
+        let mut structured_phi = phi;
+        for i in 9..N {
+            for j in 0..N {
+                if i != j {
+                    structured_phi[(i, j)] = 0.0;
+                }
+            }
+        }
+        c.bench_function(&format!("{name}/predict_trailing_diagonal_dense"), |b| {
+            b.iter(|| {
+                let mut k = base.clone();
+                k.predict(black_box(&structured_phi), black_box(&q))
+                    .unwrap();
+                black_box(k)
+            })
+        });
+        c.bench_function(
+            &format!("{name}/predict_trailing_diagonal_structured"),
+            |b| {
+                b.iter(|| {
+                    let mut k = base.clone();
+                    k.predict_structured(
+                        black_box(&structured_phi),
+                        black_box(&q),
+                        TrailingDiagonal::new(9),
+                    )
+                    .unwrap();
+                    black_box(k)
+                })
+            },
+        );
+    }
     c.bench_function(&format!("{name}/update_only"), |b| {
         b.iter(|| {
             let mut k = base.clone();

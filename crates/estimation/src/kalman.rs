@@ -649,12 +649,9 @@ where
         q_symmetric: &OMatrix<f64, N, N>,
     ) -> Result<()> {
         self.predict_state_prechecked(phi)?;
-        let (nd, _) = self.p.shape_generic();
-        let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
-        dense::gemm(&mut phi_p, 1.0, phi, &self.p, 0.0);
+        // propagate_covariance's arithmetic.
         let mut p = q_symmetric.clone();
-        dense::gemm_nt_lower(&mut p, 1.0, &phi_p, phi, 1.0);
-        dense::mirror_lower(&mut p);
+        dense::add_congruence(&mut p, phi, &self.p);
         check::finite(&p, Step::Predict, Matrix::P)?;
         self.p = p;
         Ok(())
