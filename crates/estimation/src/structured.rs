@@ -174,12 +174,12 @@ where
         let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
         // (Φ P)ᵀ = P Φᵀ column by column (P is exactly symmetric), then
         // turned over: the second product reads Φ P by columns.
-        dense::run_widest(
-            TimesTranspose { n: nd, r },
-            scratch.as_mut_slice(),
-            &mut [],
+        times_transpose(
+            n,
+            r,
             self.p.as_slice(),
             phi.as_slice(),
+            scratch.as_mut_slice(),
         );
         transpose(n, scratch.as_slice(), phi_p.as_mut_slice());
         // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
@@ -187,46 +187,11 @@ where
         if !q_exactly_symmetric {
             check::symmetrize(&mut p);
         }
-        dense::run_widest(
-            AddTimesTransposeLower { n: nd, r },
-            p.as_mut_slice(),
-            &mut [],
-            phi_p.as_slice(),
-            phi.as_slice(),
-        );
+        add_times_transpose_lower(n, r, phi_p.as_slice(), phi.as_slice(), p.as_mut_slice());
         dense::mirror_lower(&mut p);
         check::finite(&p, step, Matrix::P)?;
         self.p = p;
         Ok(())
-    }
-}
-
-/// [`times_transpose`] as one unit of [`dense::run_widest`] work (out = S Φᵀ
-/// with a = S, b = Φ): the dense kernels' AVX2 dispatch, the same sums bit
-/// for bit.
-struct TimesTranspose<N: Dim> {
-    n: N,
-    r: usize,
-}
-
-impl<N: Dim> dense::Widened for TimesTranspose<N> {
-    #[inline(always)]
-    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
-        times_transpose(self.n.value(), self.r, a, b, out);
-    }
-}
-
-/// [`add_times_transpose_lower`] as one unit of [`dense::run_widest`] work
-/// (out += W Φᵀ, lower triangle, with a = W, b = Φ).
-struct AddTimesTransposeLower<N: Dim> {
-    n: N,
-    r: usize,
-}
-
-impl<N: Dim> dense::Widened for AddTimesTransposeLower<N> {
-    #[inline(always)]
-    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
-        add_times_transpose_lower(self.n.value(), self.r, a, b, out);
     }
 }
 
