@@ -554,143 +554,52 @@ fn run_reproduce(a: ReproduceArgs) -> Result<()> {
         anyhow::bail!("--scenario needs a single experiment, not `all`");
     }
     let root = a.out.clone().unwrap_or_else(|| PathBuf::from("results"));
-    if a.experiment != Experiment::All {
-        reproduce_one(&a, &root, a.experiment, a.mc.quiet)?.print();
-        return Ok(());
-    }
-    reproduce_all(&a, &root)
-}
-
-/// Stack of the threads `reproduce all` runs experiments on besides the
-/// main one: the main thread's usual 8 MiB, not a spawned thread's 2 MiB.
-const EXPERIMENT_STACK_BYTES: usize = 8 << 20;
-
-/// `reproduce all`: every experiment, its table printed in the list's order.
-/// The small ones run beside the big ones (anomalies, outages and group on a
-/// second thread while the extended-state experiment runs, the network grid
-/// beside the formation flight), all sharing rayon's pool, so the cores that
-/// one experiment leaves idle (its serial parts, the tail of each parallel
-/// loop) do another's runs. Each experiment computes what it computes alone
-/// (seeded per run, independent of the thread), so every file is the same
-/// as run one after another. The experiments beside show no progress bar,
-/// so one bar is drawn at a time; an error is reported for the first
-/// failing experiment in the list's order, after the others have finished.
-fn reproduce_all(a: &ReproduceArgs, root: &Path) -> Result<()> {
-    let quiet = a.mc.quiet;
-    let joined = |h: std::thread::ScopedJoinHandle<'_, Vec<Result<Reproduced>>>| {
-        h.join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-    };
-    std::thread::scope(|scope| {
-        let beside = |experiments: Vec<Experiment>| {
-            std::thread::Builder::new()
-                .name("reproduce-beside".into())
-                .stack_size(EXPERIMENT_STACK_BYTES)
-                .spawn_scoped(scope, move || {
-                    experiments
-                        .into_iter()
-                        .map(|e| reproduce_one(a, root, e, true))
-                        .collect::<Vec<_>>()
-                })
-                .context("starting a thread for the experiments run beside")
-        };
-        reproduce_one(a, root, Experiment::Consistency, quiet)?.print();
-        let small = beside(vec![
-            Experiment::Anomalies,
-            Experiment::Outages,
-            Experiment::Group,
-        ])?;
-        let extended_state = reproduce_one(a, root, Experiment::ExtendedState, quiet);
-        let small = joined(small);
-        extended_state?.print();
-        for r in small {
-            r?.print();
-        }
-        let network = beside(vec![Experiment::FormationNetwork])?;
-        let formation = reproduce_one(a, root, Experiment::Formation, quiet);
-        let network = joined(network);
-        formation?.print();
-        for r in network {
-            r?.print();
-        }
-        Ok(())
-    })
-}
-
-/// One experiment's scenario, result and output directory, to print.
-enum Reproduced {
-    Consistency(ConsistencyScenario, ConsistencyResult, PathBuf),
-    ExtendedState(ExtendedStateScenario, ExtendedStateResult, PathBuf),
-    Anomalies(AnomaliesScenario, AnomaliesResult, PathBuf),
-    Outages(OutagesScenario, OutagesResult, PathBuf),
-    Group(GroupScenario, GroupResult, PathBuf),
-    Formation(FormationScenario, jobs::FormationOutcome, PathBuf),
-    FormationNetwork(
-        NetworkSweepScenario,
-        Vec<aidnav::reproduce::formation::SweepCell>,
-        PathBuf,
-    ),
-}
-
-impl Reproduced {
-    /// Print the experiment's table and the files it wrote.
-    fn print(&self) {
-        match self {
-            Reproduced::Consistency(s, r, out) => print_consistency(s, r, out),
-            Reproduced::ExtendedState(s, r, out) => print_extended_state(s, r, out),
-            Reproduced::Anomalies(s, r, out) => print_anomalies(s, r, out),
-            Reproduced::Outages(s, r, out) => print_outages(s, r, out),
-            Reproduced::Group(s, r, out) => print_group(s, r, out),
-            Reproduced::Formation(s, r, out) => print_formation(s, r, out),
-            Reproduced::FormationNetwork(s, sweep, out) => {
-                print_formation_network(&s.0, sweep, out)
+    for e in experiments {
+        match e {
+            Experiment::Consistency => {
+                let (s, out) = scenario_and_out::<ConsistencyScenario>(&a, &root, "consistency")?;
+                let r = jobs::consistency(&s, &out, a.mc.quiet).context("consistency demo")?;
+                print_consistency(&s, &r, &out);
             }
+            Experiment::ExtendedState => {
+                let (s, out) =
+                    scenario_and_out::<ExtendedStateScenario>(&a, &root, "extended_state")?;
+                let r = jobs::extended_state(&s, &out, a.mc.quiet)
+                    .context("extended-state experiment")?;
+                print_extended_state(&s, &r, &out);
+            }
+            Experiment::Anomalies => {
+                let (s, out) = scenario_and_out::<AnomaliesScenario>(&a, &root, "anomalies")?;
+                let r = jobs::anomalies(&s, &out, a.mc.quiet).context("anomalies experiment")?;
+                print_anomalies(&s, &r, &out);
+            }
+            Experiment::Outages => {
+                let (s, out) = scenario_and_out::<OutagesScenario>(&a, &root, "outages")?;
+                let r = jobs::outages(&s, &out, a.mc.quiet).context("outages experiment")?;
+                print_outages(&s, &r, &out);
+            }
+            Experiment::Group => {
+                let (s, out) = scenario_and_out::<GroupScenario>(&a, &root, "group")?;
+                let r = jobs::group(&s, &out, a.mc.quiet).context("group experiment")?;
+                print_group(&s, &r, &out);
+            }
+            Experiment::Formation => {
+                let (s, out) = scenario_and_out::<FormationScenario>(&a, &root, "formation")?;
+                let r = jobs::formation(&s, "reproduce formation", &out, a.mc.quiet)
+                    .context("formation flight")?;
+                print_formation(&s, &r, &out);
+            }
+            Experiment::FormationNetwork => {
+                let (s, out) =
+                    scenario_and_out::<NetworkSweepScenario>(&a, &root, "formation_network")?;
+                let sweep = jobs::formation_network(&s, &out, a.mc.quiet)
+                    .context("formation network sweep")?;
+                print_formation_network(&s.0, &sweep, &out);
+            }
+            Experiment::All => unreachable!("expanded above"),
         }
     }
-}
-
-/// Run one experiment (`quiet`: without a progress bar) and write its files.
-fn reproduce_one(a: &ReproduceArgs, root: &Path, e: Experiment, quiet: bool) -> Result<Reproduced> {
-    Ok(match e {
-        Experiment::Consistency => {
-            let (s, out) = scenario_and_out::<ConsistencyScenario>(a, root, "consistency")?;
-            let r = jobs::consistency(&s, &out, quiet).context("consistency demo")?;
-            Reproduced::Consistency(s, r, out)
-        }
-        Experiment::ExtendedState => {
-            let (s, out) = scenario_and_out::<ExtendedStateScenario>(a, root, "extended_state")?;
-            let r = jobs::extended_state(&s, &out, quiet).context("extended-state experiment")?;
-            Reproduced::ExtendedState(s, r, out)
-        }
-        Experiment::Anomalies => {
-            let (s, out) = scenario_and_out::<AnomaliesScenario>(a, root, "anomalies")?;
-            let r = jobs::anomalies(&s, &out, quiet).context("anomalies experiment")?;
-            Reproduced::Anomalies(s, r, out)
-        }
-        Experiment::Outages => {
-            let (s, out) = scenario_and_out::<OutagesScenario>(a, root, "outages")?;
-            let r = jobs::outages(&s, &out, quiet).context("outages experiment")?;
-            Reproduced::Outages(s, r, out)
-        }
-        Experiment::Group => {
-            let (s, out) = scenario_and_out::<GroupScenario>(a, root, "group")?;
-            let r = jobs::group(&s, &out, quiet).context("group experiment")?;
-            Reproduced::Group(s, r, out)
-        }
-        Experiment::Formation => {
-            let (s, out) = scenario_and_out::<FormationScenario>(a, root, "formation")?;
-            let r = jobs::formation(&s, "reproduce formation", &out, quiet)
-                .context("formation flight")?;
-            Reproduced::Formation(s, r, out)
-        }
-        Experiment::FormationNetwork => {
-            let (s, out) = scenario_and_out::<NetworkSweepScenario>(a, root, "formation_network")?;
-            let sweep =
-                jobs::formation_network(&s, &out, quiet).context("formation network sweep")?;
-            Reproduced::FormationNetwork(s, sweep, out)
-        }
-        Experiment::All => anyhow::bail!("`all` is not one experiment"),
-    })
+    Ok(())
 }
 
 /// The `[network]` table `reproduce formation`'s defaults leave out (no

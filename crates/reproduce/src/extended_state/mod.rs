@@ -33,7 +33,6 @@ use aidnav_models::extended_state::{
 };
 use aidnav_supervisors::convergence::{ConvergenceSwitch, SwitchRule, cramer_rao_ratio};
 use nalgebra::{SMatrix, SVector, Vector3};
-use rayon::prelude::*;
 use serde::Serialize;
 
 use aidnav_sim::monte_carlo::MonteCarlo;
@@ -594,10 +593,8 @@ fn sorted(mut v: Vec<f64>) -> Vec<f64> {
 pub fn trajectories(
     sc: &ExtendedStateScenario,
 ) -> Result<Vec<LaunchTrajectory>, ExtendedStateError> {
-    // Each solved on its own (they are independent), in parallel: the
-    // campaign's first serial stretch otherwise.
     sc.targets
-        .par_iter()
+        .iter()
         .map(|t| {
             LaunchTrajectory::solve(t, &sc.program, sc.imu_dt_s).map_err(|reason| {
                 ExtendedStateError::Trajectory {
@@ -662,21 +659,6 @@ pub fn run_range(
     runs_on(sc, mc, range, &trajectories(sc)?)
 }
 
-/// With fixed error signs ([`fixed_errors`]), what every run of `traj`
-/// shares: its flight (thrust tables), the free INS's |Δx(t_B)| and the
-/// filter's covariance path.
-fn fixed_flight<'t>(
-    sc: &ExtendedStateScenario,
-    traj: &'t LaunchTrajectory,
-) -> Option<(Flight<'t>, f64, CovariancePath)> {
-    fixed_errors(sc).map(|e| {
-        let flight = Flight::new(traj, e);
-        let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-        let path = CovariancePath::new(sc, &flight);
-        (flight, free, path)
-    })
-}
-
 /// [`run_range`] on the scenario's solved trajectories.
 fn runs_on(
     sc: &ExtendedStateScenario,
@@ -687,84 +669,78 @@ fn runs_on(
     let switch_cases = switch_cases(sc);
     let gauss_newton_runs = sc.gauss_newton_runs.min(sc.runs);
     let mut trajectories = Vec::with_capacity(trajs.len());
-    // With fixed error signs every run flies the same errors: their thrust
-    // tables, the free INS and the filter's covariance path are computed
-    // once per trajectory — the next trajectory's while this one's runs
-    // fly (rayon::join), so no core waits on that serial work.
-    let prepare = |traj| fixed_flight(sc, traj);
-    let mut next = trajs.first().and_then(prepare);
     for (ti, traj) in trajs.iter().enumerate() {
-        let fixed = next.take();
-        let (per_run, prepared) = rayon::join(
-            || {
-                mc.try_run_range(range.clone(), |run, _| {
-                    let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
-                    let (own, own_path);
-                    let (flight, free, path) = match &fixed {
-                        Some((flight, free, path)) => (flight, *free, path),
-                        None => {
-                            own = Flight::new(traj, true_errors(sc, &mut rng));
-                            let free =
-                                own.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-                            own_path = CovariancePath::new(sc, &own);
-                            (&own, free, &own_path)
+        // With fixed error signs every run flies the same errors: their
+        // thrust tables, the free INS and the filter's covariance path are
+        // computed once.
+        let fixed = fixed_errors(sc).map(|e| {
+            let flight = Flight::new(traj, e);
+            let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+            let path = CovariancePath::new(sc, &flight);
+            (flight, free, path)
+        });
+        let per_run = mc.try_run_range(range.clone(), |run, _| {
+            let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
+            let (own, own_path);
+            let (flight, free, path) = match &fixed {
+                Some((flight, free, path)) => (flight, *free, path),
+                None => {
+                    own = Flight::new(traj, true_errors(sc, &mut rng));
+                    let free = own.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+                    own_path = CovariancePath::new(sc, &own);
+                    (&own, free, &own_path)
+                }
+            };
+            let replayed = replay(sc, flight, path, &mut rng, &[])?;
+            let t_b = traj.target.t_b_s;
+            let mut out: Vec<(ThresholdRun, bool)> = Vec::with_capacity(switch_cases.len());
+            for (k, s) in replayed.at_switch.iter().enumerate() {
+                // Cases switching at the same fix (the literal rule's
+                // thresholds) share one snapshot, so one result.
+                let same = replayed.at_switch[..k]
+                    .iter()
+                    .position(|p| p.is_some_and(|p| s.is_some_and(|s| p.fix == s.fix)));
+                if let Some(j) = same {
+                    out.push(out[j]);
+                    continue;
+                }
+                out.push(match s {
+                    Some(s) => {
+                        let mut b = branches(flight, s);
+                        b.bound_variance = path.bound_variance[s.fix];
+                        // At the first fix the batch has nothing to add.
+                        if run < gauss_newton_runs && s.fix > 0 {
+                            b.gauss_newton_m = gauss_newton(
+                                sc,
+                                flight,
+                                &replayed.ins_at_first_fix,
+                                &replayed.fixes[..=s.fix],
+                                &s.estimate,
+                                sc.gauss_newton_iterations,
+                                false,
+                            )?
+                            .error_m;
                         }
-                    };
-                    let replayed = replay(sc, flight, path, &mut rng, &[])?;
-                    let t_b = traj.target.t_b_s;
-                    let mut out: Vec<(ThresholdRun, bool)> = Vec::with_capacity(switch_cases.len());
-                    for (k, s) in replayed.at_switch.iter().enumerate() {
-                        // Cases switching at the same fix (the literal rule's
-                        // thresholds) share one snapshot, so one result.
-                        let same = replayed.at_switch[..k]
-                            .iter()
-                            .position(|p| p.is_some_and(|p| s.is_some_and(|s| p.fix == s.fix)));
-                        if let Some(j) = same {
-                            out.push(out[j]);
-                            continue;
-                        }
-                        out.push(match s {
-                            Some(s) => {
-                                let mut b = branches(flight, s);
-                                b.bound_variance = path.bound_variance[s.fix];
-                                // At the first fix the batch has nothing to add.
-                                if run < gauss_newton_runs && s.fix > 0 {
-                                    b.gauss_newton_m = gauss_newton(
-                                        sc,
-                                        flight,
-                                        &replayed.ins_at_first_fix,
-                                        &replayed.fixes[..=s.fix],
-                                        &s.estimate,
-                                        sc.gauss_newton_iterations,
-                                        false,
-                                    )?
-                                    .error_m;
-                                }
-                                (b, false)
-                            }
-                            None => (
-                                ThresholdRun {
-                                    switch_time_s: t_b,
-                                    outputs_only_m: f64::NAN,
-                                    proposed_m: f64::NAN,
-                                    oracle_m: f64::NAN,
-                                    gauss_newton_m: f64::NAN,
-                                    bound_variance: f64::NAN,
-                                },
-                                true,
-                            ),
-                        });
+                        (b, false)
                     }
-                    Ok::<_, EstimationError>(RunRecord {
-                        free,
-                        thresholds: out,
-                    })
-                })
-            },
-            || trajs.get(ti + 1).and_then(prepare),
-        );
-        let per_run = per_run?;
-        next = prepared;
+                    None => (
+                        ThresholdRun {
+                            switch_time_s: t_b,
+                            outputs_only_m: f64::NAN,
+                            proposed_m: f64::NAN,
+                            oracle_m: f64::NAN,
+                            gauss_newton_m: f64::NAN,
+                            bound_variance: f64::NAN,
+                        },
+                        true,
+                    ),
+                });
+            }
+            Ok::<_, EstimationError>(RunRecord {
+                free,
+                thresholds: out,
+            })
+        })?;
         trajectories.push(per_run);
     }
     Ok(ExtendedStateRuns { trajectories })
@@ -833,26 +809,8 @@ fn finish_on(
     Ok(ExtendedStateResult { cases, ..figure })
 }
 
-/// Run 0's history and error curves, and the forced-switch sweep, on one
-/// trajectory: the sweep's runs fly while run 0 (serial) is recorded.
+/// Run 0's history and error curves, and the forced-switch sweep, on one trajectory.
 fn figures(
-    sc: &ExtendedStateScenario,
-    traj: &LaunchTrajectory,
-) -> Result<ExtendedStateResult, ExtendedStateError> {
-    let ti = sc.figure_target as u64;
-    let (figure, sweep) = rayon::join(
-        || recorded_run(sc, traj),
-        || forced_switch_sweep(sc, traj, ti),
-    );
-    let figure = figure?;
-    Ok(ExtendedStateResult {
-        sweep: sweep?,
-        ..figure
-    })
-}
-
-/// Run 0's history and error curves on one trajectory (no sweep).
-fn recorded_run(
     sc: &ExtendedStateScenario,
     traj: &LaunchTrajectory,
 ) -> Result<ExtendedStateResult, ExtendedStateError> {
@@ -911,6 +869,7 @@ fn recorded_run(
         error_proposed.push(proposed);
         error_outputs_only.push(outputs);
     }
+    let sweep = forced_switch_sweep(sc, traj, ti)?;
     Ok(ExtendedStateResult {
         cases: Vec::new(),
         history,
@@ -918,7 +877,7 @@ fn recorded_run(
         error_proposed,
         error_outputs_only,
         error_free,
-        sweep: Vec::new(),
+        sweep,
     })
 }
 
