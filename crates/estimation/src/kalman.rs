@@ -292,6 +292,22 @@ where
         check::finite(h, step, Matrix::H)?;
         check::finite(r, step, Matrix::R)?;
         check::symmetric(r, step, Matrix::R)?;
+        self.innovate_prechecked(z, h, r)
+    }
+
+    /// [`innovate`](Self::innovate) for an H and R the caller checked
+    /// (shapes, finite, R symmetric) and a finite z: the arithmetic alone.
+    fn innovate_prechecked<M: Dim>(
+        &self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+    ) -> Result<Innovated<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let step = Step::Update;
+        let (m, n) = (z.len(), self.dim());
         let residual = z - h * &self.x;
         let (md, nd) = h.shape_generic();
         let mut cross = OMatrix::<f64, N, M>::zeros_generic(nd, md);
@@ -674,30 +690,14 @@ where
     {
         let step = Step::Update;
         check::finite(z, step, Matrix::Z)?;
-        // innovate's arithmetic.
-        let (m, n) = (z.len(), self.dim());
-        let residual = z - h * &self.x;
-        let (md, nd) = h.shape_generic();
-        let mut cross = OMatrix::<f64, N, M>::zeros_generic(nd, md);
-        let mut hph = OMatrix::<f64, M, M>::zeros_generic(md, md);
-        if dense::use_kernel::<M, N, N>(m, n, n) {
-            dense::symmetric_times_h_transpose(&mut cross, &self.p, h);
-            dense::h_times_cross(&mut hph, h, &cross);
-        } else {
-            let mut listed = [0; dense::MAX_LISTED];
-            let columns = dense::nonzero_columns(h, &mut listed);
-            let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
-            dense::h_times_symmetric(&mut hp, h, &self.p, columns);
-            dense::times_h_transpose(&mut hph, &hp, h, columns);
-            cross = hp.transpose();
-        }
-        check::symmetrize(&mut hph);
-        let s = &hph + r;
-        let chol = Cholesky::new(s.clone()).ok_or(EstimationError::NotPositiveDefinite {
-            step,
-            matrix: Matrix::S,
-        })?;
-        let nis = residual.dot(&chol.solve(&residual));
+        let Innovated {
+            residual,
+            cross,
+            hph,
+            s,
+            chol,
+            nis,
+        } = self.innovate_prechecked(z, h, r)?;
         let decision = match policy {
             None => Decision::Accept,
             Some(p) => p.decide(&InnovationView {
