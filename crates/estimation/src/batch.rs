@@ -12,7 +12,7 @@ use nalgebra::{
 
 use crate::check;
 use crate::error::{EstimationError, Matrix, Result, Step};
-use crate::kalman::{Decided, FilterAllocator, KalmanFilter};
+use crate::kalman::{FilterAllocator, KalmanFilter};
 use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
 use crate::smoother::ForwardEpoch;
 
@@ -541,7 +541,7 @@ where
             .keep
             .forward
             .then(|| Box::new((kf.state().clone(), kf.covariance().clone())));
-        let rec = kf.update_with(&z, &st.h, &st.r, &mut Decided(Some(decision)))?;
+        let rec = kf.update_decided(&z, &st.h, &st.r, decision)?;
         for (j, &i) in present.iter().enumerate() {
             residuals[i] = rec.residual[j];
         }

@@ -211,8 +211,7 @@ where
         let n = self.dim();
         check::shape(phi, (n, n), Step::Predict, Matrix::Phi)?;
         check::finite(phi, Step::Predict, Matrix::Phi)?;
-        self.x = phi * &self.x;
-        check::finite(&self.x, Step::Predict, Matrix::X)
+        self.predict_state_prechecked(phi)
     }
 
     /// Covariance half of the time update, `P = Φ P Φᵀ + Q`.
@@ -245,9 +244,20 @@ where
         if !q_exactly_symmetric {
             check::symmetrize(&mut p);
         }
-        dense::add_congruence(&mut p, phi, &self.p);
-        check::finite(&p, step, Matrix::P)?;
-        self.p = p;
+        self.propagate_onto(p, phi)
+    }
+
+    /// `P = Φ P Φᵀ + base`, `base` Q as checked and symmetrised (its lower
+    /// triangle read), and the check of the result: the dense time update
+    /// of `predict`, `predict_covariance` and the batch's prechecked predict.
+    fn propagate_onto(
+        &mut self,
+        mut base: OMatrix<f64, N, N>,
+        phi: &OMatrix<f64, N, N>,
+    ) -> Result<()> {
+        dense::add_congruence(&mut base, phi, &self.p);
+        check::finite(&base, Step::Predict, Matrix::P)?;
+        self.p = base;
         Ok(())
     }
 
@@ -367,16 +377,42 @@ where
     where
         DefaultAllocator: FilterAllocator<N, M>,
     {
-        let step = Step::Update;
         let innov = self.innovate(z, h, r)?;
-        let decision = policy.decide(&InnovationView {
-            residual: &innov.residual,
-            hph: &innov.hph,
-            r,
-            s: &innov.s,
-            nis: innov.nis,
-        });
-        let (nrows, ncols) = (h.shape_generic().1, h.shape_generic().0);
+        let decision = policy.decide(&innov.view(r));
+        self.apply_decision(innov, decision, r)
+    }
+
+    /// [`update_with`](Self::update_with) with the policy's decision already
+    /// taken (the batch replays a decision it took on the steady path's
+    /// innovation, the same numbers; a policy asked twice could change its
+    /// state).
+    pub(crate) fn update_decided<M: Dim>(
+        &mut self,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+        decision: Decision<M>,
+    ) -> Result<UpdateRecord<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let innov = self.innovate(z, h, r)?;
+        self.apply_decision(innov, decision, r)
+    }
+
+    /// The update a decision asks for, on the innovation it was taken on.
+    fn apply_decision<M: Dim>(
+        &mut self,
+        innov: Innovated<N, M>,
+        decision: Decision<M>,
+        r: &OMatrix<f64, M, M>,
+    ) -> Result<UpdateRecord<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let step = Step::Update;
+        let m = innov.residual.len();
+        let (nrows, ncols) = innov.cross.shape_generic();
         let (outcome, gain) = match decision {
             Decision::Reject => (Outcome::Rejected, OMatrix::zeros_generic(nrows, ncols)),
             Decision::Accept => {
@@ -385,7 +421,7 @@ where
                 (Outcome::Accepted, gain)
             }
             Decision::ReplaceResidual(limited) => {
-                check::shape(&limited, (z.len(), 1), step, Matrix::Innovation)?;
+                check::shape(&limited, (m, 1), step, Matrix::Innovation)?;
                 check::finite(&limited, step, Matrix::Innovation)?;
                 let gain = Self::gain(&innov.chol, &innov.cross);
                 self.apply(&gain, &limited, &innov.cross, &innov.s, step)?;
@@ -409,7 +445,7 @@ where
                 (Outcome::Reweighted, gain)
             }
             Decision::GainCovariance(c) => {
-                let gain = Self::gain_from(c, &innov.cross, z.len(), step)?;
+                let gain = Self::gain_from(c, &innov.cross, m, step)?;
                 self.apply(&gain, &innov.residual, &innov.cross, &innov.s, step)?;
                 (Outcome::AdaptiveGain, gain)
             }
@@ -417,9 +453,9 @@ where
                 residual,
                 covariance,
             } => {
-                check::shape(&residual, (z.len(), 1), step, Matrix::Innovation)?;
+                check::shape(&residual, (m, 1), step, Matrix::Innovation)?;
                 check::finite(&residual, step, Matrix::Innovation)?;
-                let gain = Self::gain_from(covariance, &innov.cross, z.len(), step)?;
+                let gain = Self::gain_from(covariance, &innov.cross, m, step)?;
                 self.apply(&gain, &residual, &innov.cross, &innov.s, step)?;
                 (Outcome::Limited, gain)
             }
@@ -634,6 +670,22 @@ where
     nis: f64,
 }
 
+impl<N: Dim, M: Dim> Innovated<N, M>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    /// What a policy sees of this innovation, with the R it was formed with.
+    fn view<'a>(&'a self, r: &'a OMatrix<f64, M, M>) -> InnovationView<'a, M> {
+        InnovationView {
+            residual: &self.residual,
+            hph: &self.hph,
+            r,
+            s: &self.s,
+            nis: self.nis,
+        }
+    }
+}
+
 impl<N: Dim> KalmanFilter<N>
 where
     DefaultAllocator: Allocator<N> + Allocator<N, N>,
@@ -665,19 +717,13 @@ where
         q_symmetric: &OMatrix<f64, N, N>,
     ) -> Result<()> {
         self.predict_state_prechecked(phi)?;
-        // propagate_covariance's arithmetic.
-        let mut p = q_symmetric.clone();
-        dense::add_congruence(&mut p, phi, &self.p);
-        check::finite(&p, Step::Predict, Matrix::P)?;
-        self.p = p;
-        Ok(())
+        self.propagate_onto(q_symmetric.clone(), phi)
     }
 
     /// [`update_with`](Self::update_with) for an H and R the caller checked
     /// once for many epochs (shapes, finite, R exactly symmetric): the
     /// same arithmetic, bit for bit, the checks of what changes (z, x, P,
-    /// the gain) kept. A decision other than Accept is handed to
-    /// `update_with` (its innovation computed again, the same numbers).
+    /// the gain) kept; any decision applied as `update_with` applies it.
     pub(crate) fn update_prechecked<M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
         &mut self,
         z: &OVector<f64, M>,
@@ -690,51 +736,11 @@ where
     {
         let step = Step::Update;
         check::finite(z, step, Matrix::Z)?;
-        let Innovated {
-            residual,
-            cross,
-            hph,
-            s,
-            chol,
-            nis,
-        } = self.innovate_prechecked(z, h, r)?;
+        let innov = self.innovate_prechecked(z, h, r)?;
         let decision = match policy {
             None => Decision::Accept,
-            Some(p) => p.decide(&InnovationView {
-                residual: &residual,
-                hph: &hph,
-                r,
-                s: &s,
-                nis,
-            }),
+            Some(p) => p.decide(&innov.view(r)),
         };
-        if !matches!(decision, Decision::Accept) {
-            return self.update_with(z, h, r, &mut Decided(Some(decision)));
-        }
-        let gain = Self::gain(&chol, &cross);
-        self.apply(&gain, &residual, &cross, &s, step)?;
-        Ok(UpdateRecord {
-            residual,
-            s,
-            gain,
-            nis,
-            outcome: Outcome::Accepted,
-        })
-    }
-}
-
-/// A decision already made, handed to [`KalmanFilter::update_with`] (a
-/// policy asked twice could change its state).
-pub(crate) struct Decided<M: Dim>(pub(crate) Option<Decision<M>>)
-where
-    DefaultAllocator: Allocator<M> + Allocator<M, M>;
-
-impl<M: Dim> MeasurementPolicy<M> for Decided<M>
-where
-    DefaultAllocator: Allocator<M> + Allocator<M, M>,
-{
-    fn decide(&mut self, _view: &InnovationView<'_, M>) -> Decision<M> {
-        // update_with asks once; Reject is never reached.
-        self.0.take().unwrap_or(Decision::Reject)
+        self.apply_decision(innov, decision, r)
     }
 }
