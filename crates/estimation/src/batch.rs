@@ -432,12 +432,7 @@ where
     if !(shapes && finite) || check::symmetric(r, Step::Update, Matrix::R) != Ok(true) {
         return None;
     }
-    let q_exactly_symmetric = check::symmetric(q, Step::Predict, Matrix::Q).ok()?;
-    let mut q_symmetric = q.clone();
-    if !q_exactly_symmetric {
-        check::symmetrize(&mut q_symmetric);
-    }
-    Some(q_symmetric)
+    check::process_noise(q, n).ok()
 }
 
 /// One epoch's update and what it reports.

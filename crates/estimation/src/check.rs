@@ -133,6 +133,23 @@ where
     }
 }
 
+/// Q as a time update adds it: checked (n × n, finite, symmetric to
+/// [`SYMMETRY_RTOL`]), then `(Q + Qᵀ)/2` unless exactly symmetric.
+pub(crate) fn process_noise<N: Dim>(q: &OMatrix<f64, N, N>, n: usize) -> Result<OMatrix<f64, N, N>>
+where
+    DefaultAllocator: Allocator<N, N>,
+{
+    let step = Step::Predict;
+    shape(q, (n, n), step, Matrix::Q)?;
+    finite(q, step, Matrix::Q)?;
+    let exactly_symmetric = symmetric(q, step, Matrix::Q)?;
+    let mut base = q.clone();
+    if !exactly_symmetric {
+        symmetrize(&mut base);
+    }
+    Ok(base)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

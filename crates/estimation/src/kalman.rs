@@ -234,17 +234,9 @@ where
         phi: &OMatrix<f64, N, N>,
         q: &OMatrix<f64, N, N>,
     ) -> Result<()> {
-        let n = self.dim();
-        let step = Step::Predict;
-        check::shape(q, (n, n), step, Matrix::Q)?;
-        check::finite(q, step, Matrix::Q)?;
-        let q_exactly_symmetric = check::symmetric(q, step, Matrix::Q)?;
         // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
-        let mut p = q.clone();
-        if !q_exactly_symmetric {
-            check::symmetrize(&mut p);
-        }
-        self.propagate_onto(p, phi)
+        let base = check::process_noise(q, self.dim())?;
+        self.propagate_onto(base, phi)
     }
 
     /// `P = Φ P Φᵀ + base`, `base` Q as checked and symmetrised (its lower

@@ -165,10 +165,8 @@ where
         if r >= n || !structure.holds(phi) {
             return self.predict_covariance(phi, q);
         }
-        let step = Step::Predict;
-        check::shape(q, (n, n), step, Matrix::Q)?;
-        check::finite(q, step, Matrix::Q)?;
-        let q_exactly_symmetric = check::symmetric(q, step, Matrix::Q)?;
+        // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
+        let mut p = check::process_noise(q, n)?;
         let (nd, _) = self.p.shape_generic();
         let mut scratch = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
         let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
@@ -182,14 +180,9 @@ where
             scratch.as_mut_slice(),
         );
         transpose(n, scratch.as_slice(), phi_p.as_mut_slice());
-        // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
-        let mut p = q.clone();
-        if !q_exactly_symmetric {
-            check::symmetrize(&mut p);
-        }
         add_times_transpose_lower(n, r, phi_p.as_slice(), phi.as_slice(), p.as_mut_slice());
         dense::mirror_lower(&mut p);
-        check::finite(&p, step, Matrix::P)?;
+        check::finite(&p, Step::Predict, Matrix::P)?;
         self.p = p;
         Ok(())
     }
