@@ -589,7 +589,7 @@ fn harmonic_residual(omega: f64, degree: u32, w: &Window<'_>, train: &[usize]) -
     }
 }
 
-/// Largest phase ω·t of a harmonic unit [rad]: beyond it an f64 no longer
+/// Largest phase ω·t of a harmonic unit (rad): beyond it an f64 no longer
 /// resolves a fraction of a period.
 const MAX_PHASE_RAD: f64 = 1e12;
 

