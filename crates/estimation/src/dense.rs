@@ -37,6 +37,11 @@ use nalgebra::{DefaultAllocator, Dim, OMatrix, allocator::Allocator};
 /// go to nalgebra (packed, cache-blocked `matrixmultiply`).
 const SMALL_DYN: usize = 32;
 
+/// nalgebra's `SMALL_DIM` (0.35, `gemm_uninit`): a run-time sized product
+/// with any dimension at most this runs nalgebra's plain column loop, not
+/// `matrixmultiply`.
+const NALGEBRA_SMALL: usize = 5;
+
 /// Capacity of a [`nonzero_columns`] list (larger matrices use every column).
 pub(crate) const MAX_LISTED: usize = 64;
 
@@ -332,7 +337,14 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
     DefaultAllocator: Allocator<D, D> + Allocator<D, K> + Allocator<K, D>,
 {
     let (n, m) = v.shape();
-    if !use_kernel::<D, K, D>(n, m, n) {
+    // Beyond the kernels' sizes nalgebra's product is packed and blocked
+    // (its own order of operations) only when every dimension exceeds its
+    // small size, 5; a rank-2m term with m ≤ 5 (a measurement of a few
+    // components on a large state: the group filter's) runs its plain
+    // column loop, the kernel's operations in the kernel's order (α = β =
+    // 1), so the kernel gives its bits while computing only the lower
+    // triangle and allocating no transposes.
+    if !use_kernel::<D, K, D>(n, m, n) && m > NALGEBRA_SMALL {
         gemm_nt_lower(out, 1.0, v, k, 1.0);
         gemm_nt_lower(out, 1.0, k, v, 1.0);
         return;
@@ -923,6 +935,33 @@ mod tests {
         add_rank_2k_lower(&mut fused, &v, &k);
         mirror_lower(&mut fused);
         assert_eq!(fused, two);
+    }
+
+    /// Beyond the kernels' run-time sizes, a rank-2m term with m ≤ 5 (the
+    /// group filter's few-component fixes on its 60 states) takes the
+    /// kernel and gives nalgebra's two products bit for bit: random values,
+    /// so the order of the sums shows.
+    #[test]
+    fn large_rank_2k_with_few_columns_equals_nalgebra_bit_for_bit() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+        for (n, m) in [(60, 3), (33, 1), (64, 5), (90, 2), (40, 6)] {
+            let p = random_covariance(&mut rng, n);
+            let v = random_matrix(&mut rng, n, m);
+            let k = random_matrix(&mut rng, n, m) * 0.3;
+            let mut nalgebra = p.clone();
+            nalgebra.gemm(1.0, &v, &k.transpose(), 1.0);
+            nalgebra.gemm(1.0, &k, &v.transpose(), 1.0);
+            mirror_lower(&mut nalgebra);
+            let mut fused = p.clone();
+            add_rank_2k_lower(&mut fused, &v, &k);
+            mirror_lower(&mut fused);
+            let same = fused
+                .iter()
+                .zip(nalgebra.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "n = {n}, m = {m}");
+        }
     }
 
     /// Seeded Gaussian n × c matrix.
