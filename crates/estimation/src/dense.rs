@@ -344,12 +344,38 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
     // column loop, the kernel's operations in the kernel's order (α = β =
     // 1), so the kernel gives its bits while computing only the lower
     // triangle and allocating no transposes.
-    if !use_kernel::<D, K, D>(n, m, n) && m > NALGEBRA_SMALL {
-        gemm_nt_lower(out, 1.0, v, k, 1.0);
-        gemm_nt_lower(out, 1.0, k, v, 1.0);
+    if !use_kernel::<D, K, D>(n, m, n) {
+        if m > NALGEBRA_SMALL {
+            gemm_nt_lower(out, 1.0, v, k, 1.0);
+            gemm_nt_lower(out, 1.0, k, v, 1.0);
+        } else {
+            // Large n: worth the wider vectors.
+            run_widest(
+                Rank2kLower { n, m },
+                out.as_mut_slice(),
+                &mut [],
+                v.as_slice(),
+                k.as_slice(),
+            );
+        }
         return;
     }
     rank_2k_lower_kernel(n, m, v.as_slice(), k.as_slice(), out.as_mut_slice());
+}
+
+/// [`add_rank_2k_lower`] on the column-major slices: `out` (n × n), `a` =
+/// V and `b` = K (n × m); no scratch.
+struct Rank2kLower {
+    n: usize,
+    m: usize,
+}
+
+impl Widened for Rank2kLower {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _scratch: &mut [f64], a: &[f64], b: &[f64]) {
+        let (n, m) = (self.n, self.m);
+        rank_2k_lower_kernel(n, m, &a[..n * m], &b[..n * m], &mut out[..n * n]);
+    }
 }
 
 /// The kernel of [`add_rank_2k_lower`] on column-major slices (v, k: n × m).
