@@ -115,10 +115,11 @@ pub fn continuous(
 /// flat model discretises.
 ///
 /// F is sparse (about 60 of 441 entries) and Q_c block diagonal, so the
-/// four 21×21 products run over their nonzero terms only
-/// ([`DiscretePlans`]): the dense products' bits at a fraction of their
-/// cost (they were a third of the formation's run time). An F or Q_c with
-/// nonzeros elsewhere gets the same bits the slower way.
+/// four 21×21 products run over their nonzero terms only, planned once
+/// from where [`continuous`] puts its nonzeros: the dense products' bits,
+/// signs of zeros included, at a fraction of their cost (they were a third
+/// of the formation's run time). An F or Q_c with nonzeros elsewhere gets
+/// the same bits the slower way.
 pub fn discrete(f: &Matrix21, qc: &Matrix21, dt_s: f64) -> (Matrix21, Matrix21) {
     let plans = DiscretePlans::get();
     let fdt = f * dt_s;
