@@ -1,7 +1,7 @@
 //! A product of statically sized matrices that skips the exact zeros of its
 //! factors and still gives nalgebra's dense product bit for bit.
 //!
-//! The stage-1 filters discretise a sparse F (about 70 of 441 entries
+//! The stage-1 filters discretise a sparse F (about 60 of 441 entries
 //! nonzero at 21 states) and carry a block-diagonal Q_c through Φ; the dense
 //! 21×21 products of that were a third of the formation's run time.
 //!
