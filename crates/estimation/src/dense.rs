@@ -37,6 +37,11 @@ use nalgebra::{DefaultAllocator, Dim, OMatrix, allocator::Allocator};
 /// go to nalgebra (packed, cache-blocked `matrixmultiply`).
 const SMALL_DYN: usize = 32;
 
+/// nalgebra's `SMALL_DIM` (0.35, `gemm_uninit`): a run-time sized product
+/// with any dimension at most this runs nalgebra's plain column loop, not
+/// `matrixmultiply`.
+const NALGEBRA_SMALL: usize = 5;
+
 /// Capacity of a [`nonzero_columns`] list (larger matrices use every column).
 pub(crate) const MAX_LISTED: usize = 64;
 
@@ -332,12 +337,45 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
     DefaultAllocator: Allocator<D, D> + Allocator<D, K> + Allocator<K, D>,
 {
     let (n, m) = v.shape();
+    // Beyond the kernels' sizes nalgebra's product is packed and blocked
+    // (its own order of operations) only when every dimension exceeds its
+    // small size, 5; a rank-2m term with m ≤ 5 (a measurement of a few
+    // components on a large state: the group filter's) runs its plain
+    // column loop, the kernel's operations in the kernel's order (α = β =
+    // 1), so the kernel gives its bits while computing only the lower
+    // triangle and allocating no transposes.
     if !use_kernel::<D, K, D>(n, m, n) {
-        gemm_nt_lower(out, 1.0, v, k, 1.0);
-        gemm_nt_lower(out, 1.0, k, v, 1.0);
+        if m > NALGEBRA_SMALL {
+            gemm_nt_lower(out, 1.0, v, k, 1.0);
+            gemm_nt_lower(out, 1.0, k, v, 1.0);
+        } else {
+            // Large n: worth the wider vectors.
+            run_widest(
+                Rank2kLower { n, m },
+                out.as_mut_slice(),
+                &mut [],
+                v.as_slice(),
+                k.as_slice(),
+            );
+        }
         return;
     }
     rank_2k_lower_kernel(n, m, v.as_slice(), k.as_slice(), out.as_mut_slice());
+}
+
+/// [`add_rank_2k_lower`] on the column-major slices: `out` (n × n), `a` =
+/// V and `b` = K (n × m); no scratch.
+struct Rank2kLower {
+    n: usize,
+    m: usize,
+}
+
+impl Widened for Rank2kLower {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _scratch: &mut [f64], a: &[f64], b: &[f64]) {
+        let (n, m) = (self.n, self.m);
+        rank_2k_lower_kernel(n, m, &a[..n * m], &b[..n * m], &mut out[..n * n]);
+    }
 }
 
 /// The kernel of [`add_rank_2k_lower`] on column-major slices (v, k: n × m).
@@ -923,6 +961,33 @@ mod tests {
         add_rank_2k_lower(&mut fused, &v, &k);
         mirror_lower(&mut fused);
         assert_eq!(fused, two);
+    }
+
+    /// Beyond the kernels' run-time sizes, a rank-2m term with m ≤ 5 (the
+    /// group filter's few-component fixes on its 60 states) takes the
+    /// kernel and gives nalgebra's two products bit for bit: random values,
+    /// so the order of the sums shows.
+    #[test]
+    fn large_rank_2k_with_few_columns_equals_nalgebra_bit_for_bit() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+        for (n, m) in [(60, 3), (33, 1), (64, 5), (90, 2), (40, 6)] {
+            let p = random_covariance(&mut rng, n);
+            let v = random_matrix(&mut rng, n, m);
+            let k = random_matrix(&mut rng, n, m) * 0.3;
+            let mut nalgebra = p.clone();
+            nalgebra.gemm(1.0, &v, &k.transpose(), 1.0);
+            nalgebra.gemm(1.0, &k, &v.transpose(), 1.0);
+            mirror_lower(&mut nalgebra);
+            let mut fused = p.clone();
+            add_rank_2k_lower(&mut fused, &v, &k);
+            mirror_lower(&mut fused);
+            let same = fused
+                .iter()
+                .zip(nalgebra.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "n = {n}, m = {m}");
+        }
     }
 
     /// Seeded Gaussian n × c matrix.

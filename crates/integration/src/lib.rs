@@ -23,3 +23,4 @@ pub mod ned;
 pub mod ned_loop;
 pub mod ned_loosely;
 mod recording;
+mod sparse;

@@ -48,6 +48,15 @@ impl ErrorCrossCovariance {
         self.cross = phi * self.cross;
     }
 
+    /// Time update by `phi_times`, which returns Φ C for a C (a filter
+    /// whose Φ is sparse multiplies by its nonzeros only).
+    pub(crate) fn predict_with(
+        &mut self,
+        phi_times: impl FnOnce(&SMatrix<f64, STATES, 6>) -> SMatrix<f64, STATES, 6>,
+    ) {
+        self.cross = phi_times(&self.cross);
+    }
+
     /// Fix with H, R on the predicted covariance `p_prior`: C −= K H C with
     /// K = P⁻ Hᵀ S⁻¹ (Cholesky solve, S = H P⁻ Hᵀ + R).
     pub(crate) fn update(
