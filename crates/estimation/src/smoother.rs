@@ -107,7 +107,8 @@ where
 /// `identity`: nothing composed yet).
 #[derive(Debug, Clone)]
 struct BackwardMap<const N: usize> {
-    a: SMatrix<f64, N, N>,
+    /// Boxed: A ← A C swaps it with the product's buffer.
+    a: Box<SMatrix<f64, N, N>>,
     b: SVector<f64, N>,
     d: SMatrix<f64, N, N>,
     identity: bool,
@@ -118,7 +119,7 @@ struct BackwardMap<const N: usize> {
 impl<const N: usize> BackwardMap<N> {
     fn identity(mark_epoch: usize) -> Self {
         Self {
-            a: SMatrix::identity(),
+            a: Box::new(SMatrix::identity()),
             b: SVector::zeros(),
             d: SMatrix::zeros(),
             identity: true,
@@ -135,11 +136,12 @@ impl<const N: usize> BackwardMap<N> {
         if self.identity {
             return (*x, *p);
         }
-        let mut ps = self.d;
+        let mut ps = SMatrix::<f64, N, N>::zeros();
+        copy_matrix(&mut ps, &self.d);
         let mut t = SMatrix::<f64, N, N>::zeros();
         product(&mut t, &self.a, p);
         symmetric_product::<N, false>(&mut ps, &t, &self.a);
-        (self.a * x + self.b, ps)
+        (*self.a * x + self.b, ps)
     }
 }
 
@@ -162,34 +164,24 @@ impl<const N: usize> BackwardMap<N> {
 fn compose_step<const N: usize>(
     map: &mut BackwardMap<N>,
     (x_j, p_j): (&SVector<f64, N>, &SMatrix<f64, N, N>),
-    phi: &SMatrix<f64, N, N>,
+    (phi, full_rows): (&SMatrix<f64, N, N>, usize),
     (x_predicted, p_predicted): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+    scratch: &mut StepScratch<N>,
 ) -> Option<()> {
-    // A frozen state (variance exactly zero, its row and column zero, Φ
-    // diagonal there) is set aside by a unit diagonal, as in
-    // [`rts_smooth`]: its gain is zero.
-    let mut l = *p_predicted;
-    for i in 0..N {
-        if l[(i, i)] == 0.0 {
-            l[(i, i)] = 1.0;
-        }
-    }
+    let StepScratch { l, w, c, delta, t } = scratch;
     let mut positive = [0.0];
     run_widest(
         CholeskyKernel::<N>,
         l.as_mut_slice(),
         &mut positive,
-        &[],
+        p_predicted.as_slice(),
         &[],
     );
     if positive[0] != 1.0 {
         return None;
     }
-    let mut w = SMatrix::<f64, N, N>::zeros();
     run_widest(
-        TimesTranspose::<N> {
-            full_rows: TrailingDiagonal::of(phi).full_rows(),
-        },
+        TimesTranspose::<N> { full_rows },
         w.as_mut_slice(),
         &mut [],
         p_j.as_slice(),
@@ -202,32 +194,122 @@ fn compose_step<const N: usize>(
         l.as_slice(),
         &[],
     );
-    let mut c = w;
+    if map.identity {
+        // C, Δ straight into the map.
+        run_widest(
+            SolveLower::<N>,
+            map.a.as_mut_slice(),
+            &mut [],
+            l.as_slice(),
+            w.as_slice(),
+        );
+        map.b = x_j - *map.a * x_predicted;
+        subtract_gram(&mut map.d, p_j, w);
+        map.identity = false;
+        return Some(());
+    }
     run_widest(
         SolveLower::<N>,
         c.as_mut_slice(),
         &mut [],
         l.as_slice(),
-        &[],
+        w.as_slice(),
     );
-    let beta = x_j - c * x_predicted;
-    if map.identity {
-        map.d = *p_j;
-        symmetric_product::<N, true>(&mut map.d, &w, &w);
-        map.a = c;
-        map.b = beta;
-        map.identity = false;
-        return Some(());
-    }
-    let mut delta = *p_j;
-    symmetric_product::<N, true>(&mut delta, &w, &w);
-    map.b += map.a * beta;
-    let mut t = SMatrix::<f64, N, N>::zeros();
-    product(&mut t, &map.a, &delta);
-    symmetric_product::<N, false>(&mut map.d, &t, &map.a);
-    product(&mut t, &map.a, &c);
-    map.a = t;
+    let beta = x_j - **c * x_predicted;
+    subtract_gram(delta, p_j, w);
+    map.b += *map.a * beta;
+    product(t, &map.a, delta);
+    symmetric_product::<N, false>(&mut map.d, t, &map.a);
+    product(t, &map.a, c);
+    std::mem::swap(&mut map.a, t);
     Some(())
+}
+
+/// `out = P − W Wᵀ` (P symmetric), the lower triangle mirrored, through
+/// [`run_widest`]: each lower element is P's, then loses `W(c, k) W(r, k)`
+/// in increasing k.
+fn subtract_gram<const N: usize>(
+    out: &mut SMatrix<f64, N, N>,
+    p: &SMatrix<f64, N, N>,
+    w: &SMatrix<f64, N, N>,
+) {
+    run_widest(
+        GramFrom::<N>,
+        out.as_mut_slice(),
+        &mut [],
+        p.as_slice(),
+        w.as_slice(),
+    );
+}
+
+/// [`subtract_gram`]'s kernel: `out` = P − W Wᵀ, `a` = P, `b` = W.
+struct GramFrom<const N: usize>;
+
+impl<const N: usize> Widened for GramFrom<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        let (out, p, w) = (&mut out[..N * N], &a[..N * N], &b[..N * N]);
+        // P's lower triangle (and the block rows above it) first, column by
+        // column (short copies), then the product subtracted in place.
+        let start = |b: usize| (b * N / 4) & !1;
+        let (s1, s2, s3) = (start(1), start(2), start(3));
+        for c in 0..N {
+            let row0 = if c < s1 {
+                0
+            } else if c < s2 {
+                s1
+            } else if c < s3 {
+                s2
+            } else {
+                s3
+            };
+            out[c * N + row0..(c + 1) * N].copy_from_slice(&p[c * N + row0..(c + 1) * N]);
+        }
+        add_symmetric_product::<N, true>(out, w, w);
+    }
+}
+
+/// Buffers of one node step ([`compose_step`]): every element is written
+/// before it is read, so they are kept from step to step (no N × N
+/// matrix is zeroed or copied per node).
+#[derive(Debug, Clone)]
+struct StepScratch<const N: usize> {
+    /// Cholesky factor of P⁻ (lower triangle).
+    l: SMatrix<f64, N, N>,
+    /// W = P_j Φᵀ L⁻ᵀ.
+    w: SMatrix<f64, N, N>,
+    /// C = W L⁻¹.
+    c: Box<SMatrix<f64, N, N>>,
+    /// Δ = P_j − W Wᵀ.
+    delta: SMatrix<f64, N, N>,
+    /// A Δ, then A C (swapped into the map).
+    t: Box<SMatrix<f64, N, N>>,
+}
+
+impl<const N: usize> StepScratch<N> {
+    fn new() -> Box<Self> {
+        Box::new(Self {
+            l: SMatrix::zeros(),
+            w: SMatrix::zeros(),
+            c: Box::new(SMatrix::zeros()),
+            delta: SMatrix::zeros(),
+            t: Box::new(SMatrix::zeros()),
+        })
+    }
+}
+
+/// `dst ← src` in two halves. A 21 × 21 matrix is 3528 bytes; glibc's
+/// `memcpy` copies blocks above 2112 bytes with `rep movsb` on CPUs with
+/// fast short `rep movsb`, which some (AMD Zen 4) run several times slower
+/// at some relative alignments of source and destination (measured here:
+/// a quarter of the recorder's time in `rep movsb`); halves of at most
+/// 2112 bytes take glibc's vector loop. Same values, bit for bit.
+#[inline(always)]
+fn copy_matrix<const N: usize>(dst: &mut SMatrix<f64, N, N>, src: &SMatrix<f64, N, N>) {
+    let (d, s) = (dst.as_mut_slice(), src.as_slice());
+    let half = N * N / 2;
+    d[..half].copy_from_slice(&s[..half]);
+    d[half..].copy_from_slice(&s[half..]);
 }
 
 /// `out = a b` (N × N), as [`gemm`] computes it (each column from zero,
@@ -291,14 +373,27 @@ impl<const N: usize, const SUBTRACT: bool> Widened for SymmetricProduct<N, SUBTR
     }
 }
 
-/// [`cholesky_lower_in_place`]'s kernel: `out` = the matrix, then L;
-/// `scratch[0]` = 1 when every pivot was positive, 0 otherwise.
+/// The Cholesky factor of P⁻ with its frozen states set aside: `a` = P⁻,
+/// `out` = L (the lower triangle of P⁻, a zero diagonal element made 1,
+/// factored by [`cholesky_lower_in_place`]; the upper triangle not
+/// written); `scratch[0]` = 1 when every pivot was positive, 0 otherwise.
+///
+/// A frozen state (variance exactly zero, its row and column zero, Φ
+/// diagonal there) is set aside by the unit diagonal, as in
+/// [`rts_smooth`]: its gain is zero.
 struct CholeskyKernel<const N: usize>;
 
 impl<const N: usize> Widened for CholeskyKernel<N> {
     #[inline(always)]
-    fn run(self, out: &mut [f64], scratch: &mut [f64], _: &[f64], _: &[f64]) {
-        scratch[0] = if cholesky_lower_in_place::<N>(out) {
+    fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], _: &[f64]) {
+        let (l, p) = (&mut out[..N * N], &a[..N * N]);
+        for j in 0..N {
+            l[j * N + j..(j + 1) * N].copy_from_slice(&p[j * N + j..(j + 1) * N]);
+            if l[j * N + j] == 0.0 {
+                l[j * N + j] = 1.0;
+            }
+        }
+        scratch[0] = if cholesky_lower_in_place::<N>(l) {
             1.0
         } else {
             0.0
@@ -316,13 +411,14 @@ impl<const N: usize> Widened for SolveLowerTransposed<N> {
     }
 }
 
-/// [`solve_right_lower`]'s kernel: `out` = C, `a` = L.
+/// [`solve_right_lower`]'s kernel from W: `out` = C, `a` = L, `b` = W
+/// (each column of C starts as W's).
 struct SolveLower<const N: usize>;
 
 impl<const N: usize> Widened for SolveLower<N> {
     #[inline(always)]
-    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], _: &[f64]) {
-        solve_right_lower::<N>(&a[..N * N], &mut out[..N * N]);
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        solve_right_lower::<N>(&a[..N * N], Some(&b[..N * N]), &mut out[..N * N]);
     }
 }
 
@@ -401,12 +497,17 @@ fn solve_right_lower_transposed<const N: usize>(l: &[f64], w: &mut [f64]) {
 
 /// `C ← C L⁻¹` (solve `C L = W` in place, L lower triangular with a
 /// non-zero diagonal, column-major; only its lower triangle is read), from
-/// the last column: `C_j = (W_j − Σ_{k>j} L_kj C_k) / L_jj`.
+/// the last column: `C_j = (W_j − Σ_{k>j} L_kj C_k) / L_jj`. With `w`,
+/// column j of C is W's column j before it is solved (C = W L⁻¹ out of
+/// place).
 #[inline(always)]
-fn solve_right_lower<const N: usize>(l: &[f64], c: &mut [f64]) {
+fn solve_right_lower<const N: usize>(l: &[f64], w: Option<&[f64]>, c: &mut [f64]) {
     for j in (0..N).rev() {
         let (head, done) = c.split_at_mut((j + 1) * N);
         let cj = &mut head[j * N..];
+        if let Some(w) = w {
+            cj.copy_from_slice(&w[j * N..(j + 1) * N]);
+        }
         for k in j + 1..N {
             let f = l[j * N + k];
             let ck = &done[(k - j - 1) * N..(k - j) * N];
@@ -523,6 +624,58 @@ fn rows_times<const N: usize, const R: usize>(phi: &[f64], b: &[f64], out: &mut 
     }
 }
 
+/// Write a completed map into the store's slot `i` (a new chunk when it
+/// starts one).
+fn store<const N: usize>(chunks: &mut Vec<Box<[f64]>>, i: usize, map: &BackwardMap<N>) {
+    let stride = floats_per_mark(N);
+    let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
+    if chunk == chunks.len() {
+        chunks.push(vec![0.0; MARKS_PER_CHUNK * stride].into_boxed_slice());
+    }
+    let out = &mut chunks[chunk][slot * stride..(slot + 1) * stride];
+    let (a, rest) = out.split_at_mut(N * N);
+    let (b, rest) = rest.split_at_mut(N);
+    let (d, epoch) = rest.split_at_mut(N * (N + 1) / 2);
+    let half = N * N / 2;
+    // In halves, as `copy_matrix` (glibc's `rep movsb` above 2112 bytes).
+    a[..half].copy_from_slice(&map.a.as_slice()[..half]);
+    a[half..].copy_from_slice(&map.a.as_slice()[half..]);
+    b.copy_from_slice(map.b.as_slice());
+    let mut k = 0;
+    for c in 0..N {
+        for r in c..N {
+            d[k] = map.d[(r, c)];
+            k += 1;
+        }
+    }
+    // Exact: an epoch index is far below 2⁵³.
+    epoch[0] = map.mark_epoch as f64;
+}
+
+/// The stored map of mark `i` into `map`.
+fn load<const N: usize>(chunks: &[Box<[f64]>], i: usize, map: &mut BackwardMap<N>) {
+    let stride = floats_per_mark(N);
+    let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
+    let v = &chunks[chunk][slot * stride..(slot + 1) * stride];
+    let (a, rest) = v.split_at(N * N);
+    let (b, rest) = rest.split_at(N);
+    let (d_packed, epoch) = rest.split_at(N * (N + 1) / 2);
+    let half = N * N / 2;
+    map.a.as_mut_slice()[..half].copy_from_slice(&a[..half]);
+    map.a.as_mut_slice()[half..].copy_from_slice(&a[half..]);
+    map.b.copy_from_slice(b);
+    let mut k = 0;
+    for c in 0..N {
+        for r in c..N {
+            map.d[(r, c)] = d_packed[k];
+            map.d[(c, r)] = d_packed[k];
+            k += 1;
+        }
+    }
+    map.identity = false;
+    map.mark_epoch = epoch[0] as usize;
+}
+
 /// The error of a P⁻ that is not positive definite at `epoch`.
 fn not_positive_definite(epoch: usize) -> EstimationError {
     EstimationError::NotPositiveDefinite {
@@ -610,6 +763,10 @@ pub struct RtsRecorder<const N: usize> {
     anchor: Option<(SVector<f64, N>, SMatrix<f64, N, N>)>,
     /// Transition from the anchor to the open epoch.
     phi: SMatrix<f64, N, N>,
+    /// `phi`'s rows from this one on are diagonal (see [`TrailingDiagonal`]).
+    phi_full_rows: usize,
+    /// Buffers of the node step.
+    scratch: Box<StepScratch<N>>,
     /// Backward map from the anchor to the latest closed mark (None before
     /// the first mark closes).
     map: Option<BackwardMap<N>>,
@@ -639,6 +796,8 @@ impl<const N: usize> RtsRecorder<N> {
             open_mark: None,
             anchor: None,
             phi: SMatrix::identity(),
+            phi_full_rows: 0,
+            scratch: StepScratch::new(),
             map: None,
             chunks: Vec::new(),
             stored: 0,
@@ -660,27 +819,30 @@ impl<const N: usize> RtsRecorder<N> {
         if self.overflow || self.failed.is_some() {
             return;
         }
+        // The tightest structure, once per Φ: a product of two such
+        // transitions has the larger number of full rows.
+        let full_rows = TrailingDiagonal::of(phi).full_rows();
         if self.close_open_epoch() {
-            self.phi = *phi;
+            copy_matrix(&mut self.phi, phi);
+            self.phi_full_rows = full_rows;
         } else if self.map.is_some() {
             // Only the steps after the first mark are ever composed.
             // Φ Φ_acc at the cost of Φ's full rows, the same products in
             // the same order as the dense product.
-            let mut product = SMatrix::<f64, N, N>::zeros();
+            let product = &mut self.scratch.delta;
             run_widest(
-                TransitionProduct::<N> {
-                    full_rows: TrailingDiagonal::of(phi).full_rows(),
-                },
+                TransitionProduct::<N> { full_rows },
                 product.as_mut_slice(),
                 &mut [],
                 phi.as_slice(),
                 self.phi.as_slice(),
             );
-            self.phi = product;
+            copy_matrix(&mut self.phi, product);
+            self.phi_full_rows = self.phi_full_rows.max(full_rows);
         }
         self.epoch += 1;
         self.x_predicted = *x_predicted;
-        self.p_predicted = *p_predicted;
+        copy_matrix(&mut self.p_predicted, p_predicted);
         self.updated = false;
         self.open_mark = None;
     }
@@ -696,7 +858,7 @@ impl<const N: usize> RtsRecorder<N> {
     ) {
         self.x_predicted = *x_predicted;
         self.x_filtered = *x;
-        self.p_filtered = *p;
+        copy_matrix(&mut self.p_filtered, p);
         self.updated = true;
     }
 
@@ -765,13 +927,29 @@ impl<const N: usize> RtsRecorder<N> {
             return true;
         }
         if self.open_mark.is_some() {
-            if let Some(map) = self.map.take() {
-                self.store(&map);
+            match self.map.as_mut() {
+                Some(map) => {
+                    store(&mut self.chunks, self.stored, map);
+                    self.stored += 1;
+                    // Composing onto an identity map overwrites A, b, D.
+                    map.identity = true;
+                    map.mark_epoch = self.epoch;
+                }
+                None => self.map = Some(BackwardMap::identity(self.epoch)),
             }
-            self.map = Some(BackwardMap::identity(self.epoch));
         }
-        let (x, p) = self.open_filtered();
-        self.anchor = Some((*x, *p));
+        let (x, p) = if self.updated {
+            (&self.x_filtered, &self.p_filtered)
+        } else {
+            (&self.x_predicted, &self.p_predicted)
+        };
+        match self.anchor.as_mut() {
+            Some((ax, ap)) => {
+                *ax = *x;
+                copy_matrix(ap, p);
+            }
+            None => self.anchor = Some((*x, *p)),
+        }
         true
     }
 
@@ -781,64 +959,13 @@ impl<const N: usize> RtsRecorder<N> {
             compose_step(
                 map,
                 (x_j, p_j),
-                &self.phi,
+                (&self.phi, self.phi_full_rows),
                 (&self.x_predicted, &self.p_predicted),
+                &mut self.scratch,
             )
             .ok_or_else(|| not_positive_definite(self.epoch))?;
         }
         Ok(())
-    }
-
-    /// Append a completed map (of mark `self.stored`).
-    fn store(&mut self, map: &BackwardMap<N>) {
-        let stride = floats_per_mark(N);
-        let (chunk, slot) = (self.stored / MARKS_PER_CHUNK, self.stored % MARKS_PER_CHUNK);
-        if chunk == self.chunks.len() {
-            self.chunks
-                .push(vec![0.0; MARKS_PER_CHUNK * stride].into_boxed_slice());
-        }
-        let out = &mut self.chunks[chunk][slot * stride..(slot + 1) * stride];
-        let (a, rest) = out.split_at_mut(N * N);
-        let (b, rest) = rest.split_at_mut(N);
-        let (d, epoch) = rest.split_at_mut(N * (N + 1) / 2);
-        a.copy_from_slice(map.a.as_slice());
-        b.copy_from_slice(map.b.as_slice());
-        let mut i = 0;
-        for c in 0..N {
-            for r in c..N {
-                d[i] = map.d[(r, c)];
-                i += 1;
-            }
-        }
-        // Exact: an epoch index is far below 2⁵³.
-        epoch[0] = map.mark_epoch as f64;
-        self.stored += 1;
-    }
-
-    /// Stored map of mark `i`.
-    fn load(&self, i: usize) -> BackwardMap<N> {
-        let stride = floats_per_mark(N);
-        let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
-        let v = &self.chunks[chunk][slot * stride..(slot + 1) * stride];
-        let (a, rest) = v.split_at(N * N);
-        let (b, rest) = rest.split_at(N);
-        let (d_packed, epoch) = rest.split_at(N * (N + 1) / 2);
-        let mut d = SMatrix::<f64, N, N>::zeros();
-        let mut k = 0;
-        for c in 0..N {
-            for r in c..N {
-                d[(r, c)] = d_packed[k];
-                d[(c, r)] = d_packed[k];
-                k += 1;
-            }
-        }
-        BackwardMap {
-            a: SMatrix::from_column_slice(a),
-            b: SVector::from_column_slice(b),
-            d,
-            identity: false,
-            mark_epoch: epoch[0] as usize,
-        }
     }
 
     /// The backward pass: calls `visit(mark, xˢ, Pˢ)` for every mark, the
@@ -872,16 +999,18 @@ impl<const N: usize> RtsRecorder<N> {
                 compose_step(
                     &mut map,
                     (x_j, p_j),
-                    &self.phi,
+                    (&self.phi, self.phi_full_rows),
                     (&self.x_predicted, &self.p_predicted),
+                    &mut StepScratch::new(),
                 )
                 .ok_or_else(|| not_positive_definite(self.epoch))?;
             }
             (x, p) = map.apply(&x, &p);
             checked(self.stored, map.mark_epoch, &x, &p)?;
         }
+        let mut map = BackwardMap::identity(0);
         for i in (0..self.stored).rev() {
-            let map = self.load(i);
+            load(&self.chunks, i, &mut map);
             (x, p) = map.apply(&x, &p);
             checked(i, map.mark_epoch, &x, &p)?;
         }
@@ -1009,18 +1138,18 @@ mod tests {
         let mut delta = *p_j;
         add_symmetric_product::<N, false>(delta.as_mut_slice(), (-w).as_slice(), w.as_slice());
         let mut c = w;
-        solve_right_lower::<N>(l.as_slice(), c.as_mut_slice());
+        solve_right_lower::<N>(l.as_slice(), None, c.as_mut_slice());
         let beta = x_j - c * x_predicted;
         if map.identity {
-            (map.a, map.b, map.d, map.identity) = (c, beta, delta, false);
+            (*map.a, map.b, map.d, map.identity) = (c, beta, delta, false);
             return Some(());
         }
-        map.b += map.a * beta;
+        map.b += *map.a * beta;
         let mut t = SMatrix::<f64, N, N>::zeros();
-        gemm(&mut t, 1.0, &map.a, &delta, 0.0);
+        gemm(&mut t, 1.0, &*map.a, &delta, 0.0);
         add_symmetric_product::<N, false>(map.d.as_mut_slice(), t.as_slice(), map.a.as_slice());
-        gemm(&mut t, 1.0, &map.a, &c, 0.0);
-        map.a = t;
+        gemm(&mut t, 1.0, &*map.a, &c, 0.0);
+        *map.a = t;
         Some(())
     }
 
@@ -1048,15 +1177,15 @@ mod tests {
         .run(w.as_mut_slice(), &mut [], p_j.as_slice(), phi.as_slice());
         solve_right_lower_transposed::<N>(l.as_slice(), w.as_mut_slice());
         let mut c = w;
-        solve_right_lower::<N>(l.as_slice(), c.as_mut_slice());
+        solve_right_lower::<N>(l.as_slice(), None, c.as_mut_slice());
         let beta = x_j - c * x_predicted;
         let mut delta = *p_j;
         add_symmetric_product::<N, true>(delta.as_mut_slice(), w.as_slice(), w.as_slice());
         if map.identity {
-            (map.a, map.b, map.d, map.identity) = (c, beta, delta, false);
+            (*map.a, map.b, map.d, map.identity) = (c, beta, delta, false);
             return Some(());
         }
-        map.b += map.a * beta;
+        map.b += *map.a * beta;
         let mut t = SMatrix::<f64, N, N>::zeros();
         Product::<N>.run(
             t.as_mut_slice(),
@@ -1066,7 +1195,7 @@ mod tests {
         );
         add_symmetric_product::<N, false>(map.d.as_mut_slice(), t.as_slice(), map.a.as_slice());
         Product::<N>.run(t.as_mut_slice(), &mut [], map.a.as_slice(), c.as_slice());
-        map.a = t;
+        *map.a = t;
         Some(())
     }
 
@@ -1080,6 +1209,7 @@ mod tests {
             BackwardMap::<N>::identity(0),
             BackwardMap::<N>::identity(0),
         ];
+        let mut scratch = StepScratch::<N>::new();
         for _ in 0..3 {
             let p_j = covariance::<N>(rng, frozen);
             let phi = transition::<N>(rng, full_rows);
@@ -1088,10 +1218,17 @@ mod tests {
             let p_predicted = covariance::<N>(rng, frozen);
             let [portable, dispatched, reference] = &mut maps;
             compose_portable(portable, (&x_j, &p_j), &phi, (&x_predicted, &p_predicted)).unwrap();
-            compose_step(dispatched, (&x_j, &p_j), &phi, (&x_predicted, &p_predicted)).unwrap();
+            compose_step(
+                dispatched,
+                (&x_j, &p_j),
+                (&phi, TrailingDiagonal::of(&phi).full_rows()),
+                (&x_predicted, &p_predicted),
+                &mut scratch,
+            )
+            .unwrap();
             compose_reference(reference, (&x_j, &p_j), &phi, (&x_predicted, &p_predicted)).unwrap();
             for m in [&maps[0], &maps[1]] {
-                assert_eq!(bits(&m.a), bits(&maps[2].a), "A, {N} states");
+                assert_eq!(bits(&*m.a), bits(&*maps[2].a), "A, {N} states");
                 assert_eq!(bits(&m.b), bits(&maps[2].b), "b, {N} states");
                 assert_eq!(bits(&m.d), bits(&maps[2].d), "D, {N} states");
             }
@@ -1103,17 +1240,26 @@ mod tests {
             let m = &maps[2];
             let mut ps = m.d;
             let mut t = SMatrix::<f64, N, N>::zeros();
-            gemm(&mut t, 1.0, &m.a, &p, 0.0);
+            gemm(&mut t, 1.0, &*m.a, &p, 0.0);
             add_symmetric_product::<N, false>(ps.as_mut_slice(), t.as_slice(), m.a.as_slice());
-            (m.a * x + m.b, ps)
+            (*m.a * x + m.b, ps)
         };
         assert_eq!(bits(&xa), bits(&xr));
         assert_eq!(bits(&pa), bits(&pr));
         // Not positive definite: refused, the map untouched.
         let bad = -covariance::<N>(rng, 0);
-        let before = bits(&maps[0].a);
-        assert!(compose_step(&mut maps[0], (&x, &p), &SMatrix::identity(), (&x, &bad)).is_none());
-        assert_eq!(bits(&maps[0].a), before);
+        let before = bits(&*maps[0].a);
+        assert!(
+            compose_step(
+                &mut maps[0],
+                (&x, &p),
+                (&SMatrix::identity(), 0),
+                (&x, &bad),
+                &mut scratch
+            )
+            .is_none()
+        );
+        assert_eq!(bits(&*maps[0].a), before);
         let mut reference = maps[2].clone();
         assert!(
             compose_reference(&mut reference, (&x, &p), &SMatrix::identity(), (&x, &bad)).is_none()
