@@ -504,7 +504,8 @@ fn solve_right_lower_transposed<const N: usize>(l: &[f64], w: &mut [f64]) {
 fn solve_right_lower<const N: usize>(l: &[f64], w: Option<&[f64]>, c: &mut [f64]) {
     for j in (0..N).rev() {
         let (head, done) = c.split_at_mut((j + 1) * N);
-        let cj = &mut head[j * N..];
+        // Of constant length, so that the column stays in registers.
+        let cj = &mut head[j * N..][..N];
         if let Some(w) = w {
             cj.copy_from_slice(&w[j * N..(j + 1) * N]);
         }
