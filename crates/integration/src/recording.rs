@@ -87,7 +87,7 @@ impl<const N: usize> Recording<N> {
     pub(crate) fn new(x: &SVector<f64, N>, p: &SMatrix<f64, N, N>, max_marks: usize) -> Self {
         let recorder = Arc::new(Mutex::new(RtsRecorder::new(x, p, max_marks)));
         let (calls, queue) = sync_channel(QUEUE);
-        let (returns, done) = sync_channel(QUEUE + 1);
+        let (returns, done) = sync_channel(1);
         let shared = Arc::clone(&recorder);
         match std::thread::Builder::new()
             .name("aidnav-smoother".into())
@@ -278,11 +278,17 @@ impl<const N: usize> Worker<N> {
     fn send_batch(&self, pending: &mut Pending<N>) {
         let next = match self.done.try_recv() {
             Ok(mut done) => {
+                // At most a batch of each kept (the rest freed): memory
+                // stays that of the calls in flight.
                 for call in done.drain(..) {
                     match call {
-                        Call::Predict(b) => pending.predictions.push(b),
-                        Call::Filtered(b) => pending.updates.push(b),
-                        Call::Mark | Call::Flush(_) => {}
+                        Call::Predict(b) if pending.predictions.len() < BATCH => {
+                            pending.predictions.push(b);
+                        }
+                        Call::Filtered(b) if pending.updates.len() < BATCH => {
+                            pending.updates.push(b);
+                        }
+                        _ => {}
                     }
                 }
                 done
