@@ -461,7 +461,7 @@ fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
             }
         }
         let d = cj[0];
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();

@@ -76,10 +76,7 @@ impl TrailingDiagonal {
         let mut full_rows = 0;
         for j in 0..n {
             let column = &s[j * n..(j + 1) * n];
-            if let Some(i) = (full_rows..n)
-                .rev()
-                .find(|&i| i != j && column[i] != 0.0)
-            {
+            if let Some(i) = (full_rows..n).rev().find(|&i| i != j && column[i] != 0.0) {
                 full_rows = i + 1;
             }
         }

@@ -27,13 +27,17 @@ const BATCH: usize = 32;
 /// lag by `QUEUE · BATCH` calls (≈ 7 kB each for 21 states).
 const QUEUE: usize = 4;
 
+/// A prediction's Φ, x⁻, P⁻.
+type Prediction<const N: usize> = (SMatrix<f64, N, N>, SVector<f64, N>, SMatrix<f64, N, N>);
+
+/// An update's x⁻, x, P.
+type Update<const N: usize> = (SVector<f64, N>, SVector<f64, N>, SMatrix<f64, N, N>);
+
 /// A recorder call for the worker. The boxes go back to the filter with
 /// their batch and are filled again (no allocation per call).
 enum Call<const N: usize> {
-    /// Φ, x⁻, P⁻.
-    Predict(Box<(SMatrix<f64, N, N>, SVector<f64, N>, SMatrix<f64, N, N>)>),
-    /// x⁻, x, P.
-    Filtered(Box<(SVector<f64, N>, SVector<f64, N>, SMatrix<f64, N, N>)>),
+    Predict(Box<Prediction<N>>),
+    Filtered(Box<Update<N>>),
     Mark,
     /// Answer once every earlier call is done.
     Flush(SyncSender<()>),
@@ -42,8 +46,8 @@ enum Call<const N: usize> {
 /// Calls not yet sent, and the boxes of calls the worker has done.
 struct Pending<const N: usize> {
     calls: Vec<Call<N>>,
-    predictions: Vec<Box<(SMatrix<f64, N, N>, SVector<f64, N>, SMatrix<f64, N, N>)>>,
-    updates: Vec<Box<(SVector<f64, N>, SVector<f64, N>, SMatrix<f64, N, N>)>>,
+    predictions: Vec<Box<Prediction<N>>>,
+    updates: Vec<Box<Update<N>>>,
 }
 
 /// `dst ← src` in two halves: glibc's `memcpy` takes `rep movsb` above
