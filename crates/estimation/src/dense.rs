@@ -730,7 +730,7 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<N, M> {
 /// are that function's arguments, so the compiler knows that they do not
 /// overlap (matrices reached through a struct's fields lose that, and the
 /// output columns are no longer kept in registers).
-trait Widened {
+pub(crate) trait Widened {
     /// Do the work.
     fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]);
 }
@@ -747,7 +747,13 @@ trait Widened {
 /// multiply and an add anyway), so only the number of elements per
 /// instruction changes.
 #[inline(always)]
-fn run_widest<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
+pub(crate) fn run_widest<W: Widened>(
+    work: W,
+    out: &mut [f64],
+    scratch: &mut [f64],
+    a: &[f64],
+    b: &[f64],
+) {
     #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
     if std::arch::is_x86_feature_detected!("avx2") {
         #[allow(unsafe_code)]

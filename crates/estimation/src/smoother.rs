@@ -19,7 +19,7 @@ use nalgebra::{
 };
 
 use crate::check;
-use crate::dense::gemm;
+use crate::dense::{Widened, run_widest};
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::structured::{TrailingDiagonal, times_transpose};
 
@@ -107,7 +107,8 @@ where
 /// `identity`: nothing composed yet).
 #[derive(Debug, Clone)]
 struct BackwardMap<const N: usize> {
-    a: SMatrix<f64, N, N>,
+    /// Boxed: A ← A C swaps it with the product's buffer.
+    a: Box<SMatrix<f64, N, N>>,
     b: SVector<f64, N>,
     d: SMatrix<f64, N, N>,
     identity: bool,
@@ -118,7 +119,7 @@ struct BackwardMap<const N: usize> {
 impl<const N: usize> BackwardMap<N> {
     fn identity(mark_epoch: usize) -> Self {
         Self {
-            a: SMatrix::identity(),
+            a: Box::new(SMatrix::identity()),
             b: SVector::zeros(),
             d: SMatrix::zeros(),
             identity: true,
@@ -126,25 +127,7 @@ impl<const N: usize> BackwardMap<N> {
         }
     }
 
-    /// Compose with one RTS step `xˢ_j = C xˢ_k + β`, `Pˢ_j = Δ + C Pˢ_k Cᵀ`:
-    /// `A ← A C`, `b ← b + A β`, `D ← D + A Δ Aᵀ`.
-    fn then(&mut self, step: &RtsStep<N>) {
-        if self.identity {
-            self.a = step.c;
-            self.b = step.beta;
-            self.d = step.delta;
-            self.identity = false;
-            return;
-        }
-        self.b += self.a * step.beta;
-        let mut t = SMatrix::<f64, N, N>::zeros();
-        gemm(&mut t, 1.0, &self.a, &step.delta, 0.0);
-        add_symmetric_product(&mut self.d, &t, &self.a);
-        gemm(&mut t, 1.0, &self.a, &step.c, 0.0);
-        self.a = t;
-    }
-
-    /// Apply to a later smoothed estimate.
+    /// Apply to a later smoothed estimate: `(A x + b, D + (A P) Aᵀ)`.
     fn apply(
         &self,
         x: &SVector<f64, N>,
@@ -153,97 +136,359 @@ impl<const N: usize> BackwardMap<N> {
         if self.identity {
             return (*x, *p);
         }
-        let mut ps = self.d;
+        let mut ps = SMatrix::<f64, N, N>::zeros();
+        copy_matrix(&mut ps, &self.d);
         let mut t = SMatrix::<f64, N, N>::zeros();
-        gemm(&mut t, 1.0, &self.a, p, 0.0);
-        add_symmetric_product(&mut ps, &t, &self.a);
-        (self.a * x + self.b, ps)
+        product(&mut t, &self.a, p);
+        symmetric_product::<N, false>(&mut ps, &t, &self.a);
+        (*self.a * x + self.b, ps)
     }
 }
 
-/// One RTS step from node j to the next node k:
-/// `C = P_j Φᵀ (P⁻_k)⁻¹`, `β = x_j − C x⁻_k`, `Δ = P_j − C P⁻_k Cᵀ`.
-#[derive(Debug, Clone)]
-struct RtsStep<const N: usize> {
-    c: SMatrix<f64, N, N>,
-    beta: SVector<f64, N>,
-    delta: SMatrix<f64, N, N>,
+/// Compose one RTS step from node j to the next node k,
+/// `xˢ_j = C xˢ_k + β`, `Pˢ_j = Δ + C Pˢ_k Cᵀ` with
+/// `C = P_j Φᵀ (P⁻_k)⁻¹`, `β = x_j − C x⁻_k`, `Δ = P_j − C P⁻_k Cᵀ`, into
+/// `map`: `A ← A C`, `b ← b + A β`, `D ← D + A Δ Aᵀ` (C, β, Δ on an
+/// identity map). None, the map untouched, when P⁻_k is not positive
+/// definite.
+///
+/// Z = P_j Φᵀ (the cross-covariance of x_j and x_k) at the cost of Φ's
+/// full rows; P⁻_k = L Lᵀ; C = Z L⁻ᵀ L⁻¹ by two triangular solves from the
+/// right (W = Z L⁻ᵀ, then C = W L⁻¹), and C P⁻_k Cᵀ = W Wᵀ. Symmetric
+/// products as lower triangles. Every element is the same sum, in the same
+/// order, as in the step and composition the recorder made with nalgebra's
+/// Cholesky and dense products before (a test keeps that form and checks
+/// bit for bit). The N³ kernels run through [`run_widest`], each a function
+/// of its own whose operands are its arguments (so that the compiler keeps
+/// a column in registers).
+fn compose_step<const N: usize>(
+    map: &mut BackwardMap<N>,
+    (x_j, p_j): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+    (phi, full_rows): (&SMatrix<f64, N, N>, usize),
+    (x_predicted, p_predicted): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+    scratch: &mut StepScratch<N>,
+) -> Option<()> {
+    let StepScratch { l, w, c, delta, t } = scratch;
+    let mut positive = [0.0];
+    run_widest(
+        CholeskyKernel::<N>,
+        l.as_mut_slice(),
+        &mut positive,
+        p_predicted.as_slice(),
+        &[],
+    );
+    if positive[0] != 1.0 {
+        return None;
+    }
+    run_widest(
+        TimesTranspose::<N> { full_rows },
+        w.as_mut_slice(),
+        &mut [],
+        p_j.as_slice(),
+        phi.as_slice(),
+    );
+    run_widest(
+        SolveLowerTransposed::<N>,
+        w.as_mut_slice(),
+        &mut [],
+        l.as_slice(),
+        &[],
+    );
+    if map.identity {
+        // C, Δ straight into the map.
+        run_widest(
+            SolveLower::<N>,
+            map.a.as_mut_slice(),
+            &mut [],
+            l.as_slice(),
+            w.as_slice(),
+        );
+        map.b = x_j - *map.a * x_predicted;
+        subtract_gram(&mut map.d, p_j, w);
+        map.identity = false;
+        return Some(());
+    }
+    run_widest(
+        SolveLower::<N>,
+        c.as_mut_slice(),
+        &mut [],
+        l.as_slice(),
+        w.as_slice(),
+    );
+    let beta = x_j - **c * x_predicted;
+    subtract_gram(delta, p_j, w);
+    map.b += *map.a * beta;
+    product(t, &map.a, delta);
+    symmetric_product::<N, false>(&mut map.d, t, &map.a);
+    product(t, &map.a, c);
+    std::mem::swap(&mut map.a, t);
+    Some(())
 }
 
-impl<const N: usize> RtsStep<N> {
-    /// From node j's filtered (x_j, P_j), the transition Φ from j to k and
-    /// k's prediction (x⁻_k, P⁻_k); `epoch` is k (for the error).
-    fn new(
-        x_j: &SVector<f64, N>,
-        p_j: &SMatrix<f64, N, N>,
-        phi: &SMatrix<f64, N, N>,
-        x_predicted: &SVector<f64, N>,
-        p_predicted: &SMatrix<f64, N, N>,
-        epoch: usize,
-    ) -> Result<Self> {
-        // A frozen state (variance exactly zero, its row and column zero, Φ
-        // diagonal there) is set aside by a unit diagonal, as in
-        // [`rts_smooth`]: its gain is zero.
-        let mut pp = *p_predicted;
-        for i in 0..N {
-            if pp[(i, i)] == 0.0 {
-                pp[(i, i)] = 1.0;
-            }
+/// `out = P − W Wᵀ` (P symmetric), the lower triangle mirrored, through
+/// [`run_widest`]: each lower element is P's, then loses `W(c, k) W(r, k)`
+/// in increasing k.
+fn subtract_gram<const N: usize>(
+    out: &mut SMatrix<f64, N, N>,
+    p: &SMatrix<f64, N, N>,
+    w: &SMatrix<f64, N, N>,
+) {
+    run_widest(
+        GramFrom::<N>,
+        out.as_mut_slice(),
+        &mut [],
+        p.as_slice(),
+        w.as_slice(),
+    );
+}
+
+/// [`subtract_gram`]'s kernel: `out` = P − W Wᵀ, `a` = P, `b` = W.
+struct GramFrom<const N: usize>;
+
+impl<const N: usize> Widened for GramFrom<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        let (out, p, w) = (&mut out[..N * N], &a[..N * N], &b[..N * N]);
+        // P's lower triangle (and the block rows above it) first, column by
+        // column (short copies), then the product subtracted in place.
+        let start = |b: usize| (b * N / 4) & !1;
+        let (s1, s2, s3) = (start(1), start(2), start(3));
+        for c in 0..N {
+            let row0 = if c < s1 {
+                0
+            } else if c < s2 {
+                s1
+            } else if c < s3 {
+                s2
+            } else {
+                s3
+            };
+            out[c * N + row0..(c + 1) * N].copy_from_slice(&p[c * N + row0..(c + 1) * N]);
         }
-        let chol = Cholesky::new(pp).ok_or(
-            EstimationError::NotPositiveDefinite {
-                step: Step::Smooth,
-                matrix: Matrix::PPredicted,
-            }
-            .at_epoch(epoch),
-        )?;
-        // Z = P_j Φᵀ, the cross-covariance of x_j and x_k, and
-        // P⁻_k = L Lᵀ: C = Z L⁻ᵀ L⁻¹ by two triangular solves from the
-        // right (W = Z L⁻ᵀ, then C = W L⁻¹), and C P⁻_k Cᵀ = W Wᵀ.
-        let l = chol.l_dirty();
-        // Z = P_j Φᵀ at the cost of Φ's full rows (a navigation filter's
-        // instrument rows are diagonal), bit for bit the dense product.
-        let mut w = SMatrix::<f64, N, N>::zeros();
-        let full_rows = TrailingDiagonal::of(phi).full_rows();
-        times_transpose(
-            N,
-            full_rows,
-            p_j.as_slice(),
-            phi.as_slice(),
-            w.as_mut_slice(),
-        );
-        solve_right_lower_transposed(l, &mut w);
-        let mut delta = *p_j;
-        add_symmetric_product(&mut delta, &(-w), &w);
-        let mut c = w;
-        solve_right_lower(l, &mut c);
-        Ok(Self {
-            beta: x_j - c * x_predicted,
-            c,
-            delta,
+        add_symmetric_product::<N, true>(out, w, w);
+    }
+}
+
+/// Buffers of one node step ([`compose_step`]): every element is written
+/// before it is read, so they are kept from step to step (no N × N
+/// matrix is zeroed or copied per node).
+#[derive(Debug, Clone)]
+struct StepScratch<const N: usize> {
+    /// Cholesky factor of P⁻ (lower triangle).
+    l: SMatrix<f64, N, N>,
+    /// W = P_j Φᵀ L⁻ᵀ.
+    w: SMatrix<f64, N, N>,
+    /// C = W L⁻¹.
+    c: Box<SMatrix<f64, N, N>>,
+    /// Δ = P_j − W Wᵀ.
+    delta: SMatrix<f64, N, N>,
+    /// A Δ, then A C (swapped into the map).
+    t: Box<SMatrix<f64, N, N>>,
+}
+
+impl<const N: usize> StepScratch<N> {
+    fn new() -> Box<Self> {
+        Box::new(Self {
+            l: SMatrix::zeros(),
+            w: SMatrix::zeros(),
+            c: Box::new(SMatrix::zeros()),
+            delta: SMatrix::zeros(),
+            t: Box::new(SMatrix::zeros()),
         })
     }
 }
 
-/// `W ← W L⁻ᵀ` (solve `W Lᵀ = Z` in place, L lower triangular with a
-/// non-zero diagonal; only its lower triangle is read), column by column:
-/// `W_j = (Z_j − Σ_{k<j} L_jk W_k) / L_jj`. Whole columns at a time, so the
-/// inner loops run over contiguous memory.
-fn solve_right_lower_transposed<const N: usize>(
-    l: &SMatrix<f64, N, N>,
-    w: &mut SMatrix<f64, N, N>,
+/// `dst ← src` in two halves. A 21 × 21 matrix is 3528 bytes; glibc's
+/// `memcpy` copies blocks above 2112 bytes with `rep movsb` on CPUs with
+/// fast short `rep movsb`, which some (AMD Zen 4) run several times slower
+/// at some relative alignments of source and destination (measured here:
+/// a quarter of the recorder's time in `rep movsb`); halves of at most
+/// 2112 bytes take glibc's vector loop. Same values, bit for bit.
+#[inline(always)]
+fn copy_matrix<const N: usize>(dst: &mut SMatrix<f64, N, N>, src: &SMatrix<f64, N, N>) {
+    let (d, s) = (dst.as_mut_slice(), src.as_slice());
+    let half = N * N / 2;
+    d[..half].copy_from_slice(&s[..half]);
+    d[half..].copy_from_slice(&s[half..]);
+}
+
+/// `out = a b` (N × N), as [`gemm`] computes it (each column from zero,
+/// gaining `a(·, k) b(k, j)` in increasing k), through [`run_widest`].
+fn product<const N: usize>(
+    out: &mut SMatrix<f64, N, N>,
+    a: &SMatrix<f64, N, N>,
+    b: &SMatrix<f64, N, N>,
 ) {
-    let s = w.as_mut_slice();
+    run_widest(
+        Product::<N>,
+        out.as_mut_slice(),
+        &mut [],
+        a.as_slice(),
+        b.as_slice(),
+    );
+}
+
+/// [`symmetric_product`] through [`run_widest`].
+fn symmetric_product<const N: usize, const SUBTRACT: bool>(
+    s: &mut SMatrix<f64, N, N>,
+    x: &SMatrix<f64, N, N>,
+    y: &SMatrix<f64, N, N>,
+) {
+    run_widest(
+        SymmetricProduct::<N, SUBTRACT>,
+        s.as_mut_slice(),
+        &mut [],
+        x.as_slice(),
+        y.as_slice(),
+    );
+}
+
+/// [`product`]'s kernel: `out` = a b, `a`, `b` (N × N column-major).
+struct Product<const N: usize>;
+
+impl<const N: usize> Widened for Product<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        let (out, a, b) = (&mut out[..N * N], &a[..N * N], &b[..N * N]);
+        for j in 0..N {
+            let oc = &mut out[j * N..(j + 1) * N];
+            oc.fill(0.0);
+            for k in 0..N {
+                let f = b[j * N + k];
+                for (o, &x) in oc.iter_mut().zip(&a[k * N..(k + 1) * N]) {
+                    *o += x * f;
+                }
+            }
+        }
+    }
+}
+
+/// [`add_symmetric_product`]'s kernel: `out` = S, `a` = X, `b` = Y.
+struct SymmetricProduct<const N: usize, const SUBTRACT: bool>;
+
+impl<const N: usize, const SUBTRACT: bool> Widened for SymmetricProduct<N, SUBTRACT> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        add_symmetric_product::<N, SUBTRACT>(&mut out[..N * N], &a[..N * N], &b[..N * N]);
+    }
+}
+
+/// The Cholesky factor of P⁻ with its frozen states set aside: `a` = P⁻,
+/// `out` = L (the lower triangle of P⁻, a zero diagonal element made 1,
+/// factored by [`cholesky_lower_in_place`]; the upper triangle not
+/// written); `scratch[0]` = 1 when every pivot was positive, 0 otherwise.
+///
+/// A frozen state (variance exactly zero, its row and column zero, Φ
+/// diagonal there) is set aside by the unit diagonal, as in
+/// [`rts_smooth`]: its gain is zero.
+struct CholeskyKernel<const N: usize>;
+
+impl<const N: usize> Widened for CholeskyKernel<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], _: &[f64]) {
+        let (l, p) = (&mut out[..N * N], &a[..N * N]);
+        for j in 0..N {
+            l[j * N + j..(j + 1) * N].copy_from_slice(&p[j * N + j..(j + 1) * N]);
+            if l[j * N + j] == 0.0 {
+                l[j * N + j] = 1.0;
+            }
+        }
+        scratch[0] = if cholesky_lower_in_place::<N>(l) {
+            1.0
+        } else {
+            0.0
+        };
+    }
+}
+
+/// [`solve_right_lower_transposed`]'s kernel: `out` = W, `a` = L.
+struct SolveLowerTransposed<const N: usize>;
+
+impl<const N: usize> Widened for SolveLowerTransposed<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], _: &[f64]) {
+        solve_right_lower_transposed::<N>(&a[..N * N], &mut out[..N * N]);
+    }
+}
+
+/// [`solve_right_lower`]'s kernel from W: `out` = C, `a` = L, `b` = W
+/// (each column of C starts as W's).
+struct SolveLower<const N: usize>;
+
+impl<const N: usize> Widened for SolveLower<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        solve_right_lower::<N>(&a[..N * N], Some(&b[..N * N]), &mut out[..N * N]);
+    }
+}
+
+/// [`times_transpose`]'s kernel (`out = S Φᵀ` for a Φ whose rows from
+/// `full_rows` on are diagonal): `a` = S, `b` = Φ.
+struct TimesTranspose<const N: usize> {
+    full_rows: usize,
+}
+
+impl<const N: usize> Widened for TimesTranspose<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        times_transpose(
+            N,
+            self.full_rows,
+            &a[..N * N],
+            &b[..N * N],
+            &mut out[..N * N],
+        );
+    }
+}
+
+/// The Cholesky factor L of a symmetric N × N matrix (column-major; its
+/// lower triangle read) in place of its lower triangle, the elements above
+/// the diagonal left as they were; false when a pivot is not positive (or
+/// not a number). nalgebra's `Cholesky::new` operation for operation:
+/// column j first loses `L(j, k) L(j.., k)` for k = 0, 1, …, j − 1 in turn,
+/// then its diagonal becomes the square root d and the rest is divided by d.
+#[inline(always)]
+fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
+    let m = &mut m[..N * N];
     for j in 0..N {
-        let (done, rest) = s.split_at_mut(j * N);
+        let (done, rest) = m.split_at_mut(j * N);
+        let cj = &mut rest[j..N];
+        for k in 0..j {
+            let f = done[k * N + j];
+            let ck = &done[k * N + j..(k + 1) * N];
+            for (a, b) in cj.iter_mut().zip(ck) {
+                *a -= f * b;
+            }
+        }
+        let d = cj[0];
+        if d.is_nan() || d <= 0.0 {
+            return false;
+        }
+        let d = d.sqrt();
+        cj[0] = d;
+        for a in &mut cj[1..] {
+            *a /= d;
+        }
+    }
+    true
+}
+
+/// `W ← W L⁻ᵀ` (solve `W Lᵀ = Z` in place, L lower triangular with a
+/// non-zero diagonal, column-major; only its lower triangle is read),
+/// column by column: `W_j = (Z_j − Σ_{k<j} L_jk W_k) / L_jj`. Whole columns
+/// at a time, so the inner loops run over contiguous memory.
+#[inline(always)]
+fn solve_right_lower_transposed<const N: usize>(l: &[f64], w: &mut [f64]) {
+    for j in 0..N {
+        let (done, rest) = w.split_at_mut(j * N);
         let wj = &mut rest[..N];
         for k in 0..j {
-            let f = l[(j, k)];
+            let f = l[k * N + j];
             for (a, b) in wj.iter_mut().zip(&done[k * N..(k + 1) * N]) {
                 *a -= f * b;
             }
         }
-        let d = l[(j, j)];
+        let d = l[j * N + j];
         for a in wj.iter_mut() {
             *a /= d;
         }
@@ -251,58 +496,67 @@ fn solve_right_lower_transposed<const N: usize>(
 }
 
 /// `C ← C L⁻¹` (solve `C L = W` in place, L lower triangular with a
-/// non-zero diagonal; only its lower triangle is read), from the last
-/// column: `C_j = (W_j − Σ_{k>j} L_kj C_k) / L_jj`.
-fn solve_right_lower<const N: usize>(l: &SMatrix<f64, N, N>, c: &mut SMatrix<f64, N, N>) {
-    let s = c.as_mut_slice();
+/// non-zero diagonal, column-major; only its lower triangle is read), from
+/// the last column: `C_j = (W_j − Σ_{k>j} L_kj C_k) / L_jj`. With `w`,
+/// column j of C is W's column j before it is solved (C = W L⁻¹ out of
+/// place).
+#[inline(always)]
+fn solve_right_lower<const N: usize>(l: &[f64], w: Option<&[f64]>, c: &mut [f64]) {
     for j in (0..N).rev() {
-        let (head, done) = s.split_at_mut((j + 1) * N);
-        let cj = &mut head[j * N..];
+        let (head, done) = c.split_at_mut((j + 1) * N);
+        // Of constant length, so that the column stays in registers.
+        let cj = &mut head[j * N..][..N];
+        if let Some(w) = w {
+            cj.copy_from_slice(&w[j * N..(j + 1) * N]);
+        }
         for k in j + 1..N {
-            let f = l[(k, j)];
+            let f = l[j * N + k];
             let ck = &done[(k - j - 1) * N..(k - j) * N];
             for (a, b) in cj.iter_mut().zip(ck) {
                 *a -= f * b;
             }
         }
-        let d = l[(j, j)];
+        let d = l[j * N + j];
         for a in cj.iter_mut() {
             *a /= d;
         }
     }
 }
 
-/// `S ← S + X Yᵀ` for a product known to be symmetric (S symmetric on
-/// entry): the lower triangle is computed, the upper one mirrored from it,
-/// so S leaves exactly symmetric. Each lower element gains `Y(c, k) X(r, k)`
-/// in increasing k; the columns go in four blocks whose rows start at a
-/// constant even row at or above their first column (the elements above the
-/// diagonal computed on the way are overwritten by the mirror), so each
-/// column stays in registers while k runs — the same sums, faster than
-/// columns of varying length.
-fn add_symmetric_product<const N: usize>(
-    s: &mut SMatrix<f64, N, N>,
-    x: &SMatrix<f64, N, N>,
-    y: &SMatrix<f64, N, N>,
+/// `S ← S + X Yᵀ` (`S ← S − X Yᵀ` when `SUBTRACT`; column-major N × N) for
+/// a product known to be symmetric (S symmetric on entry): the lower
+/// triangle is computed, the upper one mirrored from it, so S leaves
+/// exactly symmetric. Each lower element gains `Y(c, k) X(r, k)` (loses
+/// it: the same as gaining `Y(c, k) (−X(r, k))`) in increasing k; the
+/// columns go in four blocks whose rows start at a constant even row at or
+/// above their first column (the elements above the diagonal computed on
+/// the way are overwritten by the mirror), so each column stays in
+/// registers while k runs — the same sums, faster than columns of varying
+/// length.
+#[inline(always)]
+fn add_symmetric_product<const N: usize, const SUBTRACT: bool>(
+    s: &mut [f64],
+    x: &[f64],
+    y: &[f64],
 ) {
     let start = |b: usize| (b * N / 4) & !1;
     let (s1, s2, s3) = (start(1), start(2), start(3));
-    let (xs, ys, ss) = (x.as_slice(), y.as_slice(), s.as_mut_slice());
     // Four calls, not a loop: each inlines with its own constant row count.
-    add_product_columns::<N>((0, 0..s1), xs, ys, ss);
-    add_product_columns::<N>((s1, s1..s2), xs, ys, ss);
-    add_product_columns::<N>((s2, s2..s3), xs, ys, ss);
-    add_product_columns::<N>((s3, s3..N), xs, ys, ss);
+    add_product_columns::<N, SUBTRACT>((0, 0..s1), x, y, s);
+    add_product_columns::<N, SUBTRACT>((s1, s1..s2), x, y, s);
+    add_product_columns::<N, SUBTRACT>((s2, s2..s3), x, y, s);
+    add_product_columns::<N, SUBTRACT>((s3, s3..N), x, y, s);
     for c in 0..N {
         for r in c + 1..N {
-            s[(c, r)] = s[(r, c)];
+            s[r * N + c] = s[c * N + r];
         }
     }
 }
 
-/// Columns `cols`, rows `row0..N`, of `S += X Yᵀ` (column-major slices).
+/// Columns `cols`, rows `row0..N`, of `S += X Yᵀ` (`S −= X Yᵀ` when
+/// `SUBTRACT`; column-major slices).
 #[inline(always)]
-fn add_product_columns<const N: usize>(
+fn add_product_columns<const N: usize, const SUBTRACT: bool>(
     (row0, cols): (usize, std::ops::Range<usize>),
     x: &[f64],
     y: &[f64],
@@ -314,10 +568,122 @@ fn add_product_columns<const N: usize>(
             let f = y[k * N + c];
             let xk = &x[k * N + row0..(k + 1) * N];
             for (a, b) in sc.iter_mut().zip(xk) {
-                *a += f * b;
+                if SUBTRACT {
+                    *a -= f * b;
+                } else {
+                    *a += f * b;
+                }
             }
         }
     }
+}
+
+/// `Φ Φ_acc` for a Φ whose rows from `full_rows` on are diagonal, through
+/// [`run_widest`]: `out` = the product, `a` = Φ, `b` = Φ_acc. Element
+/// (i, j) is `0 + Σ_k Φ(i, k) Φ_acc(k, j)` in increasing k, as the dense
+/// product; a diagonal row's sum is `0 + Φ(i, i) Φ_acc(i, j)` plus exact
+/// zeros (finite operands), which is exactly that product after `0 +`. So
+/// the full rows are computed in a block of a constant number of rows (a
+/// multiple of four at or above `full_rows`, the column in registers; the
+/// diagonal rows in it as dense sums, the same numbers) and the remaining
+/// rows by their one product.
+struct TransitionProduct<const N: usize> {
+    full_rows: usize,
+}
+
+impl<const N: usize> Widened for TransitionProduct<N> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        let (out, phi, acc) = (&mut out[..N * N], &a[..N * N], &b[..N * N]);
+        // Four calls with constant row counts (each inlines with its own).
+        match self.full_rows.div_ceil(4) {
+            0 => rows_times::<N, 0>(phi, acc, out),
+            1 if N >= 4 => rows_times::<N, 4>(phi, acc, out),
+            2 if N >= 8 => rows_times::<N, 8>(phi, acc, out),
+            3 if N >= 12 => rows_times::<N, 12>(phi, acc, out),
+            _ => rows_times::<N, N>(phi, acc, out),
+        }
+    }
+}
+
+/// [`TransitionProduct`] with its first `R` rows as dense sums.
+#[inline(always)]
+fn rows_times<const N: usize, const R: usize>(phi: &[f64], b: &[f64], out: &mut [f64]) {
+    for j in 0..N {
+        let oc = &mut out[j * N..(j + 1) * N];
+        let bc = &b[j * N..(j + 1) * N];
+        let (full, diagonal) = oc.split_at_mut(R);
+        full.fill(0.0);
+        for (k, &f) in bc.iter().enumerate() {
+            for (o, &p) in full.iter_mut().zip(&phi[k * N..k * N + R]) {
+                *o += p * f;
+            }
+        }
+        for (i, o) in diagonal.iter_mut().enumerate() {
+            *o = 0.0 + phi[(R + i) * N + R + i] * bc[R + i];
+        }
+    }
+}
+
+/// Write a completed map into the store's slot `i` (a new chunk when it
+/// starts one).
+fn store<const N: usize>(chunks: &mut Vec<Box<[f64]>>, i: usize, map: &BackwardMap<N>) {
+    let stride = floats_per_mark(N);
+    let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
+    if chunk == chunks.len() {
+        chunks.push(vec![0.0; MARKS_PER_CHUNK * stride].into_boxed_slice());
+    }
+    let out = &mut chunks[chunk][slot * stride..(slot + 1) * stride];
+    let (a, rest) = out.split_at_mut(N * N);
+    let (b, rest) = rest.split_at_mut(N);
+    let (d, epoch) = rest.split_at_mut(N * (N + 1) / 2);
+    let half = N * N / 2;
+    // In halves, as `copy_matrix` (glibc's `rep movsb` above 2112 bytes).
+    a[..half].copy_from_slice(&map.a.as_slice()[..half]);
+    a[half..].copy_from_slice(&map.a.as_slice()[half..]);
+    b.copy_from_slice(map.b.as_slice());
+    let mut k = 0;
+    for c in 0..N {
+        for r in c..N {
+            d[k] = map.d[(r, c)];
+            k += 1;
+        }
+    }
+    // Exact: an epoch index is far below 2⁵³.
+    epoch[0] = map.mark_epoch as f64;
+}
+
+/// The stored map of mark `i` into `map`.
+fn load<const N: usize>(chunks: &[Box<[f64]>], i: usize, map: &mut BackwardMap<N>) {
+    let stride = floats_per_mark(N);
+    let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
+    let v = &chunks[chunk][slot * stride..(slot + 1) * stride];
+    let (a, rest) = v.split_at(N * N);
+    let (b, rest) = rest.split_at(N);
+    let (d_packed, epoch) = rest.split_at(N * (N + 1) / 2);
+    let half = N * N / 2;
+    map.a.as_mut_slice()[..half].copy_from_slice(&a[..half]);
+    map.a.as_mut_slice()[half..].copy_from_slice(&a[half..]);
+    map.b.copy_from_slice(b);
+    let mut k = 0;
+    for c in 0..N {
+        for r in c..N {
+            map.d[(r, c)] = d_packed[k];
+            map.d[(c, r)] = d_packed[k];
+            k += 1;
+        }
+    }
+    map.identity = false;
+    map.mark_epoch = epoch[0] as usize;
+}
+
+/// The error of a P⁻ that is not positive definite at `epoch`.
+fn not_positive_definite(epoch: usize) -> EstimationError {
+    EstimationError::NotPositiveDefinite {
+        step: Step::Smooth,
+        matrix: Matrix::PPredicted,
+    }
+    .at_epoch(epoch)
 }
 
 /// Marked epochs per allocation of the store (one allocation per this many
@@ -398,6 +764,10 @@ pub struct RtsRecorder<const N: usize> {
     anchor: Option<(SVector<f64, N>, SMatrix<f64, N, N>)>,
     /// Transition from the anchor to the open epoch.
     phi: SMatrix<f64, N, N>,
+    /// `phi`'s rows from this one on are diagonal (see [`TrailingDiagonal`]).
+    phi_full_rows: usize,
+    /// Buffers of the node step.
+    scratch: Box<StepScratch<N>>,
     /// Backward map from the anchor to the latest closed mark (None before
     /// the first mark closes).
     map: Option<BackwardMap<N>>,
@@ -427,6 +797,8 @@ impl<const N: usize> RtsRecorder<N> {
             open_mark: None,
             anchor: None,
             phi: SMatrix::identity(),
+            phi_full_rows: 0,
+            scratch: StepScratch::new(),
             map: None,
             chunks: Vec::new(),
             stored: 0,
@@ -448,27 +820,30 @@ impl<const N: usize> RtsRecorder<N> {
         if self.overflow || self.failed.is_some() {
             return;
         }
+        // The tightest structure, once per Φ: a product of two such
+        // transitions has the larger number of full rows.
+        let full_rows = TrailingDiagonal::of(phi).full_rows();
         if self.close_open_epoch() {
-            self.phi = *phi;
+            copy_matrix(&mut self.phi, phi);
+            self.phi_full_rows = full_rows;
         } else if self.map.is_some() {
             // Only the steps after the first mark are ever composed.
-            // Φ (Φ_acc) as ((Φ_acc)ᵀ Φᵀ)ᵀ: the same products in the same
-            // order as the dense Φ Φ_acc, at the cost of Φ's full rows.
-            let full_rows = TrailingDiagonal::of(phi).full_rows();
-            let turned = self.phi.transpose();
-            let mut product = SMatrix::<f64, N, N>::zeros();
-            times_transpose(
-                N,
-                full_rows,
-                turned.as_slice(),
-                phi.as_slice(),
+            // Φ Φ_acc at the cost of Φ's full rows, the same products in
+            // the same order as the dense product.
+            let product = &mut self.scratch.delta;
+            run_widest(
+                TransitionProduct::<N> { full_rows },
                 product.as_mut_slice(),
+                &mut [],
+                phi.as_slice(),
+                self.phi.as_slice(),
             );
-            self.phi = product.transpose();
+            copy_matrix(&mut self.phi, product);
+            self.phi_full_rows = self.phi_full_rows.max(full_rows);
         }
         self.epoch += 1;
         self.x_predicted = *x_predicted;
-        self.p_predicted = *p_predicted;
+        copy_matrix(&mut self.p_predicted, p_predicted);
         self.updated = false;
         self.open_mark = None;
     }
@@ -484,7 +859,7 @@ impl<const N: usize> RtsRecorder<N> {
     ) {
         self.x_predicted = *x_predicted;
         self.x_filtered = *x;
-        self.p_filtered = *p;
+        copy_matrix(&mut self.p_filtered, p);
         self.updated = true;
     }
 
@@ -553,82 +928,45 @@ impl<const N: usize> RtsRecorder<N> {
             return true;
         }
         if self.open_mark.is_some() {
-            if let Some(map) = self.map.take() {
-                self.store(&map);
+            match self.map.as_mut() {
+                Some(map) => {
+                    store(&mut self.chunks, self.stored, map);
+                    self.stored += 1;
+                    // Composing onto an identity map overwrites A, b, D.
+                    map.identity = true;
+                    map.mark_epoch = self.epoch;
+                }
+                None => self.map = Some(BackwardMap::identity(self.epoch)),
             }
-            self.map = Some(BackwardMap::identity(self.epoch));
         }
-        let (x, p) = self.open_filtered();
-        self.anchor = Some((*x, *p));
+        let (x, p) = if self.updated {
+            (&self.x_filtered, &self.p_filtered)
+        } else {
+            (&self.x_predicted, &self.p_predicted)
+        };
+        match self.anchor.as_mut() {
+            Some((ax, ap)) => {
+                *ax = *x;
+                copy_matrix(ap, p);
+            }
+            None => self.anchor = Some((*x, *p)),
+        }
         true
     }
 
     /// Compose the step from the anchor to the open epoch into the map.
     fn compose_to_open(&mut self) -> Result<()> {
         if let (Some(map), Some((x_j, p_j))) = (self.map.as_mut(), self.anchor.as_ref()) {
-            let step = RtsStep::new(
-                x_j,
-                p_j,
-                &self.phi,
-                &self.x_predicted,
-                &self.p_predicted,
-                self.epoch,
-            )?;
-            map.then(&step);
+            compose_step(
+                map,
+                (x_j, p_j),
+                (&self.phi, self.phi_full_rows),
+                (&self.x_predicted, &self.p_predicted),
+                &mut self.scratch,
+            )
+            .ok_or_else(|| not_positive_definite(self.epoch))?;
         }
         Ok(())
-    }
-
-    /// Append a completed map (of mark `self.stored`).
-    fn store(&mut self, map: &BackwardMap<N>) {
-        let stride = floats_per_mark(N);
-        let (chunk, slot) = (self.stored / MARKS_PER_CHUNK, self.stored % MARKS_PER_CHUNK);
-        if chunk == self.chunks.len() {
-            self.chunks
-                .push(vec![0.0; MARKS_PER_CHUNK * stride].into_boxed_slice());
-        }
-        let out = &mut self.chunks[chunk][slot * stride..(slot + 1) * stride];
-        let (a, rest) = out.split_at_mut(N * N);
-        let (b, rest) = rest.split_at_mut(N);
-        let (d, epoch) = rest.split_at_mut(N * (N + 1) / 2);
-        a.copy_from_slice(map.a.as_slice());
-        b.copy_from_slice(map.b.as_slice());
-        let mut i = 0;
-        for c in 0..N {
-            for r in c..N {
-                d[i] = map.d[(r, c)];
-                i += 1;
-            }
-        }
-        // Exact: an epoch index is far below 2⁵³.
-        epoch[0] = map.mark_epoch as f64;
-        self.stored += 1;
-    }
-
-    /// Stored map of mark `i`.
-    fn load(&self, i: usize) -> BackwardMap<N> {
-        let stride = floats_per_mark(N);
-        let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
-        let v = &self.chunks[chunk][slot * stride..(slot + 1) * stride];
-        let (a, rest) = v.split_at(N * N);
-        let (b, rest) = rest.split_at(N);
-        let (d_packed, epoch) = rest.split_at(N * (N + 1) / 2);
-        let mut d = SMatrix::<f64, N, N>::zeros();
-        let mut k = 0;
-        for c in 0..N {
-            for r in c..N {
-                d[(r, c)] = d_packed[k];
-                d[(c, r)] = d_packed[k];
-                k += 1;
-            }
-        }
-        BackwardMap {
-            a: SMatrix::from_column_slice(a),
-            b: SVector::from_column_slice(b),
-            d,
-            identity: false,
-            mark_epoch: epoch[0] as usize,
-        }
     }
 
     /// The backward pass: calls `visit(mark, xˢ, Pˢ)` for every mark, the
@@ -659,21 +997,21 @@ impl<const N: usize> RtsRecorder<N> {
             // The last closed mark, through the step to the open epoch.
             let mut map = map.clone();
             if let Some((x_j, p_j)) = &self.anchor {
-                let step = RtsStep::new(
-                    x_j,
-                    p_j,
-                    &self.phi,
-                    &self.x_predicted,
-                    &self.p_predicted,
-                    self.epoch,
-                )?;
-                map.then(&step);
+                compose_step(
+                    &mut map,
+                    (x_j, p_j),
+                    (&self.phi, self.phi_full_rows),
+                    (&self.x_predicted, &self.p_predicted),
+                    &mut StepScratch::new(),
+                )
+                .ok_or_else(|| not_positive_definite(self.epoch))?;
             }
             (x, p) = map.apply(&x, &p);
             checked(self.stored, map.mark_epoch, &x, &p)?;
         }
+        let mut map = BackwardMap::identity(0);
         for i in (0..self.stored).rev() {
-            let map = self.load(i);
+            load(&self.chunks, i, &mut map);
             (x, p) = map.apply(&x, &p);
             checked(i, map.mark_epoch, &x, &p)?;
         }
@@ -696,6 +1034,7 @@ impl<const N: usize> RtsRecorder<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dense::gemm;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -726,11 +1065,297 @@ mod tests {
         let a = SMatrix::<f64, N, N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
         let s0 = a + a.transpose();
         let (mut blocked, mut plain) = (s0, s0);
-        add_symmetric_product(&mut blocked, &x, &y);
+        add_symmetric_product::<N, false>(blocked.as_mut_slice(), x.as_slice(), y.as_slice());
         add_symmetric_product_plain(&mut plain, &x, &y);
         let bits = |m: &SMatrix<f64, N, N>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&blocked), bits(&plain), "{N} states");
         assert_eq!(blocked, blocked.transpose());
+    }
+
+    fn bits<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> Vec<u64> {
+        m.iter().map(|v| v.to_bits()).collect()
+    }
+
+    /// A random symmetric positive definite matrix, A Aᵀ + I/10, with its
+    /// last `frozen` states frozen (zero rows and columns).
+    fn covariance<const N: usize>(rng: &mut ChaCha8Rng, frozen: usize) -> SMatrix<f64, N, N> {
+        let a = SMatrix::<f64, N, N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+        let m = a * a.transpose() + SMatrix::identity() * 0.1;
+        let mut m = (m + m.transpose()) * 0.5;
+        for i in N - frozen..N {
+            for j in 0..N {
+                m[(i, j)] = 0.0;
+                m[(j, i)] = 0.0;
+            }
+        }
+        m
+    }
+
+    /// A random Φ whose rows from `full_rows` on are diagonal (a few exact
+    /// zeros in the full rows too).
+    fn transition<const N: usize>(rng: &mut ChaCha8Rng, full_rows: usize) -> SMatrix<f64, N, N> {
+        SMatrix::from_fn(|i, j| {
+            if i < full_rows {
+                if rng.random_bool(0.1) {
+                    0.0
+                } else {
+                    rng.random_range(-0.3..0.3) + if i == j { 1.0 } else { 0.0 }
+                }
+            } else if i == j {
+                rng.random_range(0.9..1.0)
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// The RTS step and its composition as the recorder computed them
+    /// before the fused [`compose_step`]: nalgebra's Cholesky, a negated
+    /// copy of W, separate C, β and Δ, the map composed from them. The
+    /// reference the fused step must equal to the bit.
+    fn compose_reference<const N: usize>(
+        map: &mut BackwardMap<N>,
+        (x_j, p_j): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+        phi: &SMatrix<f64, N, N>,
+        (x_predicted, p_predicted): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+    ) -> Option<()> {
+        let mut pp = *p_predicted;
+        for i in 0..N {
+            if pp[(i, i)] == 0.0 {
+                pp[(i, i)] = 1.0;
+            }
+        }
+        let chol = Cholesky::new(pp)?;
+        let l = chol.l_dirty();
+        let mut w = SMatrix::<f64, N, N>::zeros();
+        times_transpose(
+            N,
+            TrailingDiagonal::of(phi).full_rows(),
+            p_j.as_slice(),
+            phi.as_slice(),
+            w.as_mut_slice(),
+        );
+        solve_right_lower_transposed::<N>(l.as_slice(), w.as_mut_slice());
+        let mut delta = *p_j;
+        add_symmetric_product::<N, false>(delta.as_mut_slice(), (-w).as_slice(), w.as_slice());
+        let mut c = w;
+        solve_right_lower::<N>(l.as_slice(), None, c.as_mut_slice());
+        let beta = x_j - c * x_predicted;
+        if map.identity {
+            (*map.a, map.b, map.d, map.identity) = (c, beta, delta, false);
+            return Some(());
+        }
+        map.b += *map.a * beta;
+        let mut t = SMatrix::<f64, N, N>::zeros();
+        gemm(&mut t, 1.0, &*map.a, &delta, 0.0);
+        add_symmetric_product::<N, false>(map.d.as_mut_slice(), t.as_slice(), map.a.as_slice());
+        gemm(&mut t, 1.0, &*map.a, &c, 0.0);
+        *map.a = t;
+        Some(())
+    }
+
+    /// [`compose_step`] with every kernel run as compiled (no
+    /// [`run_widest`] dispatch): the portable build's arithmetic.
+    fn compose_portable<const N: usize>(
+        map: &mut BackwardMap<N>,
+        (x_j, p_j): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+        phi: &SMatrix<f64, N, N>,
+        (x_predicted, p_predicted): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+    ) -> Option<()> {
+        let mut l = *p_predicted;
+        for i in 0..N {
+            if l[(i, i)] == 0.0 {
+                l[(i, i)] = 1.0;
+            }
+        }
+        if !cholesky_lower_in_place::<N>(l.as_mut_slice()) {
+            return None;
+        }
+        let mut w = SMatrix::<f64, N, N>::zeros();
+        TimesTranspose::<N> {
+            full_rows: TrailingDiagonal::of(phi).full_rows(),
+        }
+        .run(w.as_mut_slice(), &mut [], p_j.as_slice(), phi.as_slice());
+        solve_right_lower_transposed::<N>(l.as_slice(), w.as_mut_slice());
+        let mut c = w;
+        solve_right_lower::<N>(l.as_slice(), None, c.as_mut_slice());
+        let beta = x_j - c * x_predicted;
+        let mut delta = *p_j;
+        add_symmetric_product::<N, true>(delta.as_mut_slice(), w.as_slice(), w.as_slice());
+        if map.identity {
+            (*map.a, map.b, map.d, map.identity) = (c, beta, delta, false);
+            return Some(());
+        }
+        map.b += *map.a * beta;
+        let mut t = SMatrix::<f64, N, N>::zeros();
+        Product::<N>.run(
+            t.as_mut_slice(),
+            &mut [],
+            map.a.as_slice(),
+            delta.as_slice(),
+        );
+        add_symmetric_product::<N, false>(map.d.as_mut_slice(), t.as_slice(), map.a.as_slice());
+        Product::<N>.run(t.as_mut_slice(), &mut [], map.a.as_slice(), c.as_slice());
+        *map.a = t;
+        Some(())
+    }
+
+    /// Three steps composed (onto the identity map, then twice onto the
+    /// result) by the fused step, portable and through [`widest`], and by
+    /// the reference: A, b and D bit for bit; then one map applied both
+    /// ways; a P⁻ that is not positive definite is refused by both.
+    fn fused_case<const N: usize>(rng: &mut ChaCha8Rng, full_rows: usize, frozen: usize) {
+        let mut maps = [
+            BackwardMap::<N>::identity(0),
+            BackwardMap::<N>::identity(0),
+            BackwardMap::<N>::identity(0),
+        ];
+        let mut scratch = StepScratch::<N>::new();
+        for _ in 0..3 {
+            let p_j = covariance::<N>(rng, frozen);
+            let phi = transition::<N>(rng, full_rows);
+            let x_j = SVector::<f64, N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let x_predicted = SVector::<f64, N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let p_predicted = covariance::<N>(rng, frozen);
+            let [portable, dispatched, reference] = &mut maps;
+            compose_portable(portable, (&x_j, &p_j), &phi, (&x_predicted, &p_predicted)).unwrap();
+            compose_step(
+                dispatched,
+                (&x_j, &p_j),
+                (&phi, TrailingDiagonal::of(&phi).full_rows()),
+                (&x_predicted, &p_predicted),
+                &mut scratch,
+            )
+            .unwrap();
+            compose_reference(reference, (&x_j, &p_j), &phi, (&x_predicted, &p_predicted)).unwrap();
+            for m in [&maps[0], &maps[1]] {
+                assert_eq!(bits(&*m.a), bits(&*maps[2].a), "A, {N} states");
+                assert_eq!(bits(&m.b), bits(&maps[2].b), "b, {N} states");
+                assert_eq!(bits(&m.d), bits(&maps[2].d), "D, {N} states");
+            }
+        }
+        let x = SVector::<f64, N>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+        let p = covariance::<N>(rng, 0);
+        let (xa, pa) = maps[0].apply(&x, &p);
+        let (xr, pr) = {
+            let m = &maps[2];
+            let mut ps = m.d;
+            let mut t = SMatrix::<f64, N, N>::zeros();
+            gemm(&mut t, 1.0, &*m.a, &p, 0.0);
+            add_symmetric_product::<N, false>(ps.as_mut_slice(), t.as_slice(), m.a.as_slice());
+            (*m.a * x + m.b, ps)
+        };
+        assert_eq!(bits(&xa), bits(&xr));
+        assert_eq!(bits(&pa), bits(&pr));
+        // Not positive definite: refused, the map untouched.
+        let bad = -covariance::<N>(rng, 0);
+        let before = bits(&*maps[0].a);
+        assert!(
+            compose_step(
+                &mut maps[0],
+                (&x, &p),
+                (&SMatrix::identity(), 0),
+                (&x, &bad),
+                &mut scratch
+            )
+            .is_none()
+        );
+        assert_eq!(bits(&*maps[0].a), before);
+        let mut reference = maps[2].clone();
+        assert!(
+            compose_reference(&mut reference, (&x, &p), &SMatrix::identity(), (&x, &bad)).is_none()
+        );
+    }
+
+    #[test]
+    fn the_fused_step_equals_the_separate_step_and_composition_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(43);
+        fused_case::<1>(&mut rng, 0, 0);
+        fused_case::<2>(&mut rng, 1, 0);
+        fused_case::<5>(&mut rng, 2, 1);
+        fused_case::<15>(&mut rng, 9, 0);
+        fused_case::<21>(&mut rng, 9, 0);
+        fused_case::<21>(&mut rng, 9, 6);
+        fused_case::<21>(&mut rng, 21, 0);
+        fused_case::<21>(&mut rng, 0, 0);
+    }
+
+    #[test]
+    fn the_in_place_cholesky_equals_nalgebras_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(44);
+        fn one<const N: usize>(m: SMatrix<f64, N, N>) {
+            let mut ours = m;
+            let ok = cholesky_lower_in_place::<N>(ours.as_mut_slice());
+            match Cholesky::new(m) {
+                Some(c) => {
+                    assert!(ok);
+                    assert_eq!(bits(&ours), bits(c.l_dirty()));
+                }
+                None => assert!(!ok),
+            }
+        }
+        for _ in 0..5 {
+            one(covariance::<21>(&mut rng, 0));
+            one(covariance::<7>(&mut rng, 0));
+            one(covariance::<1>(&mut rng, 0));
+        }
+        // A zero, a negative and a NaN pivot.
+        one(covariance::<21>(&mut rng, 3));
+        let mut m = covariance::<6>(&mut rng, 0);
+        m[(3, 3)] = -1.0;
+        one(m);
+        m[(3, 3)] = f64::NAN;
+        one(m);
+    }
+
+    #[test]
+    fn the_structured_transition_product_equals_the_dense_product() {
+        let mut rng = ChaCha8Rng::seed_from_u64(45);
+        fn one<const N: usize>(rng: &mut ChaCha8Rng, full_rows: usize) {
+            let phi = transition::<N>(rng, full_rows);
+            let acc = transition::<N>(rng, full_rows) * transition::<N>(rng, full_rows);
+            // The transposed form the recorder used before, and the dense
+            // kernel: the same bits up to the sign of exact zeros.
+            let turned = acc.transpose();
+            let mut before = SMatrix::<f64, N, N>::zeros();
+            times_transpose(
+                N,
+                TrailingDiagonal::of(&phi).full_rows(),
+                turned.as_slice(),
+                phi.as_slice(),
+                before.as_mut_slice(),
+            );
+            let before = before.transpose();
+            let mut dense = SMatrix::<f64, N, N>::zeros();
+            gemm(&mut dense, 1.0, &phi, &acc, 0.0);
+            let full_rows = TrailingDiagonal::of(&phi).full_rows();
+            let mut portable = SMatrix::<f64, N, N>::zeros();
+            TransitionProduct::<N> { full_rows }.run(
+                portable.as_mut_slice(),
+                &mut [],
+                phi.as_slice(),
+                acc.as_slice(),
+            );
+            let mut dispatched = SMatrix::<f64, N, N>::zeros();
+            run_widest(
+                TransitionProduct::<N> { full_rows },
+                dispatched.as_mut_slice(),
+                &mut [],
+                phi.as_slice(),
+                acc.as_slice(),
+            );
+            assert_eq!(bits(&portable), bits(&before), "{N}/{full_rows}");
+            assert_eq!(bits(&dispatched), bits(&before), "{N}/{full_rows}");
+            for (a, b) in portable.iter().zip(dense.iter()) {
+                assert!(a.to_bits() == b.to_bits() || (*a == 0.0 && *b == 0.0));
+            }
+        }
+        one::<1>(&mut rng, 0);
+        one::<4>(&mut rng, 2);
+        one::<15>(&mut rng, 9);
+        one::<21>(&mut rng, 9);
+        one::<21>(&mut rng, 21);
+        one::<21>(&mut rng, 0);
     }
 
     #[test]

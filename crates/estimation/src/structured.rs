@@ -67,15 +67,17 @@ impl TrailingDiagonal {
     where
         DefaultAllocator: Allocator<N, N>,
     {
-        // One past the last row with an off-diagonal nonzero, read column
-        // by column without early exits (contiguous, vectorises).
+        // One past the last row with an off-diagonal nonzero: each column
+        // is read from the bottom up to the rows already known to be full
+        // (a structured Φ is read about once below its full rows; a
+        // column's first off-diagonal nonzero from the bottom ends it).
         let n = phi.nrows();
         let s = phi.as_slice();
         let mut full_rows = 0;
         for j in 0..n {
-            for (i, &v) in s[j * n..(j + 1) * n].iter().enumerate() {
-                let off = (v != 0.0) & (i != j);
-                full_rows = full_rows.max(if off { i + 1 } else { 0 });
+            let column = &s[j * n..(j + 1) * n];
+            if let Some(i) = (full_rows..n).rev().find(|&i| i != j && column[i] != 0.0) {
+                full_rows = i + 1;
             }
         }
         Self { full_rows }
@@ -345,6 +347,33 @@ mod tests {
         gap[(2, 1)] = -0.2;
         assert_eq!(TrailingDiagonal::of(&gap), TrailingDiagonal::new(3));
         assert!(!TrailingDiagonal::new(1).holds(&gap));
+    }
+
+    /// `of` (read from the bottom, stopping early) against its definition
+    /// read in full: one past the last row with an off-diagonal nonzero
+    /// (NaN counts), on random patterns of nonzeros.
+    #[test]
+    fn the_tightest_structure_equals_its_definition() {
+        let mut rng = StdRng::seed_from_u64(7);
+        for _ in 0..500 {
+            let density = rng.random_range(0.0..0.2);
+            let phi = SMatrix::<f64, 9, 9>::from_fn(|_, _| {
+                if rng.random_bool(density) {
+                    if rng.random_bool(0.1) { f64::NAN } else { -0.5 }
+                } else {
+                    0.0
+                }
+            });
+            let mut expected = 0;
+            for i in 0..9 {
+                for j in 0..9 {
+                    if i != j && phi[(i, j)] != 0.0 {
+                        expected = expected.max(i + 1);
+                    }
+                }
+            }
+            assert_eq!(TrailingDiagonal::of(&phi).full_rows(), expected, "{phi}");
+        }
     }
 
     /// Fixed size 21 (the navigation filter's), 9 full rows and others: the

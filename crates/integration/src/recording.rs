@@ -27,21 +27,48 @@ const BATCH: usize = 32;
 /// lag by `QUEUE · BATCH` calls (≈ 7 kB each for 21 states).
 const QUEUE: usize = 4;
 
-/// A recorder call for the worker.
+/// A prediction's Φ, x⁻, P⁻.
+type Prediction<const N: usize> = (SMatrix<f64, N, N>, SVector<f64, N>, SMatrix<f64, N, N>);
+
+/// An update's x⁻, x, P.
+type Update<const N: usize> = (SVector<f64, N>, SVector<f64, N>, SMatrix<f64, N, N>);
+
+/// A recorder call for the worker. The boxes go back to the filter with
+/// their batch and are filled again (no allocation per call).
 enum Call<const N: usize> {
-    Predict(Box<(SMatrix<f64, N, N>, SVector<f64, N>, SMatrix<f64, N, N>)>),
-    Filtered(Box<(SVector<f64, N>, SVector<f64, N>, SMatrix<f64, N, N>)>),
+    Predict(Box<Prediction<N>>),
+    Filtered(Box<Update<N>>),
     Mark,
     /// Answer once every earlier call is done.
     Flush(SyncSender<()>),
 }
 
+/// Calls not yet sent, and the boxes of calls the worker has done.
+struct Pending<const N: usize> {
+    calls: Vec<Call<N>>,
+    predictions: Vec<Box<Prediction<N>>>,
+    updates: Vec<Box<Update<N>>>,
+}
+
+/// `dst ← src` in two halves: glibc's `memcpy` takes `rep movsb` above
+/// 2112 bytes on CPUs with fast short `rep movsb`, which AMD Zen 4 runs
+/// several times slower at some relative alignments; a 21-state matrix is
+/// 3528 bytes.
+fn copy_matrix<const N: usize>(dst: &mut SMatrix<f64, N, N>, src: &SMatrix<f64, N, N>) {
+    let (d, s) = (dst.as_mut_slice(), src.as_slice());
+    let half = N * N / 2;
+    d[..half].copy_from_slice(&s[..half]);
+    d[half..].copy_from_slice(&s[half..]);
+}
+
 /// The worker thread and the filter's mirror of the recorder's marks.
 pub(crate) struct Worker<const N: usize> {
     calls: Option<SyncSender<Vec<Call<N>>>>,
+    /// Batches the worker has done, for their boxes.
+    done: Receiver<Vec<Call<N>>>,
     /// Calls not yet sent (behind a lock only so that the backward pass,
     /// which takes `&self`, can send them).
-    batch: Mutex<Vec<Call<N>>>,
+    batch: Mutex<Pending<N>>,
     thread: Option<JoinHandle<()>>,
     recorder: Arc<Mutex<RtsRecorder<N>>>,
     x_predicted: SVector<f64, N>,
@@ -64,14 +91,20 @@ impl<const N: usize> Recording<N> {
     pub(crate) fn new(x: &SVector<f64, N>, p: &SMatrix<f64, N, N>, max_marks: usize) -> Self {
         let recorder = Arc::new(Mutex::new(RtsRecorder::new(x, p, max_marks)));
         let (calls, queue) = sync_channel(QUEUE);
+        let (returns, done) = sync_channel(1);
         let shared = Arc::clone(&recorder);
         match std::thread::Builder::new()
             .name("aidnav-smoother".into())
-            .spawn(move || work(&shared, &queue))
+            .spawn(move || work(&shared, &queue, &returns))
         {
             Ok(thread) => Self::Background(Box::new(Worker {
                 calls: Some(calls),
-                batch: Mutex::new(Vec::with_capacity(BATCH)),
+                done,
+                batch: Mutex::new(Pending {
+                    calls: Vec::with_capacity(BATCH),
+                    predictions: Vec::new(),
+                    updates: Vec::new(),
+                }),
                 thread: Some(thread),
                 recorder,
                 x_predicted: *x,
@@ -106,7 +139,15 @@ impl<const N: usize> Recording<N> {
                 }
                 w.x_predicted = *x_predicted;
                 w.open_mark = None;
-                w.send(Call::Predict(Box::new((*phi, *x_predicted, *p_predicted))));
+                w.send_with(|pending| {
+                    let mut call = pending.predictions.pop().unwrap_or_else(|| {
+                        Box::new((SMatrix::zeros(), SVector::zeros(), SMatrix::zeros()))
+                    });
+                    copy_matrix(&mut call.0, phi);
+                    call.1 = *x_predicted;
+                    copy_matrix(&mut call.2, p_predicted);
+                    Call::Predict(call)
+                });
             }
         }
     }
@@ -122,7 +163,15 @@ impl<const N: usize> Recording<N> {
             Self::Inline(r) => r.filtered(x_predicted, x, p),
             Self::Background(w) => {
                 w.x_predicted = *x_predicted;
-                w.send(Call::Filtered(Box::new((*x_predicted, *x, *p))));
+                w.send_with(|pending| {
+                    let mut call = pending.updates.pop().unwrap_or_else(|| {
+                        Box::new((SVector::zeros(), SVector::zeros(), SMatrix::zeros()))
+                    });
+                    call.0 = *x_predicted;
+                    call.1 = *x;
+                    copy_matrix(&mut call.2, p);
+                    Call::Filtered(call)
+                });
             }
         }
     }
@@ -135,7 +184,7 @@ impl<const N: usize> Recording<N> {
                 if let Some(m) = w.open_mark {
                     return Some(m);
                 }
-                w.send(Call::Mark);
+                w.send_with(|_| Call::Mark);
                 if w.marks >= w.max_marks {
                     w.overflow = true;
                     return None;
@@ -192,34 +241,65 @@ fn lock<const N: usize>(r: &Mutex<RtsRecorder<N>>) -> std::sync::MutexGuard<'_, 
     r.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// The worker: the calls, in order, until the filter drops its end.
-fn work<const N: usize>(recorder: &Mutex<RtsRecorder<N>>, batches: &Receiver<Vec<Call<N>>>) {
-    for call in batches.iter().flatten() {
-        match call {
-            Call::Predict(a) => lock(recorder).predict(&a.0, &a.1, &a.2),
-            Call::Filtered(a) => lock(recorder).filtered(&a.0, &a.1, &a.2),
-            Call::Mark => {
-                lock(recorder).mark();
-            }
-            Call::Flush(done) => {
-                let _ = done.send(());
+/// The worker: the calls, in order, until the filter drops its end; each
+/// batch done goes back (for its boxes) unless the filter has enough.
+fn work<const N: usize>(
+    recorder: &Mutex<RtsRecorder<N>>,
+    batches: &Receiver<Vec<Call<N>>>,
+    returns: &SyncSender<Vec<Call<N>>>,
+) {
+    for batch in batches.iter() {
+        for call in &batch {
+            match call {
+                Call::Predict(a) => lock(recorder).predict(&a.0, &a.1, &a.2),
+                Call::Filtered(a) => lock(recorder).filtered(&a.0, &a.1, &a.2),
+                Call::Mark => {
+                    lock(recorder).mark();
+                }
+                Call::Flush(done) => {
+                    let _ = done.send(());
+                }
             }
         }
+        let _ = returns.try_send(batch);
     }
 }
 
 impl<const N: usize> Worker<N> {
-    /// Queue a call; send the batch when full.
-    fn send(&self, call: Call<N>) {
-        let mut batch = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
-        batch.push(call);
-        if batch.len() >= BATCH {
-            self.send_batch(&mut batch);
+    /// Queue the call `make` builds (from a box of a done call when there
+    /// is one); send the batch when full.
+    fn send_with(&self, make: impl FnOnce(&mut Pending<N>) -> Call<N>) {
+        let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+        let call = make(&mut pending);
+        pending.calls.push(call);
+        if pending.calls.len() >= BATCH {
+            self.send_batch(&mut pending);
         }
     }
 
-    fn send_batch(&self, batch: &mut Vec<Call<N>>) {
-        let batch = std::mem::replace(batch, Vec::with_capacity(BATCH));
+    /// Send the queued calls; the next batch reuses a done one, its boxes
+    /// kept for the next calls.
+    fn send_batch(&self, pending: &mut Pending<N>) {
+        let next = match self.done.try_recv() {
+            Ok(mut done) => {
+                // At most a batch of each kept (the rest freed): memory
+                // stays that of the calls in flight.
+                for call in done.drain(..) {
+                    match call {
+                        Call::Predict(b) if pending.predictions.len() < BATCH => {
+                            pending.predictions.push(b);
+                        }
+                        Call::Filtered(b) if pending.updates.len() < BATCH => {
+                            pending.updates.push(b);
+                        }
+                        _ => {}
+                    }
+                }
+                done
+            }
+            Err(_) => Vec::with_capacity(BATCH),
+        };
+        let batch = std::mem::replace(&mut pending.calls, next);
         if let Some(calls) = &self.calls
             && calls.send(batch).is_err()
         {
@@ -231,9 +311,9 @@ impl<const N: usize> Worker<N> {
     fn flush(&self) {
         let (done, wait) = sync_channel(1);
         {
-            let mut batch = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
-            batch.push(Call::Flush(done));
-            self.send_batch(&mut batch);
+            let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+            pending.calls.push(Call::Flush(done));
+            self.send_batch(&mut pending);
         }
         if wait.recv().is_err() {
             self.worker_died();
