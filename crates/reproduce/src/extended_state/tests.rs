@@ -353,7 +353,7 @@ fn gauss_newton_with_noisy_fixes_beats_the_linear_filter() {
         est.costs
     );
     // Here (seed 4, switch at 150 s): 629 m against 3218 m, CRB σ 662 m.
-    let proposed = branches(&flight, &s).proposed_m;
+    let proposed = branches_of(&flight, &[&s])[0].proposed_m;
     let bound = path.bound_variance[s.fix].sqrt();
     assert!(
         est.error_m < 0.5 * proposed,
