@@ -305,72 +305,104 @@ fn gravity_at(p: [Lanes; 3]) -> [Lanes; 3] {
     [mul(neg(c[0]), s), mul(neg(c[1]), s), mul(neg(c[2]), s)]
 }
 
-/// Stage 1 of the step of every block: `k1r = v`, `k1v = a0 + g(r)`.
+/// Stage 1 of a block's step: `k1r = v`, `k1v = a0 + g(r)`.
 #[inline(always)]
-fn stage_first(blocks: &mut [Block]) {
-    for b in blocks {
-        let g = gravity_at(b.r);
-        for k in 0..3 {
-            let kv = add(b.thrust[0][k], g[k]);
-            b.sum_r[k] = b.v[k];
-            b.sum_v[k] = kv;
-            b.k_r[k] = b.v[k];
-            b.k_v[k] = kv;
-        }
+fn stage_first(b: &mut Block) {
+    let g = gravity_at(b.r);
+    for k in 0..3 {
+        let kv = add(b.thrust[0][k], g[k]);
+        b.sum_r[k] = b.v[k];
+        b.sum_v[k] = kv;
+        b.k_r[k] = b.v[k];
+        b.k_v[k] = kv;
     }
 }
 
-/// Stage 2 or 3 of the step of every block: `k_r = v + k_v h/2` and
+/// Stage 2 or 3 of a block's step: `k_r = v + k_v h/2` and
 /// `k_v = a½ + g(r + k_r h/2)` from the previous stage's slopes, added
 /// twice to the sums.
 #[inline(always)]
-fn stage_middle(blocks: &mut [Block], half: f64) {
-    for b in blocks {
-        let g = gravity_lanes(&b.r, &b.k_r, half);
-        for k in 0..3 {
-            let kr = add(b.v[k], scale(b.k_v[k], half));
-            let kv = add(b.thrust[1][k], g[k]);
-            b.sum_r[k] = add(b.sum_r[k], scale(kr, 2.0));
-            b.sum_v[k] = add(b.sum_v[k], scale(kv, 2.0));
-            b.k_r[k] = kr;
-            b.k_v[k] = kv;
-        }
+fn stage_middle(b: &mut Block, half: f64) {
+    let g = gravity_lanes(&b.r, &b.k_r, half);
+    for k in 0..3 {
+        let kr = add(b.v[k], scale(b.k_v[k], half));
+        let kv = add(b.thrust[1][k], g[k]);
+        b.sum_r[k] = add(b.sum_r[k], scale(kr, 2.0));
+        b.sum_v[k] = add(b.sum_v[k], scale(kv, 2.0));
+        b.k_r[k] = kr;
+        b.k_v[k] = kv;
     }
 }
 
-/// Stage 4 of the step of every block and the update: `k4r = v + k3v h`,
+/// Stage 4 of a block's step and the update: `k4r = v + k3v h`,
 /// `k4v = a1 + g(r + k3r h)`, `r += (sum_r + k4r) h/6`, likewise v.
 #[inline(always)]
-fn stage_last(blocks: &mut [Block], dt: f64, sixth: f64) {
-    for b in blocks {
-        let g = gravity_lanes(&b.r, &b.k_r, dt);
-        for k in 0..3 {
-            let kr = add(b.v[k], scale(b.k_v[k], dt));
-            let kv = add(b.thrust[2][k], g[k]);
-            b.r[k] = add(b.r[k], scale(add(b.sum_r[k], kr), sixth));
-            b.v[k] = add(b.v[k], scale(add(b.sum_v[k], kv), sixth));
-        }
+fn stage_last(b: &mut Block, dt: f64, sixth: f64) {
+    let g = gravity_lanes(&b.r, &b.k_r, dt);
+    for k in 0..3 {
+        let kr = add(b.v[k], scale(b.k_v[k], dt));
+        let kv = add(b.thrust[2][k], g[k]);
+        b.r[k] = add(b.r[k], scale(add(b.sum_r[k], kr), sixth));
+        b.v[k] = add(b.v[k], scale(add(b.sum_v[k], kv), sixth));
     }
 }
 
 /// One RK4 step of every block, stage by stage over all blocks (so the
-/// blocks' chains overlap).
-#[inline(always)]
-fn step_blocks(blocks: &mut [Block], dt: f64) {
-    stage_first(blocks);
-    stage_middle(blocks, dt / 2.0);
-    stage_middle(blocks, dt / 2.0);
-    stage_last(blocks, dt, dt / 6.0);
+/// blocks' chains overlap). A block's stage is a call
+/// (`#[inline(never)]`): inlined, the compiler would vectorise the loop
+/// over the blocks (pairing lane j of two blocks) instead of the block's
+/// four lanes.
+macro_rules! step_blocks {
+    ($(#[$attr:meta])* $step:ident, $first:ident, $middle:ident, $last:ident) => {
+        $(#[$attr])*
+        #[inline(never)]
+        fn $first(b: &mut Block) {
+            stage_first(b);
+        }
+
+        $(#[$attr])*
+        #[inline(never)]
+        fn $middle(b: &mut Block, half: f64) {
+            stage_middle(b, half);
+        }
+
+        $(#[$attr])*
+        #[inline(never)]
+        fn $last(b: &mut Block, dt: f64, sixth: f64) {
+            stage_last(b, dt, sixth);
+        }
+
+        $(#[$attr])*
+        fn $step(blocks: &mut [Block], dt: f64) {
+            let (half, sixth) = (dt / 2.0, dt / 6.0);
+            for b in blocks.iter_mut() {
+                $first(b);
+            }
+            for _ in 0..2 {
+                for b in blocks.iter_mut() {
+                    $middle(b, half);
+                }
+            }
+            for b in blocks.iter_mut() {
+                $last(b, dt, sixth);
+            }
+        }
+    };
 }
 
-/// [`step_blocks`] compiled with AVX: the same operations, four lanes per
-/// instruction (the operations are IEEE-exact element-wise ones and Rust
-/// never fuses a multiply and an add, so the same numbers).
-#[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
-#[target_feature(enable = "avx")]
-fn step_blocks_avx(blocks: &mut [Block], dt: f64) {
-    step_blocks(blocks, dt);
-}
+step_blocks!(step_blocks, first_block, middle_block, last_block);
+
+// Compiled with AVX: the same operations, four lanes per instruction (the
+// operations are IEEE-exact element-wise ones and Rust never fuses a
+// multiply and an add, so the same numbers).
+step_blocks!(
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+    #[target_feature(enable = "avx")]
+    step_blocks_avx,
+    first_block_avx,
+    middle_block_avx,
+    last_block_avx
+);
 
 impl LaunchInsLanes {
     /// No INS, room for `capacity`.
