@@ -86,8 +86,10 @@ impl LaunchInstrumentErrors {
     }
 
     /// Angle errors (yaw, pitch, roll) at time t: offset plus drift.
+    #[inline]
     fn angle_error(&self, t: f64) -> Vector3<f64> {
-        self.angle_offset + self.angle_drift * t
+        let e = |k: usize| self.angle_offset[k] + self.angle_drift[k] * t;
+        Vector3::new(e(0), e(1), e(2))
     }
 
     /// Instrument outputs for the true attitude and specific force at time t.
@@ -117,13 +119,17 @@ impl LaunchInstrumentErrors {
         force: &Vector3<f64>,
     ) -> (LaunchAttitude, Vector3<f64>) {
         let angle = self.angle_error(t);
+        // Written out per component (the same operations as
+        // `(f − Δa0).component_div(1 + K)`): flight loops call this for
+        // every RK4 sample.
+        let f = |k: usize| (force[k] - self.accel_bias[k]) / (1.0 + self.accel_scale[k]);
         (
             LaunchAttitude {
                 yaw: attitude.yaw - angle[0],
                 pitch: attitude.pitch - angle[1],
                 roll: attitude.roll - angle[2],
             },
-            (force - self.accel_bias).component_div(&(Vector3::repeat(1.0) + self.accel_scale)),
+            Vector3::new(f(0), f(1), f(2)),
         )
     }
 }
