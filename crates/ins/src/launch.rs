@@ -313,6 +313,7 @@ fn gravity_at(p: [Lanes; 3]) -> [Lanes; 3] {
 
 /// Stage 1 of a block's step: `k1r = v`, `k1v = a0 + g(r)`.
 #[inline(always)]
+#[allow(clippy::needless_range_loop)] // k indexes seven arrays alike
 fn stage_first(b: &mut Block) {
     let g = gravity_at(b.r);
     for k in 0..3 {
@@ -328,6 +329,7 @@ fn stage_first(b: &mut Block) {
 /// `k_v = a½ + g(r + k_r h/2)` from the previous stage's slopes, added
 /// twice to the sums.
 #[inline(always)]
+#[allow(clippy::needless_range_loop)] // k indexes seven arrays alike
 fn stage_middle(b: &mut Block, half: f64) {
     let g = gravity_lanes(&b.r, &b.k_r, half);
     for k in 0..3 {
@@ -343,6 +345,7 @@ fn stage_middle(b: &mut Block, half: f64) {
 /// Stage 4 of a block's step and the update: `k4r = v + k3v h`,
 /// `k4v = a1 + g(r + k3r h)`, `r += (sum_r + k4r) h/6`, likewise v.
 #[inline(always)]
+#[allow(clippy::needless_range_loop)] // k indexes seven arrays alike
 fn stage_last(b: &mut Block, dt: f64, sixth: f64) {
     let g = gravity_lanes(&b.r, &b.k_r, dt);
     for k in 0..3 {
@@ -581,10 +584,10 @@ mod tests {
             if k % 50 == 0 && lanes.len() < start.len() {
                 lanes.push(alone[lanes.len()]);
             }
-            for i in 0..lanes.len() {
+            for (i, ins) in alone.iter_mut().enumerate().take(lanes.len()) {
                 let t = thrust(i, k);
                 lanes.set_thrust(i, &t);
-                alone[i].step_with_thrust(0.01, &t);
+                ins.step_with_thrust(0.01, &t);
             }
             lanes.step(0.01);
             if k == 321 {
