@@ -432,9 +432,27 @@ fn fit(units: &[Unit], w: &Window<'_>, idx: &[usize]) -> Option<Vec<f64>> {
 /// [`fit`] of the candidates `set` with their values read from `table`
 /// (the same rows, so the same coefficients).
 fn fit_set(set: &[usize], table: &DesignTable, w: &Window<'_>, idx: &[usize]) -> Option<Vec<f64>> {
-    fit_rows(table.columns(set), w, idx, |row, i| {
-        table.push_row(row, set, i)
-    })
+    let cols = table.columns(set);
+    if idx.len() <= cols {
+        return None;
+    }
+    // The design matrix column by column (the rows `push_row` writes,
+    // without building each row first).
+    let mut a = DMatrix::zeros(idx.len(), cols);
+    let mut c = 0;
+    for &k in set {
+        for (r, &i) in idx.iter().enumerate() {
+            a[(r, c)] = table.values[i][k].0;
+        }
+        c += 1;
+        if table.two[k] {
+            for (r, &i) in idx.iter().enumerate() {
+                a[(r, c)] = table.values[i][k].1;
+            }
+            c += 1;
+        }
+    }
+    solve_design(a, w, idx)
 }
 
 /// Least-squares coefficients on the samples `idx` with `cols` columns, the
@@ -445,7 +463,6 @@ fn fit_rows(
     idx: &[usize],
     mut row_of: impl FnMut(&mut Vec<f64>, usize),
 ) -> Option<Vec<f64>> {
-    let y = w.y;
     if idx.len() <= cols {
         return None;
     }
@@ -458,6 +475,14 @@ fn fit_rows(
             a[(r, c)] = *v;
         }
     }
+    solve_design(a, w, idx)
+}
+
+/// Least-squares coefficients of the design matrix `a` (one row per sample
+/// of `idx`) for the samples' values, or None if rank-deficient or not
+/// finite.
+fn solve_design(a: DMatrix<f64>, w: &Window<'_>, idx: &[usize]) -> Option<Vec<f64>> {
+    let y = w.y;
     // A non-finite entry (an overflowing ω·t) would make the SVD panic: such
     // a structure is not identifiable and is skipped like a rank-deficient one.
     if a.iter().any(|v| !v.is_finite()) {
@@ -571,9 +596,13 @@ impl DesignTable {
     /// [`GmdhModel::predict`] of the candidates `set` with `coef` at time
     /// index i (the same products in the same order).
     fn predict(&self, set: &[usize], coef: &[f64], i: usize) -> f64 {
-        let mut row = Vec::with_capacity(coef.len());
-        self.push_row(&mut row, set, i);
-        row.iter().zip(coef).map(|(a, c)| a * c).sum()
+        // The row's values as `push_row` lays them out, without building it.
+        let at = &self.values[i];
+        let row = set.iter().flat_map(|&k| {
+            let (first, second) = at[k];
+            std::iter::once(first).chain(self.two[k].then_some(second))
+        });
+        row.zip(coef).map(|(a, c)| a * c).sum()
     }
 }
 

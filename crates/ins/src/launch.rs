@@ -17,6 +17,7 @@
 //! assert!((att_back.pitch - 1.0).abs() < 1e-15 && (f_back - f).norm() < 1e-12);
 //! ```
 
+use aidnav_frames::constants::{EARTH_MEAN_RADIUS_M, GM_M3_S2};
 use aidnav_frames::launch::{LaunchAttitude, central_gravity};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -85,8 +86,10 @@ impl LaunchInstrumentErrors {
     }
 
     /// Angle errors (yaw, pitch, roll) at time t: offset plus drift.
+    #[inline]
     fn angle_error(&self, t: f64) -> Vector3<f64> {
-        self.angle_offset + self.angle_drift * t
+        let e = |k: usize| self.angle_offset[k] + self.angle_drift[k] * t;
+        Vector3::new(e(0), e(1), e(2))
     }
 
     /// Instrument outputs for the true attitude and specific force at time t.
@@ -116,13 +119,17 @@ impl LaunchInstrumentErrors {
         force: &Vector3<f64>,
     ) -> (LaunchAttitude, Vector3<f64>) {
         let angle = self.angle_error(t);
+        // Written out per component (the same operations as
+        // `(f − Δa0).component_div(1 + K)`): flight loops call this for
+        // every RK4 sample.
+        let f = |k: usize| (force[k] - self.accel_bias[k]) / (1.0 + self.accel_scale[k]);
         (
             LaunchAttitude {
                 yaw: attitude.yaw - angle[0],
                 pitch: attitude.pitch - angle[1],
                 roll: attitude.roll - angle[2],
             },
-            (force - self.accel_bias).component_div(&(Vector3::repeat(1.0) + self.accel_scale)),
+            Vector3::new(f(0), f(1), f(2)),
         )
     }
 }
@@ -208,6 +215,293 @@ impl LaunchIns {
     }
 }
 
+/// Many launch INS stepped together: the processor overlaps the INS'
+/// gravity evaluations (a square root and a division each, on a chain of
+/// four per step that one INS alone must wait on) and does them [`LANES`]
+/// INS per vector instruction. Per INS the same operations in the same
+/// order as [`LaunchIns::step_with_thrust`], so the same numbers bit for
+/// bit. INS join with [`push`](Self::push), get their thrust with
+/// [`set_thrust`](Self::set_thrust) before every [`step`](Self::step), and
+/// are read back with [`get`](Self::get).
+#[derive(Debug, Clone, Default)]
+pub struct LaunchInsLanes {
+    /// The INS, [`LANES`] per block (the last block's unused lanes fly a
+    /// harmless zero state that is never read).
+    blocks: Vec<Block>,
+    /// Number of INS.
+    len: usize,
+}
+
+/// INS per block of [`LaunchInsLanes`]: one AVX vector of `f64`.
+pub const LANES: usize = 4;
+
+/// One value per lane.
+type Lanes = [f64; LANES];
+
+/// [`LANES`] INS by component, with the thrust of their next step and the
+/// RK4 stages' scratch.
+#[derive(Debug, Clone, Copy, Default)]
+struct Block {
+    /// Position components (x, y, z) [m].
+    r: [Lanes; 3],
+    /// Velocity components [m/s].
+    v: [Lanes; 3],
+    /// Thrust at the three RK4 times (outer index), per component.
+    thrust: [[Lanes; 3]; 3],
+    /// The RK4 sums of the position and velocity slopes so far.
+    sum_r: [Lanes; 3],
+    sum_v: [Lanes; 3],
+    /// The last stage's position and velocity slopes.
+    k_r: [Lanes; 3],
+    k_v: [Lanes; 3],
+}
+
+/// Lane-wise `a + b`.
+#[inline(always)]
+fn add(a: Lanes, b: Lanes) -> Lanes {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]
+}
+
+/// Lane-wise `a · b`.
+#[inline(always)]
+fn mul(a: Lanes, b: Lanes) -> Lanes {
+    [a[0] * b[0], a[1] * b[1], a[2] * b[2], a[3] * b[3]]
+}
+
+/// Every lane of `a` times `s`.
+#[inline(always)]
+fn scale(a: Lanes, s: f64) -> Lanes {
+    mul(a, [s; LANES])
+}
+
+/// [`central_gravity`] per lane at `r + offset · h`: the same operations
+/// (the centre's offset added to every component, `|·|` as
+/// `√((x² + y²) + z²)`, `−c · (μ / (d d d))`).
+#[inline(always)]
+fn gravity_lanes(r: &[Lanes; 3], offset: &[Lanes; 3], h: f64) -> [Lanes; 3] {
+    let point = |k: usize| add(r[k], scale(offset[k], h));
+    gravity_at([point(0), point(1), point(2)])
+}
+
+/// [`central_gravity`] per lane at `p`.
+#[inline(always)]
+fn gravity_at(p: [Lanes; 3]) -> [Lanes; 3] {
+    let c = [
+        add(p[0], [0.0; LANES]),
+        add(p[1], [EARTH_MEAN_RADIUS_M; LANES]),
+        add(p[2], [0.0; LANES]),
+    ];
+    let norm2 = add(add(mul(c[0], c[0]), mul(c[1], c[1])), mul(c[2], c[2]));
+    let d = [
+        norm2[0].sqrt(),
+        norm2[1].sqrt(),
+        norm2[2].sqrt(),
+        norm2[3].sqrt(),
+    ];
+    let d3 = mul(mul(d, d), d);
+    let s = [
+        GM_M3_S2 / d3[0],
+        GM_M3_S2 / d3[1],
+        GM_M3_S2 / d3[2],
+        GM_M3_S2 / d3[3],
+    ];
+    // Written out: `array::map` is not inlined (nor compiled with the
+    // caller's target features).
+    let neg = |a: Lanes| [-a[0], -a[1], -a[2], -a[3]];
+    [mul(neg(c[0]), s), mul(neg(c[1]), s), mul(neg(c[2]), s)]
+}
+
+/// Stage 1 of a block's step: `k1r = v`, `k1v = a0 + g(r)`.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // k indexes seven arrays alike
+fn stage_first(b: &mut Block) {
+    let g = gravity_at(b.r);
+    for k in 0..3 {
+        let kv = add(b.thrust[0][k], g[k]);
+        b.sum_r[k] = b.v[k];
+        b.sum_v[k] = kv;
+        b.k_r[k] = b.v[k];
+        b.k_v[k] = kv;
+    }
+}
+
+/// Stage 2 or 3 of a block's step: `k_r = v + k_v h/2` and
+/// `k_v = a½ + g(r + k_r h/2)` from the previous stage's slopes, added
+/// twice to the sums.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // k indexes seven arrays alike
+fn stage_middle(b: &mut Block, half: f64) {
+    let g = gravity_lanes(&b.r, &b.k_r, half);
+    for k in 0..3 {
+        let kr = add(b.v[k], scale(b.k_v[k], half));
+        let kv = add(b.thrust[1][k], g[k]);
+        b.sum_r[k] = add(b.sum_r[k], scale(kr, 2.0));
+        b.sum_v[k] = add(b.sum_v[k], scale(kv, 2.0));
+        b.k_r[k] = kr;
+        b.k_v[k] = kv;
+    }
+}
+
+/// Stage 4 of a block's step and the update: `k4r = v + k3v h`,
+/// `k4v = a1 + g(r + k3r h)`, `r += (sum_r + k4r) h/6`, likewise v.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // k indexes seven arrays alike
+fn stage_last(b: &mut Block, dt: f64, sixth: f64) {
+    let g = gravity_lanes(&b.r, &b.k_r, dt);
+    for k in 0..3 {
+        let kr = add(b.v[k], scale(b.k_v[k], dt));
+        let kv = add(b.thrust[2][k], g[k]);
+        b.r[k] = add(b.r[k], scale(add(b.sum_r[k], kr), sixth));
+        b.v[k] = add(b.v[k], scale(add(b.sum_v[k], kv), sixth));
+    }
+}
+
+/// One RK4 step of every block, stage by stage over all blocks (so the
+/// blocks' chains overlap). A block's stage is a call
+/// (`#[inline(never)]`): inlined, the compiler would vectorise the loop
+/// over the blocks (pairing lane j of two blocks) instead of the block's
+/// four lanes.
+macro_rules! step_blocks {
+    ($(#[$attr:meta])* $step:ident, $first:ident, $middle:ident, $last:ident) => {
+        $(#[$attr])*
+        #[inline(never)]
+        fn $first(b: &mut Block) {
+            stage_first(b);
+        }
+
+        $(#[$attr])*
+        #[inline(never)]
+        fn $middle(b: &mut Block, half: f64) {
+            stage_middle(b, half);
+        }
+
+        $(#[$attr])*
+        #[inline(never)]
+        fn $last(b: &mut Block, dt: f64, sixth: f64) {
+            stage_last(b, dt, sixth);
+        }
+
+        $(#[$attr])*
+        fn $step(blocks: &mut [Block], dt: f64) {
+            let (half, sixth) = (dt / 2.0, dt / 6.0);
+            for b in blocks.iter_mut() {
+                $first(b);
+            }
+            for _ in 0..2 {
+                for b in blocks.iter_mut() {
+                    $middle(b, half);
+                }
+            }
+            for b in blocks.iter_mut() {
+                $last(b, dt, sixth);
+            }
+        }
+    };
+}
+
+step_blocks!(step_blocks, first_block, middle_block, last_block);
+
+// Compiled with AVX: the same operations, four lanes per instruction (the
+// operations are IEEE-exact element-wise ones and Rust never fuses a
+// multiply and an add, so the same numbers).
+step_blocks!(
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+    #[target_feature(enable = "avx")]
+    step_blocks_avx,
+    first_block_avx,
+    middle_block_avx,
+    last_block_avx
+);
+
+impl LaunchInsLanes {
+    /// No INS, room for `capacity`.
+    pub fn with_capacity(capacity: usize) -> Self {
+        Self {
+            blocks: Vec::with_capacity(capacity.div_ceil(LANES)),
+            len: 0,
+        }
+    }
+
+    /// Number of INS.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether there is no INS.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Add an INS (its index: the previous [`len`](Self::len)); its thrust
+    /// is zero until [`set_thrust`](Self::set_thrust).
+    pub fn push(&mut self, ins: LaunchIns) {
+        let (b, j) = (self.len / LANES, self.len % LANES);
+        if j == 0 {
+            self.blocks.push(Block::default());
+        }
+        let block = &mut self.blocks[b];
+        for k in 0..3 {
+            block.r[k][j] = ins.position[k];
+            block.v[k][j] = ins.velocity[k];
+            for t in &mut block.thrust {
+                t[k][j] = 0.0;
+            }
+        }
+        self.len += 1;
+    }
+
+    /// INS `i`. Panics if `i ≥ len()`.
+    pub fn get(&self, i: usize) -> LaunchIns {
+        assert!(i < self.len, "INS {i} of {}", self.len);
+        let (b, j) = (&self.blocks[i / LANES], i % LANES);
+        LaunchIns {
+            position: Vector3::new(b.r[0][j], b.r[1][j], b.r[2][j]),
+            velocity: Vector3::new(b.v[0][j], b.v[1][j], b.v[2][j]),
+        }
+    }
+
+    /// Replace INS `i`'s state (a reset). Panics if `i ≥ len()`.
+    pub fn set(&mut self, i: usize, ins: LaunchIns) {
+        assert!(i < self.len, "INS {i} of {}", self.len);
+        let (b, j) = (&mut self.blocks[i / LANES], i % LANES);
+        for k in 0..3 {
+            b.r[k][j] = ins.position[k];
+            b.v[k][j] = ins.velocity[k];
+        }
+    }
+
+    /// The thrust INS `i` flies its next step with (as
+    /// [`LaunchIns::step_with_thrust`] takes it). Panics if `i ≥ len()`.
+    #[inline]
+    pub fn set_thrust(&mut self, i: usize, thrust: &[Vector3<f64>; 3]) {
+        assert!(i < self.len, "INS {i} of {}", self.len);
+        let (b, j) = (&mut self.blocks[i / LANES], i % LANES);
+        for (s, t) in thrust.iter().enumerate() {
+            for k in 0..3 {
+                b.thrust[s][k][j] = t[k];
+            }
+        }
+    }
+
+    /// One RK4 step of every INS with its thrust: per INS,
+    /// [`LaunchIns::step_with_thrust`]'s arithmetic. On x86-64 without AVX
+    /// enabled at compile time (the portable build) but on a CPU that has
+    /// it, compiled with AVX.
+    pub fn step(&mut self, dt: f64) {
+        #[cfg(all(target_arch = "x86_64", not(target_feature = "avx")))]
+        if std::arch::is_x86_feature_detected!("avx") {
+            #[allow(unsafe_code)]
+            // SAFETY: `step_blocks_avx`'s only requirement is that the CPU
+            // executes AVX instructions, which was just detected at run time.
+            unsafe {
+                step_blocks_avx(&mut self.blocks, dt)
+            };
+            return;
+        }
+        step_blocks(&mut self.blocks, dt);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -263,6 +557,49 @@ mod tests {
         for i in 0..3 {
             assert_eq!(together[i], alone[i]);
             assert_eq!(together[i], reference[i]);
+        }
+    }
+
+    #[test]
+    fn lanes_step_each_ins_bit_for_bit() {
+        let start: Vec<LaunchIns> = (0..7)
+            .map(|i| {
+                let s = i as f64;
+                LaunchIns {
+                    position: Vector3::new(1.0e3 * s - 2.0e3, 2.5e4 * s, -3.0e2 * s.cos()),
+                    velocity: Vector3::new(900.0 + s, 750.0 * s.sin(), -12.0 * s),
+                }
+            })
+            .collect();
+        let thrust = |i: usize, k: usize| -> [Vector3<f64>; 3] {
+            std::array::from_fn(|j| {
+                let s = (i * 7 + k * 3 + j) as f64;
+                Vector3::new(20.0 + s.sin(), 30.0 + s.cos(), 0.1 * s.sin())
+            })
+        };
+        let mut lanes = LaunchInsLanes::with_capacity(2);
+        let mut alone = start.clone();
+        // INS join at different steps, as the flights of different switches.
+        for k in 0..400 {
+            if k % 50 == 0 && lanes.len() < start.len() {
+                lanes.push(alone[lanes.len()]);
+            }
+            for (i, ins) in alone.iter_mut().enumerate().take(lanes.len()) {
+                let t = thrust(i, k);
+                lanes.set_thrust(i, &t);
+                ins.step_with_thrust(0.01, &t);
+            }
+            lanes.step(0.01);
+            if k == 321 {
+                // A reset, as the filter's feedback.
+                alone[2].position.x -= 3.5;
+                lanes.set(2, alone[2]);
+            }
+        }
+        assert_eq!(lanes.len(), start.len());
+        for (i, a) in alone.iter().enumerate() {
+            assert_eq!(lanes.get(i), *a);
+            assert_ne!(*a, start[i]);
         }
     }
 }

@@ -147,6 +147,48 @@ impl MonteCarlo {
     {
         self.run_range(range, f).into_iter().collect()
     }
+
+    /// As [`try_run_range`](Self::try_run_range) with the runs handed out
+    /// `batch` at a time (the last batch may be shorter): `f(runs)` returns
+    /// one result per run of `runs`, in order, for work that is cheaper
+    /// done for several runs together. The batches run in parallel; the
+    /// first error (lowest run index) wins. No stream is drawn for `f`: a
+    /// run's randomness is its own business (e.g.
+    /// [`channel_rng`](crate::rng::channel_rng)).
+    pub fn try_run_batches<T, E, F>(
+        &self,
+        range: std::ops::Range<usize>,
+        batch: usize,
+        f: F,
+    ) -> Result<Vec<T>, E>
+    where
+        T: Send,
+        E: Send,
+        F: Fn(std::ops::Range<usize>) -> Vec<Result<T, E>> + Sync,
+    {
+        let batch = batch.max(1);
+        let bar = self.bar();
+        let batches = range.len().div_ceil(batch);
+        let out: Vec<Option<Vec<Result<T, E>>>> = (0..batches)
+            .into_par_iter()
+            .map(|b| {
+                if self.cancel.is_cancelled() {
+                    return None;
+                }
+                let first = range.start + b * batch;
+                let runs = first..(first + batch).min(range.end);
+                let len = runs.len();
+                let r = f(runs);
+                assert_eq!(r.len(), len, "one result per run of the batch");
+                bar.inc(len as u64);
+                Some(r)
+            })
+            .collect();
+        bar.finish_and_clear();
+        self.cancel.stop_if_cancelled();
+        // As in `run_range`: a batch is skipped only once the token is set.
+        out.into_iter().flatten().flatten().collect()
+    }
 }
 
 /// Runs computed in parallel before [`MonteCarlo::try_fold`] folds them:
@@ -226,6 +268,22 @@ impl MonteCarlo {
 mod tests {
     use super::*;
     use crate::rng::RngExt;
+
+    #[test]
+    fn batches_give_the_runs_in_order_and_the_first_error() {
+        let mc = MonteCarlo::new(10, 3).quiet();
+        let squares = mc
+            .try_run_batches(3..10, 3, |runs| {
+                runs.map(|k| Ok::<_, usize>(k * k)).collect()
+            })
+            .unwrap();
+        assert_eq!(squares, (3..10).map(|k| k * k).collect::<Vec<_>>());
+        let failing = mc.try_run_batches(0..10, 4, |runs| {
+            runs.map(|k| if k % 3 == 2 { Err(k) } else { Ok(k) })
+                .collect()
+        });
+        assert_eq!(failing, Err(2));
+    }
 
     #[test]
     fn serial_equals_parallel() {

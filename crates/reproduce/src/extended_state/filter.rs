@@ -4,6 +4,7 @@
 
 use super::*;
 use aidnav_estimation::Step;
+use aidnav_ins::launch::LaunchInsLanes;
 
 /// The filter's prior covariance, fix noise R and process noise Q.
 #[allow(clippy::type_complexity)]
@@ -451,23 +452,47 @@ pub(super) fn replay(
     rng: &mut RunRng,
     forced: &[f64],
 ) -> Result<Replay, EstimationError> {
+    let mut out = replay_runs(sc, flight, path, std::slice::from_mut(rng), forced)?;
+    Ok(out.pop().expect("one replay per stream"))
+}
+
+/// [`replay`] of several runs, each with its own stream of fix noise
+/// (`rngs`), their INS flown together ([`LaunchInsLanes`]): per run the
+/// same operations, so the same numbers. The error of any run ends all
+/// (the caller replays them one by one to find whose).
+pub(super) fn replay_runs(
+    sc: &ExtendedStateScenario,
+    flight: &Flight<'_>,
+    path: &CovariancePath,
+    rngs: &mut [RunRng],
+    forced: &[f64],
+) -> Result<Vec<Replay>, EstimationError> {
     let traj = flight.traj;
     let dt = traj.dt_s;
     let per_fix = (sc.fix_interval_s / dt).round() as usize;
     let start_step = (sc.fusion_start_s / dt).round() as usize;
     let last = traj.samples() - 1;
     let c = ExtendedStateModel::measurement();
-    let mut out = Replay {
-        at_switch: vec![None; path.switch_at.len()],
-        at_forced: vec![None; forced.len()],
-        fixes: Vec::new(),
-        ins_at_first_fix: LaunchIns::default(),
-    };
-    let mut ins = LaunchIns::default();
-    let mut x = SVector::<f64, STATES>::zeros();
+    let mut outs: Vec<Replay> = rngs
+        .iter()
+        .map(|_| Replay {
+            at_switch: vec![None; path.switch_at.len()],
+            at_forced: vec![None; forced.len()],
+            fixes: Vec::new(),
+            ins_at_first_fix: LaunchIns::default(),
+        })
+        .collect();
+    let mut lanes = LaunchInsLanes::with_capacity(rngs.len());
+    for _ in 0..rngs.len() {
+        lanes.push(LaunchIns::default());
+    }
+    let mut xs = vec![SVector::<f64, STATES>::zeros(); rngs.len()];
     let mut n = 0;
     for k in 0..last {
-        ins.step_with_thrust(dt, &flight.raw[k]);
+        for i in 0..lanes.len() {
+            lanes.set_thrust(i, &flight.raw[k]);
+        }
+        lanes.step(dt);
         let step = k + 1;
         if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
             continue;
@@ -480,54 +505,67 @@ pub(super) fn replay(
                 .clone()
                 .expect("a path shorter than the flight ended in an error"));
         };
-        if n > 0 {
-            // KalmanFilter::predict_state.
-            x = fix.phi * x;
-            check_finite(&x, Step::Predict)?;
-        } else {
-            out.ins_at_first_fix = ins;
-        }
-        let truth_r = traj.positions[step];
-        let truth_v = traj.velocities[step];
-        let z = fix_residual(sc, &ins, &truth_r, &truth_v, rng);
-        let mut measured = SVector::<f64, NAVIGATION>::zeros();
-        for i in 0..3 {
-            measured[i] = ins.position[i] - z[i];
-            measured[3 + i] = ins.velocity[i] - z[3 + i];
-        }
-        out.fixes.push(Fix { step, measured });
-        // KalmanFilter::update: ν = z − H x, x += K ν.
-        let residual = z - c * x;
-        x += fix.gain * residual;
-        check_finite(&x, Step::Update)?;
-        // Closed loop on the navigation states (feed_back_navigation).
-        for i in 0..3 {
-            ins.position[i] -= x[i];
-            ins.velocity[i] -= x[3 + i];
-        }
-        x.rows_mut(0, NAVIGATION).fill(0.0);
-        let snapshot = Snapshot {
-            time_s: t_fix,
-            fix: n,
-            ins,
-            estimate: std::array::from_fn(|i| x[NAVIGATION + i]),
-        };
-        for (at, slot) in path.switch_at.iter().zip(out.at_switch.iter_mut()) {
-            if *at == Some(n) {
-                *slot = Some(snapshot);
+        for (i, ((out, x), rng)) in outs
+            .iter_mut()
+            .zip(&mut xs)
+            .zip(rngs.iter_mut())
+            .enumerate()
+        {
+            let mut ins = lanes.get(i);
+            if n > 0 {
+                // KalmanFilter::predict_state.
+                *x = fix.phi * *x;
+                check_finite(x, Step::Predict)?;
+            } else {
+                out.ins_at_first_fix = ins;
             }
-        }
-        for (f, slot) in forced.iter().zip(out.at_forced.iter_mut()) {
-            if slot.is_none() && t_fix >= *f {
-                *slot = Some(snapshot);
+            let truth_r = traj.positions[step];
+            let truth_v = traj.velocities[step];
+            let z = fix_residual(sc, &ins, &truth_r, &truth_v, rng);
+            let mut measured = SVector::<f64, NAVIGATION>::zeros();
+            for i in 0..3 {
+                measured[i] = ins.position[i] - z[i];
+                measured[3 + i] = ins.velocity[i] - z[3 + i];
+            }
+            out.fixes.push(Fix { step, measured });
+            // KalmanFilter::update: ν = z − H x, x += K ν.
+            let residual = z - c * *x;
+            *x += fix.gain * residual;
+            check_finite(x, Step::Update)?;
+            // Closed loop on the navigation states (feed_back_navigation).
+            for i in 0..3 {
+                ins.position[i] -= x[i];
+                ins.velocity[i] -= x[3 + i];
+            }
+            x.rows_mut(0, NAVIGATION).fill(0.0);
+            lanes.set(i, ins);
+            let snapshot = Snapshot {
+                time_s: t_fix,
+                fix: n,
+                ins,
+                estimate: std::array::from_fn(|i| x[NAVIGATION + i]),
+            };
+            for (at, slot) in path.switch_at.iter().zip(out.at_switch.iter_mut()) {
+                if *at == Some(n) {
+                    *slot = Some(snapshot);
+                }
+            }
+            for (f, slot) in forced.iter().zip(out.at_forced.iter_mut()) {
+                if slot.is_none() && t_fix >= *f {
+                    *slot = Some(snapshot);
+                }
             }
         }
         n += 1;
-        if out.at_switch.iter().all(Option::is_some) && out.at_forced.iter().all(Option::is_some) {
+        // Every run has its snapshots at the same fixes (the path's and
+        // the forced times'), so all are done together.
+        if outs.iter().all(|out| {
+            out.at_switch.iter().all(Option::is_some) && out.at_forced.iter().all(Option::is_some)
+        }) {
             break;
         }
     }
-    Ok(out)
+    Ok(outs)
 }
 
 /// The engine's check of a state after a step.

@@ -27,7 +27,7 @@
 //! `error_signs = "random"`).
 
 use aidnav_estimation::{EstimationError, FisherInformation, FixedKalmanFilter};
-use aidnav_ins::launch::{ESTIMATED, LaunchIns, LaunchInstrumentErrors};
+use aidnav_ins::launch::{ESTIMATED, LaunchIns, LaunchInsLanes, LaunchInstrumentErrors};
 use aidnav_models::extended_state::{
     ExtendedStateModel, INSTRUMENTS, Matrix14, NAVIGATION, STATES, TransitionForm,
 };
@@ -45,7 +45,7 @@ mod scenario;
 
 pub use scenario::*;
 
-use filter::{CovariancePath, filter_pass, replay};
+use filter::{CovariancePath, Replay, filter_pass, replay, replay_runs};
 use gauss_newton::gauss_newton;
 
 /// What the filter pass keeps at a switch.
@@ -297,6 +297,15 @@ enum Correction<'a> {
     Estimate(&'a LaunchInstrumentErrors),
 }
 
+/// One INS of [`Flight::fly_lanes`]: its correction, its state at the
+/// start and the step index it starts at.
+#[derive(Debug, Clone, Copy)]
+struct Lane<'a> {
+    correction: Correction<'a>,
+    start: LaunchIns,
+    from: usize,
+}
+
 /// The raw instrument outputs at the three RK4 times of one step.
 type StepOutputs = [(aidnav_frames::launch::LaunchAttitude, Vector3<f64>); 3];
 
@@ -411,40 +420,51 @@ impl<'a> Flight<'a> {
         d.transpose() * f
     }
 
-    /// Fly `N` INS from the same `start` (at step index `from`) to t_B
-    /// together, each with its own correction ([`LaunchIns::step_many`]:
-    /// the same numbers as [`fly`](Self::fly) for each). Returns each
-    /// |Δx(t_B)|.
-    fn fly_many<const N: usize>(
-        &self,
-        corrections: [Correction<'_>; N],
-        start: LaunchIns,
-        from: usize,
-    ) -> [f64; N] {
+    /// Fly every lane's INS from its `start` (at step index `from`) to t_B
+    /// with its correction, all together ([`LaunchInsLanes`]: per INS the
+    /// same numbers as [`fly`](Self::fly)); a lane joins the others at its
+    /// `from`. Returns each |Δx(t_B)|, in the lanes' order.
+    fn fly_lanes(&self, lanes: &[Lane<'_>]) -> Vec<f64> {
         let traj = self.traj;
         let dt = traj.dt_s;
         let last = traj.samples() - 1;
-        let mut ins = [start; N];
-        let mut live: [Option<EstimateThrust<'_, '_>>; N] =
-            std::array::from_fn(|i| match corrections[i] {
-                Correction::Estimate(c) => Some(EstimateThrust::new(self, c)),
-                _ => None,
-            });
-        let mut computed = [[Vector3::zeros(); 3]; N];
-        for k in from..last {
-            for (l, c) in live.iter_mut().zip(computed.iter_mut()) {
-                if let Some(l) = l {
-                    *c = l.at(k);
+        // Joining order: by start step (stable, so ties keep their order).
+        let mut order: Vec<usize> = (0..lanes.len()).collect();
+        order.sort_by_key(|&i| lanes[i].from);
+        let mut flying = LaunchInsLanes::with_capacity(lanes.len());
+        let mut live: Vec<Option<EstimateThrust<'_, '_>>> = Vec::with_capacity(lanes.len());
+        let first = order.first().map_or(last, |&i| lanes[i].from);
+        for k in first..last {
+            while let Some(&i) = order.get(flying.len()) {
+                if lanes[i].from != k {
+                    break;
+                }
+                flying.push(lanes[i].start);
+                live.push(match lanes[i].correction {
+                    Correction::Estimate(c) => Some(EstimateThrust::new(self, c)),
+                    _ => None,
+                });
+            }
+            for (j, l) in live.iter_mut().enumerate() {
+                match (lanes[order[j]].correction, l) {
+                    (Correction::Estimate(_), Some(l)) => flying.set_thrust(j, &l.at(k)),
+                    (Correction::Truth, _) => flying.set_thrust(j, &self.truth_corrected[k]),
+                    _ => flying.set_thrust(j, &self.raw[k]),
                 }
             }
-            let thrust: [&[Vector3<f64>; 3]; N] = std::array::from_fn(|i| match corrections[i] {
-                Correction::None => &self.raw[k],
-                Correction::Truth => &self.truth_corrected[k],
-                Correction::Estimate(_) => &computed[i],
-            });
-            LaunchIns::step_many(&mut ins, dt, thrust);
+            flying.step(dt);
         }
-        std::array::from_fn(|i| (ins[i].position - traj.positions[last]).norm())
+        let mut out = vec![f64::NAN; lanes.len()];
+        for (j, &i) in order.iter().enumerate() {
+            // A lane starting at t_B (or later) does not fly.
+            let ins = if j < flying.len() {
+                flying.get(j)
+            } else {
+                lanes[i].start
+            };
+            out[i] = (ins.position - traj.positions[last]).norm();
+        }
+        out
     }
 
     /// Fly the INS autonomously from `start` (at step index `from`) to t_B
@@ -516,58 +536,102 @@ impl<'f, 'a> EstimateThrust<'f, 'a> {
     }
 }
 
-/// Ratio and errors of the three switched cases from one snapshot (the
-/// three INS flown together).
-fn branches(flight: &Flight<'_>, snapshot: &Snapshot) -> ThresholdRun {
-    let from = (snapshot.time_s / flight.traj.dt_s).round() as usize;
-    let estimated = LaunchInstrumentErrors::from_estimate(&snapshot.estimate);
-    // A zero estimate (the literal rule's switch at the first fix, where
-    // P_HM = 0 leaves x̂_M at 0) corrects nothing: the same flight, bit for
-    // bit ((f − 0)/(1 + 0) = f, b − 0 − 0·t = b).
-    let [outputs_only_m, proposed_m, oracle_m] = if snapshot.estimate == [0.0; ESTIMATED] {
-        let [outputs_only_m, oracle_m] =
-            flight.fly_many([Correction::None, Correction::Truth], snapshot.ins, from);
-        [outputs_only_m, outputs_only_m, oracle_m]
-    } else {
-        flight.fly_many(
-            [
-                Correction::None,
-                Correction::Estimate(&estimated),
-                Correction::Truth,
-            ],
-            snapshot.ins,
-            from,
-        )
-    };
-    ThresholdRun {
-        switch_time_s: snapshot.time_s,
-        outputs_only_m,
-        proposed_m,
-        oracle_m,
-        gauss_newton_m: f64::NAN,
-        bound_variance: f64::NAN,
+/// Ratio and errors of the three switched cases from each snapshot: the
+/// outputs-only, proposed and oracle flights from its switch, every INS of
+/// every snapshot flown together ([`Flight::fly_lanes`]).
+fn branches_of(flight: &Flight<'_>, snapshots: &[&Snapshot]) -> Vec<ThresholdRun> {
+    let from = |s: &Snapshot| (s.time_s / flight.traj.dt_s).round() as usize;
+    let estimated: Vec<LaunchInstrumentErrors> = snapshots
+        .iter()
+        .map(|s| LaunchInstrumentErrors::from_estimate(&s.estimate))
+        .collect();
+    // Per snapshot: outputs only, oracle, then proposed (unless the
+    // estimate is zero — the literal rule's switch at the first fix, where
+    // P_HM = 0 leaves x̂_M at 0 — which corrects nothing: the outputs-only
+    // flight, bit for bit ((f − 0)/(1 + 0) = f, b − 0 − 0·t = b)).
+    let mut lanes = Vec::with_capacity(3 * snapshots.len());
+    // Per snapshot, its outputs-only lane (the oracle's is the next) and
+    // its proposed lane.
+    let mut per_snapshot = Vec::with_capacity(snapshots.len());
+    for (s, e) in snapshots.iter().zip(&estimated) {
+        let lane = |correction| Lane {
+            correction,
+            start: s.ins,
+            from: from(s),
+        };
+        let outputs_only = lanes.len();
+        lanes.push(lane(Correction::None));
+        lanes.push(lane(Correction::Truth));
+        let proposed = if s.estimate == [0.0; ESTIMATED] {
+            outputs_only
+        } else {
+            lanes.push(lane(Correction::Estimate(e)));
+            lanes.len() - 1
+        };
+        per_snapshot.push((outputs_only, proposed));
     }
+    let errors = flight.fly_lanes(&lanes);
+    snapshots
+        .iter()
+        .zip(per_snapshot)
+        .map(|(s, (outputs_only, proposed))| ThresholdRun {
+            switch_time_s: s.time_s,
+            outputs_only_m: errors[outputs_only],
+            proposed_m: errors[proposed],
+            oracle_m: errors[outputs_only + 1],
+            gauss_newton_m: f64::NAN,
+            bound_variance: f64::NAN,
+        })
+        .collect()
 }
 
-/// The outputs-only / proposed ratio from one snapshot (the sweep's: no
-/// oracle flight), the two INS flown together; the same number as
-/// [`branches`]' ratio.
-fn branch_ratio(flight: &Flight<'_>, snapshot: &Snapshot) -> f64 {
-    let from = (snapshot.time_s / flight.traj.dt_s).round() as usize;
-    if snapshot.estimate == [0.0; ESTIMATED] {
-        // Proposed is the outputs-only flight (see `branches`): the same
-        // division, so NaN, not 1, for an error of 0 or ∞.
-        let [outputs_only_m] = flight.fly_many([Correction::None], snapshot.ins, from);
-        let proposed_m = outputs_only_m;
-        return outputs_only_m / proposed_m;
+/// The outputs-only / proposed ratio from each snapshot (the sweep's: no
+/// oracle flight; None: NaN), every INS flown together; the same numbers as
+/// [`branches_of`]' ratio.
+fn branch_ratios(flight: &Flight<'_>, snapshots: &[Option<Snapshot>]) -> Vec<f64> {
+    let estimated: Vec<Option<LaunchInstrumentErrors>> = snapshots
+        .iter()
+        .map(|s| {
+            s.filter(|s| s.estimate != [0.0; ESTIMATED])
+                .map(|s| LaunchInstrumentErrors::from_estimate(&s.estimate))
+        })
+        .collect();
+    let mut lanes = Vec::with_capacity(2 * snapshots.len());
+    // Per snapshot, its outputs-only lane and its proposed lane.
+    let mut pairs = Vec::with_capacity(snapshots.len());
+    for (s, e) in snapshots.iter().zip(&estimated) {
+        let Some(s) = s else {
+            pairs.push(None);
+            continue;
+        };
+        let from = (s.time_s / flight.traj.dt_s).round() as usize;
+        let outputs_only = lanes.len();
+        lanes.push(Lane {
+            correction: Correction::None,
+            start: s.ins,
+            from,
+        });
+        // A zero estimate: proposed is the outputs-only flight (see
+        // `branches_of`), the same division, so NaN, not 1, for an error
+        // of 0 or ∞.
+        let proposed = match e {
+            Some(e) => {
+                lanes.push(Lane {
+                    correction: Correction::Estimate(e),
+                    start: s.ins,
+                    from,
+                });
+                outputs_only + 1
+            }
+            None => outputs_only,
+        };
+        pairs.push(Some((outputs_only, proposed)));
     }
-    let estimated = LaunchInstrumentErrors::from_estimate(&snapshot.estimate);
-    let [outputs_only_m, proposed_m] = flight.fly_many(
-        [Correction::None, Correction::Estimate(&estimated)],
-        snapshot.ins,
-        from,
-    );
-    outputs_only_m / proposed_m
+    let errors = flight.fly_lanes(&lanes);
+    pairs
+        .iter()
+        .map(|p| p.map_or(f64::NAN, |(o, p)| errors[o] / errors[p]))
+        .collect()
 }
 
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
@@ -659,6 +723,12 @@ pub fn run_range(
     runs_on(sc, mc, range, &trajectories(sc)?)
 }
 
+/// Runs a worker thread takes together when they share one [`Flight`]
+/// (fixed error signs): their filter replays and their branches' INS are
+/// flown together ([`replay_runs`], [`Flight::fly_lanes`]), so more INS
+/// overlap; few enough that the batches still spread over the threads.
+const RUN_BATCH: usize = 4;
+
 /// [`run_range`] on the scenario's solved trajectories.
 fn runs_on(
     sc: &ExtendedStateScenario,
@@ -666,84 +736,187 @@ fn runs_on(
     range: std::ops::Range<usize>,
     trajs: &[LaunchTrajectory],
 ) -> Result<ExtendedStateRuns, ExtendedStateError> {
-    let switch_cases = switch_cases(sc);
-    let gauss_newton_runs = sc.gauss_newton_runs.min(sc.runs);
     let mut trajectories = Vec::with_capacity(trajs.len());
     for (ti, traj) in trajs.iter().enumerate() {
         // With fixed error signs every run flies the same errors: their
         // thrust tables, the free INS and the filter's covariance path are
-        // computed once.
-        let fixed = fixed_errors(sc).map(|e| {
-            let flight = Flight::new(traj, e);
-            let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-            let path = CovariancePath::new(sc, &flight);
-            (flight, free, path)
-        });
-        let per_run = mc.try_run_range(range.clone(), |run, _| {
-            let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
-            let (own, own_path);
-            let (flight, free, path) = match &fixed {
-                Some((flight, free, path)) => (flight, *free, path),
-                None => {
-                    own = Flight::new(traj, true_errors(sc, &mut rng));
-                    let free = own.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-                    own_path = CovariancePath::new(sc, &own);
-                    (&own, free, &own_path)
-                }
-            };
-            let replayed = replay(sc, flight, path, &mut rng, &[])?;
-            let t_b = traj.target.t_b_s;
-            let mut out: Vec<(ThresholdRun, bool)> = Vec::with_capacity(switch_cases.len());
-            for (k, s) in replayed.at_switch.iter().enumerate() {
-                // Cases switching at the same fix (the literal rule's
-                // thresholds) share one snapshot, so one result.
-                let same = replayed.at_switch[..k]
-                    .iter()
-                    .position(|p| p.is_some_and(|p| s.is_some_and(|s| p.fix == s.fix)));
-                if let Some(j) = same {
-                    out.push(out[j]);
-                    continue;
-                }
-                out.push(match s {
-                    Some(s) => {
-                        let mut b = branches(flight, s);
-                        b.bound_variance = path.bound_variance[s.fix];
-                        // At the first fix the batch has nothing to add.
-                        if run < gauss_newton_runs && s.fix > 0 {
-                            b.gauss_newton_m = gauss_newton(
-                                sc,
-                                flight,
-                                &replayed.ins_at_first_fix,
-                                &replayed.fixes[..=s.fix],
-                                &s.estimate,
-                                sc.gauss_newton_iterations,
-                                false,
-                            )?
-                            .error_m;
-                        }
-                        (b, false)
-                    }
-                    None => (
-                        ThresholdRun {
-                            switch_time_s: t_b,
-                            outputs_only_m: f64::NAN,
-                            proposed_m: f64::NAN,
-                            oracle_m: f64::NAN,
-                            gauss_newton_m: f64::NAN,
-                            bound_variance: f64::NAN,
-                        },
-                        true,
-                    ),
-                });
+        // computed once, and runs go in batches.
+        let per_run = match fixed_errors(sc) {
+            Some(e) => {
+                let flight = Flight::new(traj, e);
+                let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+                let path = CovariancePath::new(sc, &flight);
+                let shared = Shared {
+                    sc,
+                    ti,
+                    flight: &flight,
+                    free,
+                    path: &path,
+                };
+                mc.try_run_batches(range.clone(), RUN_BATCH, |runs| shared.runs(runs))?
             }
-            Ok::<_, EstimationError>(RunRecord {
-                free,
-                thresholds: out,
-            })
-        })?;
+            None => mc.try_run_range(range.clone(), |run, _| {
+                let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
+                let flight = Flight::new(traj, true_errors(sc, &mut rng));
+                let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+                let path = CovariancePath::new(sc, &flight);
+                let shared = Shared {
+                    sc,
+                    ti,
+                    flight: &flight,
+                    free,
+                    path: &path,
+                };
+                let replayed = replay(sc, &flight, &path, &mut rng, &[])?;
+                shared
+                    .finish_runs(&[run], &[replayed])
+                    .pop()
+                    .expect("one run")
+            })?,
+        };
         trajectories.push(per_run);
     }
     Ok(ExtendedStateRuns { trajectories })
+}
+
+/// What the runs on one trajectory with one set of true errors share.
+struct Shared<'s, 'a> {
+    sc: &'s ExtendedStateScenario,
+    /// Index of the trajectory (its channel of the runs' streams).
+    ti: usize,
+    flight: &'s Flight<'a>,
+    /// The free INS's |Δx(t_B)|.
+    free: f64,
+    path: &'s CovariancePath,
+}
+
+impl Shared<'_, '_> {
+    /// Runs `runs` on the shared flight, replayed and flown together; if a
+    /// replay fails, each run again alone, so that each run gets its own
+    /// result or error.
+    fn runs(&self, runs: std::ops::Range<usize>) -> Vec<Result<RunRecord, EstimationError>> {
+        let stream = |run: usize| channel_rng(self.sc.seed, run as u64, self.ti as u64);
+        let mut rngs: Vec<RunRng> = runs.clone().map(stream).collect();
+        let run_list: Vec<usize> = runs.collect();
+        match replay_runs(self.sc, self.flight, self.path, &mut rngs, &[]) {
+            Ok(replayed) => self.finish_runs(&run_list, &replayed),
+            Err(_) => run_list
+                .iter()
+                .map(|&run| {
+                    let replayed = replay(self.sc, self.flight, self.path, &mut stream(run), &[])?;
+                    self.finish_runs(&[run], &[replayed])
+                        .pop()
+                        .expect("one run")
+                })
+                .collect(),
+        }
+    }
+
+    /// The runs' records from their replays: per switch case the branches
+    /// from its snapshot (every run's flown together) and, in the first
+    /// `gauss_newton_runs` runs, the Gauss–Newton estimate.
+    fn finish_runs(
+        &self,
+        runs: &[usize],
+        replayed: &[Replay],
+    ) -> Vec<Result<RunRecord, EstimationError>> {
+        let sc = self.sc;
+        let gauss_newton_runs = sc.gauss_newton_runs.min(sc.runs);
+        let t_b = self.flight.traj.target.t_b_s;
+        // Cases switching at the same fix (the literal rule's thresholds)
+        // share one snapshot, so one result: per run and case, the first
+        // case with its switch.
+        let same: Vec<Vec<Option<usize>>> = replayed
+            .iter()
+            .map(|r| {
+                r.at_switch
+                    .iter()
+                    .enumerate()
+                    .map(|(k, s)| {
+                        r.at_switch[..k]
+                            .iter()
+                            .position(|p| p.is_some_and(|p| s.is_some_and(|s| p.fix == s.fix)))
+                    })
+                    .collect()
+            })
+            .collect();
+        let flown: Vec<&Snapshot> = replayed
+            .iter()
+            .zip(&same)
+            .flat_map(|(r, same)| {
+                r.at_switch
+                    .iter()
+                    .zip(same)
+                    .filter_map(|(s, same)| s.as_ref().filter(|_| same.is_none()))
+            })
+            .collect();
+        let mut flown = branches_of(self.flight, &flown).into_iter();
+        // Each run's share of the flights, taken before any run can stop
+        // at an error.
+        let flown: Vec<Vec<ThresholdRun>> = replayed
+            .iter()
+            .zip(&same)
+            .map(|(r, same)| {
+                let count = r
+                    .at_switch
+                    .iter()
+                    .zip(same)
+                    .filter(|(s, same)| s.is_some() && same.is_none())
+                    .count();
+                flown.by_ref().take(count).collect()
+            })
+            .collect();
+        runs.iter()
+            .zip(replayed)
+            .zip(&same)
+            .zip(flown)
+            .map(|(((&run, replayed), same), flown)| {
+                let mut flown = flown.into_iter();
+                let mut out: Vec<(ThresholdRun, bool)> = Vec::with_capacity(same.len());
+                for (s, same) in replayed.at_switch.iter().zip(same) {
+                    if let Some(j) = *same {
+                        out.push(out[j]);
+                        continue;
+                    }
+                    out.push(match s {
+                        Some(s) => {
+                            let mut b = flown.next().expect("one flight per distinct switch");
+                            b.bound_variance = self.path.bound_variance[s.fix];
+                            // At the first fix the batch has nothing to add.
+                            if run < gauss_newton_runs && s.fix > 0 {
+                                b.gauss_newton_m = gauss_newton(
+                                    sc,
+                                    self.flight,
+                                    &replayed.ins_at_first_fix,
+                                    &replayed.fixes[..=s.fix],
+                                    &s.estimate,
+                                    sc.gauss_newton_iterations,
+                                    false,
+                                )?
+                                .error_m;
+                            }
+                            (b, false)
+                        }
+                        None => (
+                            ThresholdRun {
+                                switch_time_s: t_b,
+                                outputs_only_m: f64::NAN,
+                                proposed_m: f64::NAN,
+                                oracle_m: f64::NAN,
+                                gauss_newton_m: f64::NAN,
+                                bound_variance: f64::NAN,
+                            },
+                            true,
+                        ),
+                    });
+                }
+                Ok(RunRecord {
+                    free: self.free,
+                    thresholds: out,
+                })
+            })
+            .collect()
+    }
 }
 
 /// The result from every run, in run order (the chunks of [`run_range`]
@@ -914,11 +1087,7 @@ fn forced_switch_sweep(
             }
         };
         let at = replay(sc, flight, path, &mut rng, &forced)?.at_forced;
-        Ok::<_, EstimationError>(
-            at.iter()
-                .map(|s| s.map_or(f64::NAN, |s| branch_ratio(flight, &s)))
-                .collect::<Vec<f64>>(),
-        )
+        Ok::<_, EstimationError>(branch_ratios(flight, &at))
     })?;
     Ok(forced
         .iter()
