@@ -538,38 +538,52 @@ const MAX_TICK_SCALE_ERROR: f64 = 0.1;
 /// thread costs more than it saves).
 const PARALLEL_IMU_LINES: usize = 8_192;
 
-/// One parsed IMU line: its line number (1-based), ax ay az \[g\], gx gy gz
-/// \[deg/s\], and its tick \[ms\].
-type RawImuLine = (usize, [f64; 6], f64);
+/// Parsed IMU lines: each line's sample (SI, body of the sensor) with its
+/// tick \[ms\] in place of the time (the tick-to-time scale needs the last
+/// line), and its |f| \[g\] (the median check's).
+#[derive(Debug, Default)]
+struct ParsedImu {
+    samples: Vec<ImuSample>,
+    norms: Vec<f64>,
+}
 
-/// Parse `lines[range]` of an IMU CSV (index i is line i + 1): the lines up
-/// to the first error, and that error. The tick of the range's first line
-/// is checked against nothing (the caller checks it against the line
-/// before).
+/// Parse `lines[range]` of an IMU CSV (index i is line i + 1) into a
+/// [`ParsedImu`] with room for `capacity` lines: the lines up to the first
+/// error, and that error. The tick of the range's first line is checked
+/// against nothing (the caller checks it against the line before).
 fn parse_imu_lines(
     lines: &[&str],
     range: std::ops::Range<usize>,
     csv_path: &Path,
-) -> (Vec<RawImuLine>, Option<IoError>) {
-    let mut raw: Vec<RawImuLine> = Vec::with_capacity(range.len());
+    capacity: usize,
+) -> (ParsedImu, Option<IoError>) {
+    let mut parsed = ParsedImu {
+        samples: Vec::with_capacity(capacity),
+        norms: Vec::with_capacity(capacity),
+    };
     for i in range {
-        match parse_imu_line(lines[i], i + 1, csv_path, raw.last()) {
-            Ok(parsed) => raw.push(parsed),
-            Err(e) => return (raw, Some(e)),
+        let previous = parsed.samples.last().map(|s| (i, s.time_s));
+        match parse_imu_line(lines[i], i + 1, csv_path, previous) {
+            Ok((sample, norm)) => {
+                parsed.samples.push(sample);
+                parsed.norms.push(norm);
+            }
+            Err(e) => return (parsed, Some(e)),
         }
     }
-    (raw, None)
+    (parsed, None)
 }
 
 /// Parse line number `line` of an IMU CSV (text `l`), checked in this
 /// order: 7 fields, each a finite number, the gyro's rate, |f| ≤ 16 g, the
-/// tick increasing from `previous` (the line before, when known).
+/// tick increasing from `previous` (the line before when known: its number
+/// and tick). The sample holds the tick as its time; with it |f| \[g\].
 fn parse_imu_line(
     l: &str,
     line: usize,
     csv_path: &Path,
-    previous: Option<&RawImuLine>,
-) -> Result<RawImuLine> {
+    previous: Option<(usize, f64)>,
+) -> Result<(ImuSample, f64)> {
     use crate::text::{excerpt, num};
     // The fields in place (no Vec per line), counted for the message.
     let mut fields = [""; 7];
@@ -602,11 +616,12 @@ fn parse_imu_line(
             return Err(data_error(csv_path, line, IMU_COLUMNS[k], "not finite"));
         }
     }
+    let angular_rate = Vector3::new(v[3], v[4], v[5]).map(f64::to_radians);
     check_rate(
         csv_path,
         line,
         "gx [deg/s]",
-        &Vector3::new(v[3], v[4], v[5]).map(f64::to_radians),
+        &angular_rate,
         " — are the gyro columns scaled (milli-degrees/s)?",
     )?;
     // Units that cannot be right: a specific force in m/s² where g was
@@ -623,10 +638,15 @@ fn parse_imu_line(
             ),
         ));
     }
-    if let Some(&(prev_line, _, prev_tick)) = previous {
+    if let Some((prev_line, prev_tick)) = previous {
         check_tick(csv_path, line, v[6], prev_line, prev_tick)?;
     }
-    Ok((line, [v[0], v[1], v[2], v[3], v[4], v[5]], v[6]))
+    let sample = ImuSample {
+        time_s: v[6],
+        specific_force: Vector3::new(v[0], v[1], v[2]) * G0,
+        angular_rate,
+    };
+    Ok((sample, f_norm))
 }
 
 /// The tick of line `line` must increase from that of `prev_line`.
@@ -693,8 +713,11 @@ pub fn read_tagged_imu_from(
     let (first, second) = if body.len() >= PARALLEL_IMU_LINES {
         let middle = body.start + body.len() / 2;
         std::thread::scope(|s| {
-            let second = s.spawn(|| parse_imu_lines(&lines, middle..body.end, csv_path));
-            let first = parse_imu_lines(&lines, body.start..middle, csv_path);
+            let second =
+                s.spawn(|| parse_imu_lines(&lines, middle..body.end, csv_path, body.end - middle));
+            // Room for the second half too: it is appended without a copy
+            // of the first.
+            let first = parse_imu_lines(&lines, body.start..middle, csv_path, body.len());
             let second = second
                 .join()
                 .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
@@ -702,35 +725,39 @@ pub fn read_tagged_imu_from(
         })
     } else {
         (
-            parse_imu_lines(&lines, body.clone(), csv_path),
-            (Vec::new(), None),
+            parse_imu_lines(&lines, body.clone(), csv_path, body.len()),
+            (ParsedImu::default(), None),
         )
     };
-    let (raw, first_error) = first;
+    let (mut parsed, first_error) = first;
     if let Some(e) = first_error {
         return Err(e);
     }
     let (rest, second_error) = second;
-    if let (Some(&(prev_line, _, prev_tick)), Some(&(line, _, tick))) = (raw.last(), rest.first()) {
-        check_tick(csv_path, line, tick, prev_line, prev_tick)?;
+    if let (Some(last), Some(next)) = (parsed.samples.last(), rest.samples.first()) {
+        // The second half's first line is the line after the first half's last.
+        let line = body.start + parsed.samples.len() + 1;
+        check_tick(csv_path, line, next.time_s, line - 1, last.time_s)?;
     }
     if let Some(e) = second_error {
         return Err(e);
     }
-    let parsed = || raw.iter().chain(&rest);
+    parsed.samples.extend_from_slice(&rest.samples);
+    parsed.norms.extend_from_slice(&rest.norms);
+    let ParsedImu {
+        mut samples,
+        mut norms,
+    } = parsed;
     // Units that cannot be right: a road vehicle's specific force has a
     // median magnitude of about 1 g; a median near 9.8 means the columns are
     // in m/s², not g.
-    let mut norms: Vec<f64> = parsed()
-        .map(|(_, v, _)| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-        .collect();
     // The element a full sort puts in the middle (the order is total).
     let middle = norms.len() / 2;
     let median = *norms.select_nth_unstable_by(middle, f64::total_cmp).1;
     if !(0.5..=2.0).contains(&median) {
         return Err(data_error(
             csv_path,
-            raw[0].0,
+            body.start + 1,
             "ax [g]",
             format!(
                 "median |f| = {median:.3} in the file's unit, expected ≈ 1 g{}",
@@ -742,8 +769,9 @@ pub fn read_tagged_imu_from(
             ),
         ));
     }
-    let first_tick = raw[0].2;
-    let last_tick = rest.last().unwrap_or(&raw[raw.len() - 1]).2;
+    // The samples hold their ticks as times until here.
+    let first_tick = samples[0].time_s;
+    let last_tick = samples[samples.len() - 1].time_s;
     let scale = (f64::from(last_tag_ms) / 1000.0) / ((last_tick - first_tick) / 1000.0);
     if !scale.is_finite() || (scale - 1.0).abs() > MAX_TICK_SCALE_ERROR {
         return Err(data_error(
@@ -764,13 +792,10 @@ pub fn read_tagged_imu_from(
             tag_path.display()
         ));
     }
-    let samples = parsed()
-        .map(|&(_, v, tick)| ImuSample {
-            time_s: tags.start_s + (tick - first_tick) / 1000.0 * scale,
-            specific_force: Vector3::new(v[0], v[1], v[2]) * G0,
-            angular_rate: Vector3::new(v[3], v[4], v[5]).map(f64::to_radians),
-        })
-        .collect();
+    for s in &mut samples {
+        let tick = s.time_s;
+        s.time_s = tags.start_s + (tick - first_tick) / 1000.0 * scale;
+    }
     Ok((samples, warnings))
 }
 
@@ -968,7 +993,7 @@ mod tests {
         assert_eq!(samples.len(), n - 2);
         let from_the_top = |lines: &[String]| {
             let refs: Vec<&str> = lines.iter().map(String::as_str).collect();
-            parse_imu_lines(&refs, 1..refs.len() - 1, Path::new("i.csv"))
+            parse_imu_lines(&refs, 1..refs.len() - 1, Path::new("i.csv"), 0)
                 .1
                 .map(|e| e.to_string())
         };
