@@ -279,7 +279,7 @@ fn push_number(text: &mut Vec<u8>, v: f64) {
 /// 1234560000000000.25: `.2` and `.3`). Such a tie needs `v`'s exact
 /// decimal expansion to be one digit longer than its shortest form, so at
 /// most 18 significant digits, ending in 5 — a value with a short binary
-/// fraction ([`short_exact_decimal`]); those go to `core::fmt`.
+/// fraction; those go to `core::fmt`.
 /// `display_layout_equals_the_standard_library` checks the equality on
 /// edge cases, on short binary fractions at every magnitude and on a
 /// million random values.
@@ -366,7 +366,7 @@ fn short_exact_decimal(v: f64) -> bool {
     let zeros = m.trailing_zeros();
     m >>= zeros;
     e += i64::from(zeros);
-    if e >= 0 || e < -32 {
+    if !(-32..0).contains(&e) {
         return false;
     }
     let exact = u128::from(m) * 5_u128.pow((-e) as u32);

@@ -318,7 +318,7 @@ fn report_fields(result: &crate::process::ProcessResult) -> crate::process::Proc
         instrument_convergence_s: r.instrument_convergence_s.clone(),
         k_eff_integrated_fraction: r.k_eff_integrated_fraction,
         selected: Vec::new(),
-        selection: r.selection.clone(),
+        selection: r.selection,
         start: r.start,
         standstill_updates: r.standstill_updates,
         warnings: r.warnings.clone(),
