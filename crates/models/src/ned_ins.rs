@@ -279,20 +279,17 @@ fn follows_pattern(f: &Matrix21) -> bool {
 /// F Q_c. Columns: Φ(·, j) gains Σ_k FΔt(·, k) FΔt(k, j) over the rows k
 /// of F that may hold column j ([`F_COLUMN_ROWS`]), a contiguous update of
 /// the coupled rows (position, velocity, attitude); the instruments' rows
-/// gain their diagonal term. Q is computed on and below the diagonal and
-/// mirrored (its formula is symmetric in i and j, and Q_c exactly
+/// gain their diagonal term. Q is computed
+/// by its formula at every element (symmetric in i and j, Q_c exactly
 /// symmetric).
 fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
     const N: usize = STATES;
     // Column-major slices: element (i, j) at j N + i, the diagonal every
     // (N + 1)-th.
     let f = fdt.as_slice();
-    let mut phi = Matrix21::zeros();
-    let p = phi.as_mut_slice();
     // I + FΔt (0 + a, as the identity's zeros add: −0 becomes +0).
-    for (p, &a) in p.iter_mut().zip(f) {
-        *p = 0.0 + a;
-    }
+    let mut phi = fdt.map(|a| 0.0 + a);
+    let p = phi.as_mut_slice();
     for d in (0..N).map(|i| i * (N + 1)) {
         p[d] = 1.0 + f[d];
     }
@@ -326,16 +323,10 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
             g[d] += f[d] * c[d];
         }
     }
-    let mut q = Matrix21::zeros();
-    let out = q.as_mut_slice();
+    // Each element by the formula (symmetric in i and j, Q_c exactly
+    // symmetric, so the upper triangle equals the lower to the bit).
     let half_dt = 0.5 * dt;
-    for j in 0..N {
-        for i in j..N {
-            let v = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
-            out[j * N + i] = v;
-            out[i * N + j] = v;
-        }
-    }
+    let q = Matrix21::from_fn(|i, j| c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]));
     (phi, q)
 }
 
@@ -468,7 +459,9 @@ impl NedErrorModel {
     /// filter's covariance rate, 20 Hz, and dense 21³ products were 40 % of
     /// a pass.
     pub fn discrete(&self, f: &Matrix21, c_bn: &Matrix3<f64>, dt: f64) -> (Matrix21, Matrix21) {
-        let fdt = f * dt;
+        // `map`, not `f * dt`: the same products, written once (the
+        // product clones f first).
+        let fdt = f.map(|v| v * dt);
         let qc = self.spectral_density(c_bn);
         let pattern = follows_pattern(f);
         let finite = |m: &Matrix21| m.as_slice().iter().fold(true, |ok, v| ok & v.is_finite());
