@@ -118,6 +118,19 @@ pub(crate) fn symmetric<D: Dim, S: RawStorage<f64, D, D>>(
     }
 }
 
+/// Whether the square n × n matrix stored column-major in `m` equals its
+/// transpose exactly (a branch-free comparison of each pair once).
+fn exactly_symmetric(m: &[f64], n: usize) -> bool {
+    let mut exact = true;
+    for j in 0..n {
+        let column = &m[j * n..(j + 1) * n];
+        for (i, &v) in column.iter().enumerate().skip(j + 1) {
+            exact &= v == m[i * n + j];
+        }
+    }
+    exact
+}
+
 /// Replace `m` by `(m + mᵀ)/2` in place, without allocating.
 pub(crate) fn symmetrize<D: Dim>(m: &mut OMatrix<f64, D, D>)
 where
@@ -142,7 +155,9 @@ where
     let step = Step::Predict;
     shape(q, (n, n), step, Matrix::Q)?;
     finite(q, step, Matrix::Q)?;
-    let exactly_symmetric = symmetric(q, step, Matrix::Q)?;
+    // The common case, an exactly symmetric Q, tested on the contiguous
+    // storage first (what `symmetric` finds first, without its indexing).
+    let exactly_symmetric = exactly_symmetric(q.as_slice(), n) || symmetric(q, step, Matrix::Q)?;
     let mut base = q.clone();
     if !exactly_symmetric {
         symmetrize(&mut base);

@@ -101,13 +101,22 @@ impl TrailingDiagonal {
 /// Without early exits, so that the loop vectorises (Φ has the structure
 /// nearly always; a check that stops early saves nothing then).
 fn trailing_rows_are_diagonal(n: usize, r: usize, phi: &[f64]) -> bool {
-    let mut off_diagonal = false;
+    // A value is nonzero when its bits without the sign are; the bits are
+    // OR-ed over each column's rows r.. but the diagonal (integer ORs that
+    // vectorise; a compare per element with the diagonal's index test was
+    // a hundredth of the drive's processing).
+    let nonzero_bits = |values: &[f64]| values.iter().fold(0, |acc, v| acc | (v.to_bits() << 1));
+    let mut off_diagonal = 0;
     for j in 0..n {
-        for (i, &v) in phi[j * n + r..(j + 1) * n].iter().enumerate() {
-            off_diagonal |= (v != 0.0) & (r + i != j);
-        }
+        let column = &phi[j * n + r..(j + 1) * n];
+        off_diagonal |= if j >= r {
+            let (above, below) = column.split_at(j - r);
+            nonzero_bits(above) | nonzero_bits(&below[1..])
+        } else {
+            nonzero_bits(column)
+        };
     }
-    !off_diagonal
+    off_diagonal == 0
 }
 
 impl<N: Dim> KalmanFilter<N>
@@ -373,6 +382,26 @@ mod tests {
                 }
             }
             assert_eq!(TrailingDiagonal::of(&phi).full_rows(), expected, "{phi}");
+        }
+    }
+
+    /// `holds` against the plain test of every trailing off-diagonal
+    /// element, for one value (nonzero, −0, NaN, ∞, a subnormal) at every
+    /// position of a 7 × 7 Φ and every declared number of full rows.
+    #[test]
+    fn the_structure_check_equals_the_elementwise_test() {
+        let naive = |phi: &SMatrix<f64, 7, 7>, r: usize| {
+            (r..7).all(|i| (0..7).all(|j| i == j || phi[(i, j)] == 0.0))
+        };
+        for value in [0.5, -0.0, f64::NAN, f64::INFINITY, 5e-324] {
+            for at in 0..49 {
+                let mut phi = SMatrix::<f64, 7, 7>::identity() * 0.9;
+                phi[(at % 7, at / 7)] = value;
+                for r in 0..=7 {
+                    let s = TrailingDiagonal::new(r);
+                    assert_eq!(s.holds(&phi), naive(&phi, r), "{value} at {at}, {r} rows");
+                }
+            }
         }
     }
 

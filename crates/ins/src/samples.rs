@@ -54,8 +54,16 @@ pub struct ImuSample {
 /// assert_eq!(smooth[0].specific_force.x, 0.5); // (0 + 1) / 2 at the end
 /// ```
 pub fn moving_average(imu: &[ImuSample], half: usize) -> Vec<ImuSample> {
-    let n = imu.len();
     let mut out = imu.to_vec();
+    moving_average_in_place(&mut out, half);
+    out
+}
+
+/// [`moving_average`] in place: the same values, bit for bit, without a
+/// second copy of the samples (the prefix sums are taken before any sample
+/// is overwritten).
+pub fn moving_average_in_place(imu: &mut [ImuSample], half: usize) {
+    let n = imu.len();
     let mut sum_f = Vector3::zeros();
     let mut sum_w = Vector3::zeros();
     // Prefix sums keep it O(n).
@@ -63,18 +71,17 @@ pub fn moving_average(imu: &[ImuSample], half: usize) -> Vec<ImuSample> {
     let mut pw = Vec::with_capacity(n + 1);
     pf.push(sum_f);
     pw.push(sum_w);
-    for s in imu {
+    for s in imu.iter() {
         sum_f += s.specific_force;
         sum_w += s.angular_rate;
         pf.push(sum_f);
         pw.push(sum_w);
     }
-    for (k, o) in out.iter_mut().enumerate() {
+    for (k, o) in imu.iter_mut().enumerate() {
         let lo = k.saturating_sub(half);
         let hi = (k + half + 1).min(n);
         let m = (hi - lo) as f64;
         o.specific_force = (pf[hi] - pf[lo]) / m;
         o.angular_rate = (pw[hi] - pw[lo]) / m;
     }
-    out
 }

@@ -533,6 +533,146 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
 /// means the tag file does not belong to the log.
 const MAX_TICK_SCALE_ERROR: f64 = 0.1;
 
+/// Lines of an IMU CSV from which [`read_tagged_imu_from`] parses the file
+/// in two halves on two threads (about a minute of a 100 Hz log; below it a
+/// thread costs more than it saves).
+const PARALLEL_IMU_LINES: usize = 8_192;
+
+/// Parsed IMU lines: each line's sample (SI, body of the sensor) with its
+/// tick \[ms\] in place of the time (the tick-to-time scale needs the last
+/// line), and its |f| \[g\] (the median check's).
+#[derive(Debug, Default)]
+struct ParsedImu {
+    samples: Vec<ImuSample>,
+    norms: Vec<f64>,
+}
+
+/// Parse `lines[range]` of an IMU CSV (index i is line i + 1) into a
+/// [`ParsedImu`] with room for `capacity` lines: the lines up to the first
+/// error, and that error. The tick of the range's first line is checked
+/// against nothing (the caller checks it against the line before).
+fn parse_imu_lines(
+    lines: &[&str],
+    range: std::ops::Range<usize>,
+    csv_path: &Path,
+    capacity: usize,
+) -> (ParsedImu, Option<IoError>) {
+    let mut parsed = ParsedImu {
+        samples: Vec::with_capacity(capacity),
+        norms: Vec::with_capacity(capacity),
+    };
+    for i in range {
+        let previous = parsed.samples.last().map(|s| (i, s.time_s));
+        match parse_imu_line(lines[i], i + 1, csv_path, previous) {
+            Ok((sample, norm)) => {
+                parsed.samples.push(sample);
+                parsed.norms.push(norm);
+            }
+            Err(e) => return (parsed, Some(e)),
+        }
+    }
+    (parsed, None)
+}
+
+/// Parse line number `line` of an IMU CSV (text `l`), checked in this
+/// order: 7 fields, each a finite number, the gyro's rate, |f| ≤ 16 g, the
+/// tick increasing from `previous` (the line before when known: its number
+/// and tick). The sample holds the tick as its time; with it |f| \[g\].
+fn parse_imu_line(
+    l: &str,
+    line: usize,
+    csv_path: &Path,
+    previous: Option<(usize, f64)>,
+) -> Result<(ImuSample, f64)> {
+    use crate::text::{excerpt, num};
+    // The fields in place (no Vec per line), counted for the message.
+    let mut fields = [""; 7];
+    let mut count = 0;
+    for f in l.trim().split(',') {
+        if let Some(slot) = fields.get_mut(count) {
+            *slot = f;
+        }
+        count += 1;
+    }
+    if count != 7 {
+        return Err(data_error(
+            csv_path,
+            line,
+            "(line)",
+            format!("{count} fields, expected 7 (ax ay az [g], gx gy gz [deg/s], tick [ms])"),
+        ));
+    }
+    let mut v = [0.0; 7];
+    for (k, f) in fields.iter().enumerate() {
+        v[k] = crate::text::parse_f64(f.trim()).ok_or_else(|| {
+            data_error(
+                csv_path,
+                line,
+                IMU_COLUMNS[k],
+                format!("`{}` is not a number", excerpt(f)),
+            )
+        })?;
+        if !v[k].is_finite() {
+            return Err(data_error(csv_path, line, IMU_COLUMNS[k], "not finite"));
+        }
+    }
+    let angular_rate = Vector3::new(v[3], v[4], v[5]).map(f64::to_radians);
+    check_rate(
+        csv_path,
+        line,
+        "gx [deg/s]",
+        &angular_rate,
+        " — are the gyro columns scaled (milli-degrees/s)?",
+    )?;
+    // Units that cannot be right: a specific force in m/s² where g was
+    // expected, or a rate in rad/s that saturates no MEMS gyro.
+    let f_norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if f_norm > 16.0 {
+        return Err(data_error(
+            csv_path,
+            line,
+            "ax [g]",
+            format!(
+                "|f| = {} g: more than 16 g — are the accelerometer columns in m/s² instead of g?",
+                num(f_norm)
+            ),
+        ));
+    }
+    if let Some((prev_line, prev_tick)) = previous {
+        check_tick(csv_path, line, v[6], prev_line, prev_tick)?;
+    }
+    let sample = ImuSample {
+        time_s: v[6],
+        specific_force: Vector3::new(v[0], v[1], v[2]) * G0,
+        angular_rate,
+    };
+    Ok((sample, f_norm))
+}
+
+/// The tick of line `line` must increase from that of `prev_line`.
+fn check_tick(
+    csv_path: &Path,
+    line: usize,
+    tick: f64,
+    prev_line: usize,
+    prev_tick: f64,
+) -> Result<()> {
+    use crate::text::num;
+    if tick <= prev_tick {
+        return Err(data_error(
+            csv_path,
+            line,
+            "tick [ms]",
+            format!(
+                "tick {} does not increase (line {prev_line}: {})",
+                num(tick),
+                num(prev_tick)
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// [`read_tagged_imu`] on the CSV's and the tag file's bytes; the paths name
 /// the origins in messages.
 pub fn read_tagged_imu_from(
@@ -541,7 +681,7 @@ pub fn read_tagged_imu_from(
     tag: &[u8],
     tag_path: &Path,
 ) -> Result<(Vec<ImuSample>, Vec<String>)> {
-    use crate::text::{excerpt, num};
+    use crate::text::num;
     let tags = read_time_tags_from(tag, tag_path)?;
     let last_tag_ms = tags
         .tags
@@ -563,90 +703,61 @@ pub fn read_tagged_imu_from(
         "{}: first and last line dropped (logger artefact, as upstream)",
         csv_path.display()
     ));
-    let mut raw: Vec<(usize, [f64; 6], f64)> = Vec::with_capacity(lines.len());
-    for (i, l) in lines.iter().enumerate().take(lines.len() - 1).skip(1) {
-        let line = i + 1;
-        // The fields in place (no Vec per line), counted for the message.
-        let mut fields = [""; 7];
-        let mut count = 0;
-        for f in l.trim().split(',') {
-            if let Some(slot) = fields.get_mut(count) {
-                *slot = f;
-            }
-            count += 1;
-        }
-        if count != 7 {
-            return Err(data_error(
-                csv_path,
-                line,
-                "(line)",
-                format!("{count} fields, expected 7 (ax ay az [g], gx gy gz [deg/s], tick [ms])"),
-            ));
-        }
-        let mut v = [0.0; 7];
-        for (k, f) in fields.iter().enumerate() {
-            v[k] = crate::text::parse_f64(f.trim()).ok_or_else(|| {
-                data_error(
-                    csv_path,
-                    line,
-                    IMU_COLUMNS[k],
-                    format!("`{}` is not a number", excerpt(f)),
-                )
-            })?;
-            if !v[k].is_finite() {
-                return Err(data_error(csv_path, line, IMU_COLUMNS[k], "not finite"));
-            }
-        }
-        check_rate(
-            csv_path,
-            line,
-            "gx [deg/s]",
-            &Vector3::new(v[3], v[4], v[5]).map(f64::to_radians),
-            " — are the gyro columns scaled (milli-degrees/s)?",
-        )?;
-        // Units that cannot be right: a specific force in m/s² where g was
-        // expected, or a rate in rad/s that saturates no MEMS gyro.
-        let f_norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        if f_norm > 16.0 {
-            return Err(data_error(
-                csv_path,
-                line,
-                "ax [g]",
-                format!(
-                    "|f| = {} g: more than 16 g — are the accelerometer columns in m/s² instead of g?",
-                    num(f_norm)
-                ),
-            ));
-        }
-        if let Some(&(prev_line, _, prev_tick)) = raw.last()
-            && v[6] <= prev_tick
-        {
-            return Err(data_error(
-                csv_path,
-                line,
-                "tick [ms]",
-                format!(
-                    "tick {} does not increase (line {prev_line}: {})",
-                    num(v[6]),
-                    num(prev_tick)
-                ),
-            ));
-        }
-        raw.push((line, [v[0], v[1], v[2], v[3], v[4], v[5]], v[6]));
+    // The lines between the first and the last, parsed in two halves on two
+    // threads for a large file. Each half stops at its first error; the
+    // error reported is the first in file order, as a parse from the top
+    // finds it: the first half's, else the tick of the second half's first
+    // line against the first half's last (the last check of that line),
+    // else the second half's.
+    let body = 1..lines.len() - 1;
+    let (first, second) = if body.len() >= PARALLEL_IMU_LINES {
+        let middle = body.start + body.len() / 2;
+        std::thread::scope(|s| {
+            let second =
+                s.spawn(|| parse_imu_lines(&lines, middle..body.end, csv_path, body.end - middle));
+            // Room for the second half too: it is appended without a copy
+            // of the first.
+            let first = parse_imu_lines(&lines, body.start..middle, csv_path, body.len());
+            let second = second
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (first, second)
+        })
+    } else {
+        (
+            parse_imu_lines(&lines, body.clone(), csv_path, body.len()),
+            (ParsedImu::default(), None),
+        )
+    };
+    let (mut parsed, first_error) = first;
+    if let Some(e) = first_error {
+        return Err(e);
     }
+    let (rest, second_error) = second;
+    if let (Some(last), Some(next)) = (parsed.samples.last(), rest.samples.first()) {
+        // The second half's first line is the line after the first half's last.
+        let line = body.start + parsed.samples.len() + 1;
+        check_tick(csv_path, line, next.time_s, line - 1, last.time_s)?;
+    }
+    if let Some(e) = second_error {
+        return Err(e);
+    }
+    parsed.samples.extend_from_slice(&rest.samples);
+    parsed.norms.extend_from_slice(&rest.norms);
+    let ParsedImu {
+        mut samples,
+        mut norms,
+    } = parsed;
     // Units that cannot be right: a road vehicle's specific force has a
     // median magnitude of about 1 g; a median near 9.8 means the columns are
     // in m/s², not g.
-    let mut norms: Vec<f64> = raw
-        .iter()
-        .map(|(_, v, _)| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-        .collect();
-    norms.sort_by(f64::total_cmp);
-    let median = norms[norms.len() / 2];
+    // The element a full sort puts in the middle (the order is total).
+    let middle = norms.len() / 2;
+    let median = *norms.select_nth_unstable_by(middle, f64::total_cmp).1;
     if !(0.5..=2.0).contains(&median) {
         return Err(data_error(
             csv_path,
-            raw[0].0,
+            body.start + 1,
             "ax [g]",
             format!(
                 "median |f| = {median:.3} in the file's unit, expected ≈ 1 g{}",
@@ -658,8 +769,9 @@ pub fn read_tagged_imu_from(
             ),
         ));
     }
-    let first_tick = raw[0].2;
-    let last_tick = raw[raw.len() - 1].2;
+    // The samples hold their ticks as times until here.
+    let first_tick = samples[0].time_s;
+    let last_tick = samples[samples.len() - 1].time_s;
     let scale = (f64::from(last_tag_ms) / 1000.0) / ((last_tick - first_tick) / 1000.0);
     if !scale.is_finite() || (scale - 1.0).abs() > MAX_TICK_SCALE_ERROR {
         return Err(data_error(
@@ -680,14 +792,10 @@ pub fn read_tagged_imu_from(
             tag_path.display()
         ));
     }
-    let samples = raw
-        .iter()
-        .map(|&(_, v, tick)| ImuSample {
-            time_s: tags.start_s + (tick - first_tick) / 1000.0 * scale,
-            specific_force: Vector3::new(v[0], v[1], v[2]) * G0,
-            angular_rate: Vector3::new(v[3], v[4], v[5]).map(f64::to_radians),
-        })
-        .collect();
+    for s in &mut samples {
+        let tick = s.time_s;
+        s.time_s = tags.start_s + (tick - first_tick) / 1000.0 * scale;
+    }
     Ok((samples, warnings))
 }
 
@@ -868,6 +976,65 @@ mod tests {
             .to_string();
         assert!(e.contains("does not fit the log"), "{e}");
         assert!(imu(IMU_CSV, &[(0, 0), (20, 100)]).is_ok());
+    }
+
+    /// A file large enough to be parsed in two halves reports the error a
+    /// parse from the top finds (every line of `parse_imu_lines` over the
+    /// whole body at once): the first in file order, whichever half holds
+    /// it, and a tick that does not increase across the halves' boundary.
+    #[test]
+    fn a_file_parsed_in_halves_reports_the_first_error_in_file_order() {
+        let n = 2 * PARALLEL_IMU_LINES + 11;
+        let line = |k: usize| format!("0.01,0.02,1.0,0.1,-0.2,0.3,{}", 1000 + 10 * k);
+        let good: Vec<String> = (0..n).map(line).collect();
+        let tags = [(0, 0), (10 * (n as u32 - 3), 100)];
+        let whole = |lines: &[String]| lines.join("\n") + "\n";
+        let (samples, _) = imu(&whole(&good), &tags).unwrap();
+        assert_eq!(samples.len(), n - 2);
+        let from_the_top = |lines: &[String]| {
+            let refs: Vec<&str> = lines.iter().map(String::as_str).collect();
+            parse_imu_lines(&refs, 1..refs.len() - 1, Path::new("i.csv"), 0)
+                .1
+                .map(|e| e.to_string())
+        };
+        // Body lines are 2 … n − 1; the second half starts at line
+        // 2 + (n − 2) / 2.
+        let boundary = 2 + (n - 2) / 2;
+        let bad_tick = |lines: &mut Vec<String>, at: usize| {
+            lines[at - 1] = "0.01,0.02,1.0,0.1,-0.2,0.3,5".into();
+        };
+        let bad_field = |lines: &mut Vec<String>, at: usize| {
+            lines[at - 1] = "0.01,x,1.0,0.1,-0.2,0.3,7".into();
+        };
+        type Spoil = fn(&mut Vec<String>, usize);
+        let cases: [&[(usize, Spoil)]; 6] = [
+            &[(boundary, bad_tick)],
+            &[(boundary, bad_field)],
+            &[(boundary - 1, bad_field)],
+            &[(boundary + 5, bad_field), (boundary - 3, bad_tick)],
+            &[(n - 3, bad_field), (boundary, bad_tick)],
+            &[(boundary + 1, bad_tick), (boundary + 2, bad_field)],
+        ];
+        for spoils in cases {
+            let mut lines = good.clone();
+            for (at, spoil) in spoils {
+                spoil(&mut lines, *at);
+            }
+            let expected = from_the_top(&lines).expect("an error");
+            let e = imu(&whole(&lines), &tags).unwrap_err().to_string();
+            assert_eq!(e, expected);
+        }
+        // The boundary tick names both lines.
+        let mut lines = good.clone();
+        bad_tick(&mut lines, boundary);
+        let e = imu(&whole(&lines), &tags).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!(
+                "i.csv:{boundary}: column `tick [ms]`: tick 5 does not increase (line {}:",
+                boundary - 1
+            )),
+            "{e}"
+        );
     }
 
     #[test]

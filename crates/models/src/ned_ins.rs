@@ -238,9 +238,156 @@ const F_ROW_MASKS: [u32; STATES] = {
     masks
 };
 
+/// For each column j, the rows k of F that may hold a nonzero in it
+/// (increasing; the first `count` entries): the terms k of (FΔt)²[·, j] =
+/// Σ_k FΔt[·, k] FΔt[k, j] that [`NedErrorModel::discrete`] sums.
+const F_COLUMN_ROWS: [([usize; STATES], usize); STATES] = {
+    let mut columns = [([0; STATES], 0); STATES];
+    let mut j = 0;
+    while j < STATES {
+        let mut k = 0;
+        while k < STATES {
+            if F_ROW_MASKS[k] & (1 << j) != 0 {
+                columns[j].0[columns[j].1] = k;
+                columns[j].1 += 1;
+            }
+            k += 1;
+        }
+        j += 1;
+    }
+    columns
+};
+
+/// The rows of F that may hold a nonzero off the diagonal: position,
+/// velocity, attitude (the instruments' rows hold only their diagonal).
+const COUPLED: usize = GYRO_BIAS;
+
 /// Whether every nonzero of `f` lies in [`F_ROW_COLUMNS`].
 fn follows_pattern(f: &Matrix21) -> bool {
     (0..STATES).all(|j| (0..STATES).all(|i| F_ROW_MASKS[i] & (1 << j) != 0 || f[(i, j)] == 0.0))
+}
+
+/// [`NedErrorModel::discrete`] for an F with [`continuous`](NedErrorModel::continuous)'s
+/// pattern ([`F_ROW_COLUMNS`]), FΔt and Q_c finite: the same sums as
+/// [`discrete_of_any`] to the bit, by columns and without a branch.
+///
+/// Each element of (FΔt)²/2 is summed over the same k in the same
+/// increasing order, `0.5 · a · b` each; the terms [`discrete_of_any`]
+/// skips for an exact zero a or b are ±0 here, and adding ±0 changes no
+/// sum (a sum that starts at +0 or at Φ's first-order term is never −0:
+/// x + y = 0 rounds to +0), so the results are equal to the bit. Likewise
+/// F Q_c. Columns: Φ(·, j) gains Σ_k FΔt(·, k) FΔt(k, j) over the rows k
+/// of F that may hold column j ([`F_COLUMN_ROWS`]), a contiguous update of
+/// the coupled rows (position, velocity, attitude); the instruments' rows
+/// gain their diagonal term. Q is computed
+/// by its formula at every element (symmetric in i and j, Q_c exactly
+/// symmetric).
+fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
+    const N: usize = STATES;
+    // Column-major slices: element (i, j) at j N + i, the diagonal every
+    // (N + 1)-th.
+    let f = fdt.as_slice();
+    // I + FΔt (0 + a, as the identity's zeros add: −0 becomes +0).
+    let mut phi = fdt.map(|a| 0.0 + a);
+    let p = phi.as_mut_slice();
+    for d in (0..N).map(|i| i * (N + 1)) {
+        p[d] = 1.0 + f[d];
+    }
+    for (j, (rows, count)) in F_COLUMN_ROWS.iter().enumerate() {
+        let out = &mut p[j * N..j * N + COUPLED];
+        for &k in &rows[..*count] {
+            let b = f[j * N + k];
+            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
+                *o += 0.5 * a * b;
+            }
+        }
+    }
+    for d in (COUPLED..N).map(|i| i * (N + 1)) {
+        let a = f[d];
+        p[d] += 0.5 * a * a;
+    }
+    // F Q_c: Q_c's velocity and attitude blocks, its diagonal beyond.
+    let c = qc.as_slice();
+    let mut fq = Matrix21::zeros();
+    let g = fq.as_mut_slice();
+    for j in VELOCITY..N {
+        let out = &mut g[j * N..j * N + COUPLED];
+        for k in block_of(j) {
+            let b = c[j * N + k];
+            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
+                *o += a * b;
+            }
+        }
+        if j >= COUPLED {
+            let d = j * (N + 1);
+            g[d] += f[d] * c[d];
+        }
+    }
+    // Each element by the formula (symmetric in i and j, Q_c exactly
+    // symmetric, so the upper triangle equals the lower to the bit).
+    let half_dt = 0.5 * dt;
+    let q = Matrix21::from_fn(|i, j| c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]));
+    (phi, q)
+}
+
+/// [`NedErrorModel::discrete`] for any F: (FΔt)² and F Q_c summed over
+/// [`F_ROW_COLUMNS`] when F has that pattern (`pattern`), else over every
+/// column, skipping exact zeros.
+fn discrete_of_any(fdt: &Matrix21, qc: &Matrix21, dt: f64, pattern: bool) -> (Matrix21, Matrix21) {
+    let mut phi = Matrix21::identity() + fdt;
+    // (FΔt)²[i, j] = Σ_k FΔt[i, k] FΔt[k, j], summed over the columns k
+    // that row i of F may hold ([`F_ROW_COLUMNS`]) and the columns j that
+    // row k may hold, each (i, j) in increasing k as the dense sum —
+    // the same additions in the same order, so the same Φ to the bit.
+    // An F with nonzeros elsewhere (not `continuous`'s) is summed over
+    // every column.
+    const EVERY: [usize; STATES] = {
+        let mut all = [0; STATES];
+        let mut i = 0;
+        while i < STATES {
+            all[i] = i;
+            i += 1;
+        }
+        all
+    };
+    let columns: [&[usize]; STATES] = if pattern {
+        F_ROW_COLUMNS
+    } else {
+        [&EVERY; STATES]
+    };
+    for (i, row) in columns.iter().enumerate() {
+        for &k in row.iter() {
+            let a = fdt[(i, k)];
+            if a != 0.0 {
+                for &j in columns[k].iter() {
+                    let b = fdt[(k, j)];
+                    if b != 0.0 {
+                        phi[(i, j)] += 0.5 * a * b;
+                    }
+                }
+            }
+        }
+    }
+    // (FΔt Q_c)[i, j] = Σ_k FΔt[i, k] Q_c[k, j], Q_c[k, ·] nonzero only
+    // within k's block.
+    let mut fq = Matrix21::zeros();
+    for (i, row) in columns.iter().enumerate() {
+        for &k in row.iter() {
+            let a = fdt[(i, k)];
+            if a != 0.0 {
+                for j in block_of(k) {
+                    fq[(i, j)] += a * qc[(k, j)];
+                }
+            }
+        }
+    }
+    let mut q = qc * dt;
+    for j in 0..STATES {
+        for i in 0..STATES {
+            q[(i, j)] += 0.5 * dt * (fq[(i, j)] + fq[(j, i)]);
+        }
+    }
+    (phi, q)
 }
 
 /// The model; only the noise is configuration.
@@ -312,62 +459,17 @@ impl NedErrorModel {
     /// filter's covariance rate, 20 Hz, and dense 21³ products were 40 % of
     /// a pass.
     pub fn discrete(&self, f: &Matrix21, c_bn: &Matrix3<f64>, dt: f64) -> (Matrix21, Matrix21) {
-        let fdt = f * dt;
-        let mut phi = Matrix21::identity() + fdt;
-        // (FΔt)²[i, j] = Σ_k FΔt[i, k] FΔt[k, j], summed over the columns k
-        // that row i of F may hold ([`F_ROW_COLUMNS`]) and the columns j that
-        // row k may hold, each (i, j) in increasing k as the dense sum —
-        // the same additions in the same order, so the same Φ to the bit.
-        // An F with nonzeros elsewhere (not `continuous`'s) is summed over
-        // every column.
-        const EVERY: [usize; STATES] = {
-            let mut all = [0; STATES];
-            let mut i = 0;
-            while i < STATES {
-                all[i] = i;
-                i += 1;
-            }
-            all
-        };
-        let columns: [&[usize]; STATES] = if follows_pattern(f) {
-            F_ROW_COLUMNS
-        } else {
-            [&EVERY; STATES]
-        };
-        for (i, row) in columns.iter().enumerate() {
-            for &k in row.iter() {
-                let a = fdt[(i, k)];
-                if a != 0.0 {
-                    for &j in columns[k].iter() {
-                        let b = fdt[(k, j)];
-                        if b != 0.0 {
-                            phi[(i, j)] += 0.5 * a * b;
-                        }
-                    }
-                }
-            }
-        }
+        // `map`, not `f * dt`: the same products, written once (the
+        // product clones f first).
+        let fdt = f.map(|v| v * dt);
         let qc = self.spectral_density(c_bn);
-        // (FΔt Q_c)[i, j] = Σ_k FΔt[i, k] Q_c[k, j], Q_c[k, ·] nonzero only
-        // within k's block.
-        let mut fq = Matrix21::zeros();
-        for (i, row) in columns.iter().enumerate() {
-            for &k in row.iter() {
-                let a = fdt[(i, k)];
-                if a != 0.0 {
-                    for j in block_of(k) {
-                        fq[(i, j)] += a * qc[(k, j)];
-                    }
-                }
-            }
+        let pattern = follows_pattern(f);
+        let finite = |m: &Matrix21| m.as_slice().iter().fold(true, |ok, v| ok & v.is_finite());
+        if pattern && finite(&fdt) && finite(&qc) {
+            discrete_of_pattern(&fdt, &qc, dt)
+        } else {
+            discrete_of_any(&fdt, &qc, dt, pattern)
         }
-        let mut q = qc * dt;
-        for j in 0..STATES {
-            for i in 0..STATES {
-                q[(i, j)] += 0.5 * dt * (fq[(i, j)] + fq[(j, i)]);
-            }
-        }
-        (phi, q)
     }
 
     /// The continuous white-noise density Q_c at attitude C_b^n: velocity
@@ -552,6 +654,85 @@ mod tests {
             assert_eq!(bits(&phi), bits(&phi_ref));
             assert_eq!(bits(&q), bits(&q_ref));
         }
+    }
+
+    /// The branch-free column path (`continuous`'s pattern, finite values)
+    /// equals the loop over every column to the bit on random models and
+    /// states — zero rates and forces, exact zeros and −0 inside the
+    /// pattern, per-axis noise, scale factors off — and a non-finite F takes
+    /// the general path (the same NaN and infinity positions).
+    #[test]
+    fn the_column_path_equals_the_loop_over_every_column_bitwise() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(40);
+        let bits = |a: &Matrix21| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for case in 0..400 {
+            let axes = |rng: &mut rand_chacha::ChaCha8Rng, scale: f64| {
+                PerAxis([0, 1, 2].map(|_| scale * rng.random_range(0.1..3.0)))
+            };
+            let m = NedErrorModel {
+                noise: ImuNoise {
+                    arw_deg_per_sqrt_h: axes(&mut rng, 1.0),
+                    vrw_mps_per_sqrt_h: axes(&mut rng, 0.3),
+                    gyro_bias_deg_per_h: axes(&mut rng, 20.0),
+                    accel_bias_mg: axes(&mut rng, 2.0),
+                    gyro_scale_ppm: axes(&mut rng, 500.0),
+                    accel_scale_ppm: axes(&mut rng, 500.0),
+                    bias_correlation_s: rng.random_range(10.0..5000.0),
+                    scale_correlation_s: rng.random_range(10.0..5000.0),
+                    scale_factors: case % 5 != 0,
+                },
+            };
+            let c = nalgebra::Rotation3::from_euler_angles(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-3.0..3.0),
+            )
+            .into_inner();
+            let mut vector = |scale: f64| {
+                Vector3::from_fn(|_, _| match rng.random_range(0..6) {
+                    0 => 0.0,
+                    1 => -0.0,
+                    _ => scale * rng.random_range(-1.0..1.0),
+                })
+            };
+            let (force, rate) = (vector(12.0), vector(1.0));
+            let (w_ie, w_en) = (vector(7.3e-5), vector(1e-5));
+            let mut f = m.continuous(&c, &force, &rate, &w_ie, &w_en, 0.6);
+            if case % 7 == 0 {
+                // Exact zeros and −0 at places of the pattern.
+                f[(3, 7)] = 0.0;
+                f[(7, 16)] = -0.0;
+                f[(0, 4)] = -0.0;
+            }
+            let dt = [0.05, 0.01, 0.0123, 1.0][case % 4];
+            assert!(follows_pattern(&f));
+            let (phi, q) = m.discrete(&f, &c, dt);
+            let (phi_ref, q_ref) = discrete_every_column(&m, &f, &c, dt);
+            assert_eq!(bits(&phi), bits(&phi_ref), "case {case}");
+            assert_eq!(bits(&q), bits(&q_ref), "case {case}");
+        }
+        let c = Matrix3::identity();
+        let m = NedErrorModel::default();
+        let mut f = m.continuous(
+            &c,
+            &Vector3::new(0.1, 0.2, -9.8),
+            &Vector3::new(0.01, 0.02, 0.03),
+            &Vector3::new(5e-5, 0.0, -4e-5),
+            &Vector3::new(1e-6, 0.0, 1e-6),
+            0.6,
+        );
+        f[(4, 6)] = f64::NAN;
+        f[(7, 9)] = f64::INFINITY;
+        let (phi, q) = m.discrete(&f, &c, 0.05);
+        let (phi_ref, q_ref) = discrete_every_column(&m, &f, &c, 0.05);
+        let nan_or_bits = |a: &Matrix21| {
+            a.iter()
+                .map(|v| if v.is_nan() { None } else { Some(v.to_bits()) })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(nan_or_bits(&phi), nan_or_bits(&phi_ref));
+        assert_eq!(nan_or_bits(&q), nan_or_bits(&q_ref));
     }
 
     #[test]

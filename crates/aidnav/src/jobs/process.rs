@@ -188,7 +188,7 @@ impl ProcessRun {
     /// and the writers' warnings (kind `output`) added.
     pub fn report(&self, files: Vec<PathBuf>, written: Vec<String>) -> ProcessReport {
         let mut report = ProcessReport::new(
-            self.result.clone(),
+            report_fields(&self.result),
             self.scores.clone().unwrap_or_default(),
             self.timing_s,
             files,
@@ -292,6 +292,36 @@ impl ProcessReport {
             timing_s,
             files,
         }
+    }
+}
+
+/// The fields of a result that [`ProcessReport::new`] reads, cloned; the
+/// per-epoch tables (epochs, rows, smoothed and selected epochs, the fix
+/// track: megabytes on a long log) left empty.
+fn report_fields(result: &crate::process::ProcessResult) -> crate::process::ProcessResult {
+    let r = result;
+    crate::process::ProcessResult {
+        imu_samples: r.imu_samples,
+        gnss_epochs: r.gnss_epochs,
+        policy: r.policy,
+        epochs: Vec::new(),
+        between: Vec::new(),
+        smoothed: Vec::new(),
+        fix_track: Vec::new(),
+        first_fix_time_s: r.first_fix_time_s,
+        outcomes: r.outcomes.clone(),
+        resets: r.resets.clone(),
+        reference_epochs: r.reference_epochs,
+        tracking_rms_m: r.tracking_rms_m,
+        tracking_smoothed_rms_m: r.tracking_smoothed_rms_m,
+        nis: r.nis.clone(),
+        instrument_convergence_s: r.instrument_convergence_s.clone(),
+        k_eff_integrated_fraction: r.k_eff_integrated_fraction,
+        selected: Vec::new(),
+        selection: r.selection,
+        start: r.start,
+        standstill_updates: r.standstill_updates,
+        warnings: r.warnings.clone(),
     }
 }
 

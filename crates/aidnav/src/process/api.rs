@@ -183,7 +183,9 @@ impl Process {
             None
         };
         let inputs = if smooth {
-            inputs.smoothed(config.imu.smoothing_s)
+            // Taken, not cloned: no copy of the raw samples beside the
+            // smoothed ones.
+            inputs.into_smoothed(config.imu.smoothing_s)
         } else {
             inputs
         };

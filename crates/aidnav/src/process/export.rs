@@ -33,42 +33,50 @@ pub fn write_files(
     navresult: bool,
 ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
     begin_outputs(out)?;
-    // The charts are drawn and written on a second thread while this one
-    // writes the tables: the same files, in the same order in the list.
+    // Two threads: this one writes the navigation tables (`solution.csv`,
+    // `navresult.txt`, `smoothed.csv`), a second one `selected.csv`,
+    // `instruments.csv` and the charts — the same files, listed in the same
+    // order, and the same error when one fails (the first in that order).
     let trajectory = out.join("trajectory.svg");
     let innovations = out.join("innovations.svg");
     let drift = scores.map(|_| out.join("outage_drift.svg"));
-    let (charts, tables) = std::thread::scope(|s| {
-        let charts = s.spawn(|| -> Result<(), IoError> {
-            trajectory_chart(result).write_svg(&trajectory)?;
-            innovations_chart(result).write_svg(&innovations)?;
-            if let (Some(scores), Some(path)) = (scores, &drift) {
-                drift_chart(scores).write_svg(path)?;
-            }
-            Ok(())
+    let (navigation, (others, charts)) = std::thread::scope(|s| {
+        let second = s.spawn(|| {
+            let others = write_other_tables(result, out);
+            let charts = (|| -> Result<(), IoError> {
+                trajectory_chart(result).write_svg(&trajectory)?;
+                innovations_chart(result).write_svg(&innovations)?;
+                if let (Some(scores), Some(path)) = (scores, &drift) {
+                    drift_chart(scores).write_svg(path)?;
+                }
+                Ok(())
+            })();
+            (others, charts)
         });
-        let tables = write_tables(result, out, navresult);
-        // A panic drawing a chart is re-raised here, as it would have been
-        // on this thread.
-        let charts = charts
+        let navigation = write_navigation_tables(result, out, navresult);
+        // A panic on the second thread is re-raised here, as it would have
+        // been on this one.
+        let second = second
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (charts, tables)
+        (navigation, second)
     });
-    let (mut files, warnings) = tables?;
+    let (mut files, mut warnings) = navigation?;
+    let (other_files, other_warnings) = others?;
     charts?;
+    warnings.extend(other_warnings);
     // `aidnav process`'s order: trajectory.svg after selected.csv,
     // innovations.svg after instruments.csv, outage_drift.svg last.
-    let instruments = files.len() - 1;
-    files.insert(instruments, trajectory);
-    files.push(innovations);
+    let [selected, instruments] = other_files;
+    files.extend([selected, trajectory, instruments, innovations]);
     files.extend(drift);
     Ok((files, warnings))
 }
 
-/// The tables of [`write_files`], in its order (`instruments.csv` last);
+/// The navigation tables of [`write_files`], in its order: `solution.csv`,
+/// `navresult.txt` (with `navresult`), `smoothed.csv` (when smoothed);
 /// returns the files and the tables' warnings.
-fn write_tables(
+fn write_navigation_tables(
     result: &ProcessResult,
     out: &Path,
     navresult: bool,
@@ -88,13 +96,21 @@ fn write_tables(
         warnings.extend(write_smoothed(&path, &result.smoothed)?);
         files.push(path);
     }
-    let path = out.join("selected.csv");
-    warnings.extend(write_selected(&path, &result.selected)?);
-    files.push(path);
-    let path = out.join("instruments.csv");
-    warnings.extend(write_instruments(&path, &result.epochs)?);
-    files.push(path);
     Ok((files, warnings))
+}
+
+/// `selected.csv` and `instruments.csv` of [`write_files`]; returns them
+/// and their warnings.
+fn write_other_tables(
+    result: &ProcessResult,
+    out: &Path,
+) -> Result<([PathBuf; 2], Vec<String>), IoError> {
+    let mut warnings = Vec::new();
+    let selected = out.join("selected.csv");
+    warnings.extend(write_selected(&selected, &result.selected)?);
+    let instruments = out.join("instruments.csv");
+    warnings.extend(write_instruments(&instruments, &result.epochs)?);
+    Ok(([selected, instruments], warnings))
 }
 
 /// Write the files of a tuning into `out`: `allan.svg` and `allan.csv`

@@ -58,7 +58,7 @@ use std::path::Path;
 
 use aidnav_estimation::EstimationError;
 use aidnav_ins::alignment::course;
-use aidnav_ins::samples::moving_average;
+use aidnav_ins::samples::moving_average_in_place;
 use aidnav_io::rtklib::{GnssFix, ImuSample, read_pos, read_tagged_imu};
 use nalgebra::Vector3;
 
@@ -124,12 +124,12 @@ impl Inputs {
     /// [`Inputs::smoothed`], taking the inputs: no copy of the raw samples
     /// is kept beside the smoothed ones.
     fn into_smoothed(mut self, smoothing_s: f64) -> Self {
-        let imu = &self.imu;
+        let imu = &mut self.imu;
         if smoothing_s > 0.0 && imu.len() > 2 {
             let dt = (imu[imu.len() - 1].time_s - imu[0].time_s) / (imu.len() - 1) as f64;
             let half = ((smoothing_s / dt) / 2.0).round() as usize;
             if half > 0 {
-                self.imu = moving_average(imu, half);
+                moving_average_in_place(imu, half);
             }
         }
         self
