@@ -305,7 +305,7 @@ impl<const N: usize> StepScratch<N> {
 /// a quarter of the recorder's time in `rep movsb`); halves of at most
 /// 2112 bytes take glibc's vector loop. Same values, bit for bit.
 #[inline(always)]
-fn copy_matrix<const N: usize>(dst: &mut SMatrix<f64, N, N>, src: &SMatrix<f64, N, N>) {
+pub fn copy_matrix<const N: usize>(dst: &mut SMatrix<f64, N, N>, src: &SMatrix<f64, N, N>) {
     let (d, s) = (dst.as_mut_slice(), src.as_slice());
     let half = N * N / 2;
     d[..half].copy_from_slice(&s[..half]);

@@ -17,6 +17,7 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
+use aidnav_estimation::smoother::copy_matrix;
 use aidnav_estimation::{EstimationError, RtsRecorder};
 use nalgebra::{SMatrix, SVector};
 
@@ -48,17 +49,6 @@ struct Pending<const N: usize> {
     calls: Vec<Call<N>>,
     predictions: Vec<Box<Prediction<N>>>,
     updates: Vec<Box<Update<N>>>,
-}
-
-/// `dst ← src` in two halves: glibc's `memcpy` takes `rep movsb` above
-/// 2112 bytes on CPUs with fast short `rep movsb`, which AMD Zen 4 runs
-/// several times slower at some relative alignments; a 21-state matrix is
-/// 3528 bytes.
-fn copy_matrix<const N: usize>(dst: &mut SMatrix<f64, N, N>, src: &SMatrix<f64, N, N>) {
-    let (d, s) = (dst.as_mut_slice(), src.as_slice());
-    let half = N * N / 2;
-    d[..half].copy_from_slice(&s[..half]);
-    d[half..].copy_from_slice(&s[half..]);
 }
 
 /// The worker thread and the filter's mirror of the recorder's marks.
