@@ -730,22 +730,32 @@ pub fn run_range(
 const RUN_BATCH: usize = 4;
 
 /// [`run_range`] on the scenario's solved trajectories.
-fn runs_on(
+fn runs_on<'t>(
     sc: &ExtendedStateScenario,
     mc: &MonteCarlo,
     range: std::ops::Range<usize>,
-    trajs: &[LaunchTrajectory],
+    trajs: &'t [LaunchTrajectory],
 ) -> Result<ExtendedStateRuns, ExtendedStateError> {
     let mut trajectories = Vec::with_capacity(trajs.len());
+    // With fixed error signs every run flies the same errors: their thrust
+    // tables, the free INS and the filter's covariance path are computed
+    // once per trajectory, and runs go in batches. That preparation is
+    // serial, so the next trajectory's is made while this one's runs fly
+    // (rayon::join: on another thread when one is idle).
+    let prepare = |traj: &'t LaunchTrajectory, e: LaunchInstrumentErrors| {
+        let flight = Flight::new(traj, e);
+        let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+        let path = CovariancePath::new(sc, &flight);
+        (flight, free, path)
+    };
+    let fixed = fixed_errors(sc);
+    let mut next = match (fixed, trajs.first()) {
+        (Some(e), Some(traj)) if !range.is_empty() => Some(prepare(traj, e)),
+        _ => None,
+    };
     for (ti, traj) in trajs.iter().enumerate() {
-        // With fixed error signs every run flies the same errors: their
-        // thrust tables, the free INS and the filter's covariance path are
-        // computed once, and runs go in batches.
-        let per_run = match fixed_errors(sc) {
-            Some(e) => {
-                let flight = Flight::new(traj, e);
-                let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-                let path = CovariancePath::new(sc, &flight);
+        let per_run = match (fixed, next.take()) {
+            (Some(e), Some((flight, free, path))) => {
                 let shared = Shared {
                     sc,
                     ti,
@@ -753,9 +763,15 @@ fn runs_on(
                     free,
                     path: &path,
                 };
-                mc.try_run_batches(range.clone(), RUN_BATCH, |runs| shared.runs(runs))?
+                let (per_run, prepared) = rayon::join(
+                    || mc.try_run_batches(range.clone(), RUN_BATCH, |runs| shared.runs(runs)),
+                    || trajs.get(ti + 1).map(|t| prepare(t, e)),
+                );
+                next = prepared;
+                per_run?
             }
-            None => mc.try_run_range(range.clone(), |run, _| {
+            (Some(_), None) => Vec::new(),
+            (None, _) => mc.try_run_range(range.clone(), |run, _| {
                 let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
                 let flight = Flight::new(traj, true_errors(sc, &mut rng));
                 let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
