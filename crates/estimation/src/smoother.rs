@@ -312,7 +312,7 @@ pub fn copy_matrix<const N: usize>(dst: &mut SMatrix<f64, N, N>, src: &SMatrix<f
     d[half..].copy_from_slice(&s[half..]);
 }
 
-/// `out = a b` (N × N), as [`gemm`] computes it (each column from zero,
+/// `out = a b` (N × N), as nalgebra's `gemm` computes it (each column from zero,
 /// gaining `a(·, k) b(k, j)` in increasing k), through [`run_widest`].
 fn product<const N: usize>(
     out: &mut SMatrix<f64, N, N>,

@@ -242,7 +242,7 @@ type Lanes = [f64; LANES];
 /// RK4 stages' scratch.
 #[derive(Debug, Clone, Copy, Default)]
 struct Block {
-    /// Position components (x, y, z) [m].
+    /// Position components (x, y, z), in m.
     r: [Lanes; 3],
     /// Velocity components [m/s].
     v: [Lanes; 3],

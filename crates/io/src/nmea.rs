@@ -35,7 +35,7 @@ use crate::error::Result;
 use crate::rtklib::{GnssFix, check_position, data_error, days_from_civil};
 use crate::text::{excerpt, num};
 
-/// GPS − UTC [s] on the day `days` since 1970-01-01.
+/// GPS − UTC (s) on the day `days` since 1970-01-01.
 fn leap_seconds(days: i64) -> f64 {
     crate::text::gps_minus_utc_s(days)
 }

@@ -51,7 +51,7 @@ use gauss_newton::gauss_newton;
 /// What the filter pass keeps at a switch.
 #[derive(Debug, Clone, Copy)]
 struct Snapshot {
-    /// Flight time [s].
+    /// Flight time (s).
     time_s: f64,
     /// Index of the fix (0: the first).
     fix: usize,

@@ -16,7 +16,7 @@ const DRAWN: [&str; 3] = ["kf_plain", "kf_reject", "developed"];
 enum State {
     Velocity,
     /// The tilt; the constant accelerometer bias is absorbed by the filter
-    /// as this equivalent tilt B/g [rad], drawn as a second truth curve.
+    /// as this equivalent tilt B/g (rad), drawn as a second truth curve.
     Tilt(f64),
 }
 

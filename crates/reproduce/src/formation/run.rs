@@ -23,13 +23,13 @@ use super::{Denial, FormationResult, FormationScenario, MemberScore, Stage2OwnEr
 /// One run's per-epoch errors, what [`finish`] combines.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunErrors {
-    /// [epoch][member][solution] squared position error.
+    /// `[epoch][member][solution]`: squared position error.
     pub(super) position_sq: Vec<Vec<[f64; 3]>>,
     pub(super) velocity_sq: Vec<Vec<[f64; 3]>>,
-    /// [epoch][member][solution] position and velocity σ (√ trace).
+    /// `[epoch][member][solution]`: position and velocity σ (√ trace).
     pub(super) sigma: Vec<Vec<[f64; 3]>>,
     pub(super) velocity_sigma: Vec<Vec<[f64; 3]>>,
-    /// [epoch][member][solution] position and velocity NEES.
+    /// `[epoch][member][solution]`: position and velocity NEES.
     pub(super) position_nees: Vec<Vec<[f64; 3]>>,
     pub(super) velocity_nees: Vec<Vec<[f64; 3]>>,
     pub(super) relative: usize,

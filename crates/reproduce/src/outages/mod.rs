@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 #[cfg(doc)]
 use aidnav_supervisors::efficiency::AdaptiveScalarVariance;
 
-/// Innovations averaged by the adaptive σ_KOI (eq. 15's M[θ²]).
+/// Innovations averaged by the adaptive σ_KOI (eq. 15's `M[θ²]`).
 const ADAPTIVE_VARIANCE_WINDOW: usize = 10;
 
 /// Stream of the recovery faults (0 is truth and fix noise).
