@@ -135,7 +135,7 @@ fn kernel<I: Iterator<Item = usize> + Clone>(
 /// blocks that cover the lower triangle of an r × r matrix, each starting at
 /// an even row at or above its first column (see [`kernel`]).
 #[inline(always)]
-fn lower_block_starts(r: usize) -> (usize, usize, usize) {
+pub(crate) fn lower_block_starts(r: usize) -> (usize, usize, usize) {
     let start = |b: usize| (b * r / LOWER_BLOCKS) & !1;
     (start(1), start(2), start(3))
 }
@@ -785,7 +785,7 @@ where
 
 /// [`mirror_lower`] on a column-major n × n slice.
 #[inline(always)]
-fn mirror_lower_slice(n: usize, s: &mut [f64]) {
+pub(crate) fn mirror_lower_slice(n: usize, s: &mut [f64]) {
     for j in 1..n {
         for i in 0..j {
             s[j * n + i] = s[i * n + j];

@@ -19,7 +19,7 @@ use nalgebra::{
 };
 
 use crate::check;
-use crate::dense::{Widened, run_widest};
+use crate::dense::{Widened, lower_block_starts, mirror_lower_slice, run_widest};
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::structured::{TrailingDiagonal, times_transpose};
 
@@ -251,8 +251,7 @@ impl<const N: usize> Widened for GramFrom<N> {
         let (out, p, w) = (&mut out[..N * N], &a[..N * N], &b[..N * N]);
         // P's lower triangle (and the block rows above it) first, column by
         // column (short copies), then the product subtracted in place.
-        let start = |b: usize| (b * N / 4) & !1;
-        let (s1, s2, s3) = (start(1), start(2), start(3));
+        let (s1, s2, s3) = lower_block_starts(N);
         for c in 0..N {
             let row0 = if c < s1 {
                 0
@@ -539,18 +538,13 @@ fn add_symmetric_product<const N: usize, const SUBTRACT: bool>(
     x: &[f64],
     y: &[f64],
 ) {
-    let start = |b: usize| (b * N / 4) & !1;
-    let (s1, s2, s3) = (start(1), start(2), start(3));
+    let (s1, s2, s3) = lower_block_starts(N);
     // Four calls, not a loop: each inlines with its own constant row count.
     add_product_columns::<N, SUBTRACT>((0, 0..s1), x, y, s);
     add_product_columns::<N, SUBTRACT>((s1, s1..s2), x, y, s);
     add_product_columns::<N, SUBTRACT>((s2, s2..s3), x, y, s);
     add_product_columns::<N, SUBTRACT>((s3, s3..N), x, y, s);
-    for c in 0..N {
-        for r in c + 1..N {
-            s[r * N + c] = s[c * N + r];
-        }
-    }
+    mirror_lower_slice(N, s);
 }
 
 /// Columns `cols`, rows `row0..N`, of `S += X Yᵀ` (`S −= X Yᵀ` when

@@ -239,15 +239,6 @@ fn transpose(n: usize, a: &[f64], out: &mut [f64]) {
     }
 }
 
-/// First rows of the column blocks 1–3 of a lower-triangle product: even,
-/// at or above the block's first column, a compile-time constant for fixed
-/// sizes (so each block's column length is one), as the dense kernels'.
-#[inline(always)]
-fn lower_block_starts(n: usize) -> (usize, usize, usize) {
-    let start = |b: usize| (b * n / 4) & !1;
-    (start(1), start(2), start(3))
-}
-
 /// Columns `cols` of `out += W Φᵀ`, rows `row0..n`: each accumulates
 /// `W(·, k) Φ(j, k)` in increasing k (the column in registers for fixed
 /// sizes).
@@ -278,7 +269,7 @@ fn full_columns(
 /// j ≥ r: `W(·, j) Φ(j, j)`, its only nonzero term.
 #[inline(always)]
 fn add_times_transpose_lower(n: usize, r: usize, w: &[f64], phi: &[f64], out: &mut [f64]) {
-    let (s1, s2, s3) = lower_block_starts(n);
+    let (s1, s2, s3) = dense::lower_block_starts(n);
     // Four calls, not a loop: each inlines with its own constant row count.
     full_columns(n, (0, 0..s1.min(r)), w, phi, out);
     full_columns(n, (s1, s1..s2.min(r)), w, phi, out);
