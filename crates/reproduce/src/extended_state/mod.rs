@@ -730,60 +730,39 @@ pub fn run_range(
 const RUN_BATCH: usize = 4;
 
 /// [`run_range`] on the scenario's solved trajectories.
-fn runs_on<'t>(
+fn runs_on(
     sc: &ExtendedStateScenario,
     mc: &MonteCarlo,
     range: std::ops::Range<usize>,
-    trajs: &'t [LaunchTrajectory],
+    trajs: &[LaunchTrajectory],
 ) -> Result<ExtendedStateRuns, ExtendedStateError> {
     let mut trajectories = Vec::with_capacity(trajs.len());
-    // With fixed error signs every run flies the same errors: their thrust
-    // tables, the free INS and the filter's covariance path are computed
-    // once per trajectory, and runs go in batches. That preparation is
-    // serial, so the next trajectory's is made while this one's runs fly
-    // (rayon::join: on another thread when one is idle).
-    let prepare = |traj: &'t LaunchTrajectory, e: LaunchInstrumentErrors| {
-        let flight = Flight::new(traj, e);
-        let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-        let path = CovariancePath::new(sc, &flight);
-        (flight, free, path)
-    };
+    // With fixed error signs every run flies the same errors: their
+    // preparation is made once per trajectory, and runs go in batches. That
+    // preparation is serial, so the next trajectory's is made while this
+    // one's runs fly (rayon::join: on another thread when one is idle).
     let fixed = fixed_errors(sc);
     let mut next = match (fixed, trajs.first()) {
-        (Some(e), Some(traj)) if !range.is_empty() => Some(prepare(traj, e)),
+        (Some(e), Some(traj)) if !range.is_empty() => Some(Prepared::new(sc, traj, e)),
         _ => None,
     };
     for (ti, traj) in trajs.iter().enumerate() {
         let per_run = match (fixed, next.take()) {
-            (Some(e), Some((flight, free, path))) => {
-                let shared = Shared {
-                    sc,
-                    ti,
-                    flight: &flight,
-                    free,
-                    path: &path,
-                };
-                let (per_run, prepared) = rayon::join(
+            (Some(e), Some(prepared)) => {
+                let shared = prepared.shared(sc, ti);
+                let (per_run, following) = rayon::join(
                     || mc.try_run_batches(range.clone(), RUN_BATCH, |runs| shared.runs(runs)),
-                    || trajs.get(ti + 1).map(|t| prepare(t, e)),
+                    || trajs.get(ti + 1).map(|t| Prepared::new(sc, t, e)),
                 );
-                next = prepared;
+                next = following;
                 per_run?
             }
             (Some(_), None) => Vec::new(),
             (None, _) => mc.try_run_range(range.clone(), |run, _| {
                 let mut rng = channel_rng(sc.seed, run as u64, ti as u64);
-                let flight = Flight::new(traj, true_errors(sc, &mut rng));
-                let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
-                let path = CovariancePath::new(sc, &flight);
-                let shared = Shared {
-                    sc,
-                    ti,
-                    flight: &flight,
-                    free,
-                    path: &path,
-                };
-                let replayed = replay(sc, &flight, &path, &mut rng, &[])?;
+                let prepared = Prepared::new(sc, traj, true_errors(sc, &mut rng));
+                let shared = prepared.shared(sc, ti);
+                let replayed = replay(sc, &prepared.flight, &prepared.path, &mut rng, &[])?;
                 shared
                     .finish_runs(&[run], &[replayed])
                     .pop()
@@ -793,6 +772,39 @@ fn runs_on<'t>(
         trajectories.push(per_run);
     }
     Ok(ExtendedStateRuns { trajectories })
+}
+
+/// What every run on one trajectory with one set of true errors needs
+/// before it flies: the thrust tables, the free INS's |Δx(t_B)| and the
+/// filter's covariance path.
+struct Prepared<'a> {
+    flight: Flight<'a>,
+    free: f64,
+    path: CovariancePath,
+}
+
+impl<'a> Prepared<'a> {
+    fn new(
+        sc: &ExtendedStateScenario,
+        traj: &'a LaunchTrajectory,
+        errors: LaunchInstrumentErrors,
+    ) -> Self {
+        let flight = Flight::new(traj, errors);
+        let free = flight.fly(Correction::None, LaunchIns::default(), 0, |_, _| {});
+        let path = CovariancePath::new(sc, &flight);
+        Self { flight, free, path }
+    }
+
+    /// The runs' view of it on trajectory `ti`.
+    fn shared<'s>(&'s self, sc: &'s ExtendedStateScenario, ti: usize) -> Shared<'s, 'a> {
+        Shared {
+            sc,
+            ti,
+            flight: &self.flight,
+            free: self.free,
+            path: &self.path,
+        }
+    }
 }
 
 /// What the runs on one trajectory with one set of true errors share.
