@@ -337,8 +337,10 @@ fn discrete_of_any(fdt: &Matrix21, qc: &Matrix21, dt: f64, pattern: bool) -> (Ma
     let mut phi = Matrix21::identity() + fdt;
     // (FΔt)²[i, j] = Σ_k FΔt[i, k] FΔt[k, j], summed over the columns k
     // that row i of F may hold ([`F_ROW_COLUMNS`]) and the columns j that
-    // row k may hold, each (i, j) in increasing k as the dense sum —
-    // the same additions in the same order, so the same Φ to the bit.
+    // row k may hold, each (i, j) in increasing k as the loop over
+    // every column adds ½ a b (the tests' reference; not (FΔt)² halved
+    // afterwards, which rounds differently) — the same additions in the
+    // same order, so the same Φ to the bit.
     // An F with nonzeros elsewhere (not `continuous`'s) is summed over
     // every column.
     const EVERY: [usize; STATES] = {
