@@ -584,38 +584,11 @@ fn parse_imu_line(
     csv_path: &Path,
     previous: Option<(usize, f64)>,
 ) -> Result<(ImuSample, f64)> {
-    use crate::text::{excerpt, num};
-    // The fields in place (no Vec per line), counted for the message.
-    let mut fields = [""; 7];
-    let mut count = 0;
-    for f in l.trim().split(',') {
-        if let Some(slot) = fields.get_mut(count) {
-            *slot = f;
-        }
-        count += 1;
-    }
-    if count != 7 {
-        return Err(data_error(
-            csv_path,
-            line,
-            "(line)",
-            format!("{count} fields, expected 7 (ax ay az [g], gx gy gz [deg/s], tick [ms])"),
-        ));
-    }
-    let mut v = [0.0; 7];
-    for (k, f) in fields.iter().enumerate() {
-        v[k] = crate::text::parse_f64(f.trim()).ok_or_else(|| {
-            data_error(
-                csv_path,
-                line,
-                IMU_COLUMNS[k],
-                format!("`{}` is not a number", excerpt(f)),
-            )
-        })?;
-        if !v[k].is_finite() {
-            return Err(data_error(csv_path, line, IMU_COLUMNS[k], "not finite"));
-        }
-    }
+    use crate::text::num;
+    let v = match plain_imu_fields(l) {
+        Some(v) => v,
+        None => imu_fields(l, line, csv_path)?,
+    };
     let angular_rate = Vector3::new(v[3], v[4], v[5]).map(f64::to_radians);
     check_rate(
         csv_path,
@@ -647,6 +620,57 @@ fn parse_imu_line(
         angular_rate,
     };
     Ok((sample, f_norm))
+}
+
+/// The seven values of an IMU line made of plain decimals only (exactly
+/// seven comma-separated fields, each [`crate::text::parse_plain_decimal`]:
+/// no space, no exponent): what [`imu_fields`] gives for it, bit for bit,
+/// without its trimming and splitting. None for any other line.
+fn plain_imu_fields(l: &str) -> Option<[f64; 7]> {
+    let mut v = [0.0; 7];
+    let mut fields = l.as_bytes().split(|&b| b == b',');
+    for slot in &mut v {
+        *slot = crate::text::parse_plain_decimal(fields.next()?)?;
+    }
+    fields.next().is_none().then_some(v)
+}
+
+/// The seven values of IMU line number `line` (text `l`), checked in this
+/// order: 7 fields, each a finite number.
+fn imu_fields(l: &str, line: usize, csv_path: &Path) -> Result<[f64; 7]> {
+    use crate::text::excerpt;
+    // The fields in place (no Vec per line), counted for the message.
+    let mut fields = [""; 7];
+    let mut count = 0;
+    for f in l.trim().split(',') {
+        if let Some(slot) = fields.get_mut(count) {
+            *slot = f;
+        }
+        count += 1;
+    }
+    if count != 7 {
+        return Err(data_error(
+            csv_path,
+            line,
+            "(line)",
+            format!("{count} fields, expected 7 (ax ay az [g], gx gy gz [deg/s], tick [ms])"),
+        ));
+    }
+    let mut v = [0.0; 7];
+    for (k, f) in fields.iter().enumerate() {
+        v[k] = crate::text::parse_f64(f.trim()).ok_or_else(|| {
+            data_error(
+                csv_path,
+                line,
+                IMU_COLUMNS[k],
+                format!("`{}` is not a number", excerpt(f)),
+            )
+        })?;
+        if !v[k].is_finite() {
+            return Err(data_error(csv_path, line, IMU_COLUMNS[k], "not finite"));
+        }
+    }
+    Ok(v)
 }
 
 /// The tick of line `line` must increase from that of `prev_line`.
@@ -1035,6 +1059,74 @@ mod tests {
             )),
             "{e}"
         );
+    }
+
+    /// The plain-decimal path of an IMU line gives what the general one
+    /// gives, bit for bit, and declines every line it does not fully read
+    /// (spaces, exponents, signs, field counts, stray bytes).
+    #[test]
+    fn plain_imu_lines_read_as_the_general_parse_reads_them() {
+        let mut state: u64 = 0x2545_F491_4F6C_DD1D;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let pieces = [
+            "0.119", "-0.671", "261906", "+1.5", "1e3", " 0.1", "0.1 ", "", "-", ".5", "7.",
+            "1.2.3", "x", "nan", "inf", "0000000000000001", "123456789012345", "-0",
+        ];
+        let mut lines: Vec<String> = vec![
+            "0.119,0.027,1.013,-0.671,3.082,0.198,261906".into(),
+            "0.119,0.027,1.013,-0.671,3.082,0.198,261906,".into(),
+            "0.119,0.027,1.013,-0.671,3.082,0.198".into(),
+            " 0.119,0.027,1.013,-0.671,3.082,0.198,261906\t".into(),
+            "0.119,0.027,1.013,-0.671,3.082,0.198,261906\r".into(),
+        ];
+        for _ in 0..20_000 {
+            let r = next();
+            let fields = 6 + (r % 3) as usize;
+            let line: Vec<String> = (0..fields)
+                .map(|_| {
+                    let r = next();
+                    if r % 4 == 0 {
+                        pieces[(r >> 8) as usize % pieces.len()].to_string()
+                    } else {
+                        let digits = 1 + (r >> 8) % 15;
+                        let mut s = if r & 0x10 != 0 { "-".to_string() } else { String::new() };
+                        let point = (r >> 16) % (digits + 1);
+                        for d in 0..digits {
+                            if d == point && d > 0 {
+                                s.push('.');
+                            }
+                            s.push(char::from(b'0' + (next() % 10) as u8));
+                        }
+                        s
+                    }
+                })
+                .collect();
+            lines.push(line.join(","));
+        }
+        let path = Path::new("imu.csv");
+        let mut plain = 0;
+        for l in &lines {
+            let general = imu_fields(l, 1, path);
+            if let Some(v) = plain_imu_fields(l) {
+                plain += 1;
+                let general = general.unwrap_or_else(|e| panic!("`{l}`: {e}"));
+                assert_eq!(v.map(f64::to_bits), general.map(f64::to_bits), "`{l}`");
+            }
+            let plain_shape = !l.contains(['e', 'E', ' ', '\t', '\r', 'n', 'i', 'x'])
+                && l.split(',').count() == 7
+                && l.split(',').all(|f| {
+                    let b = f.strip_prefix(['-', '+']).unwrap_or(f);
+                    let digits = b.bytes().filter(u8::is_ascii_digit).count();
+                    (1..=15).contains(&digits) && b.matches('.').count() <= 1
+                });
+            assert_eq!(plain_imu_fields(l).is_some(), plain_shape, "`{l}`");
+        }
+        assert!(plain > 1_000, "{plain} plain lines");
     }
 
     #[test]
