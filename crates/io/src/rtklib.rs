@@ -295,7 +295,14 @@ pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<Str
     let mut tokens: Vec<&str> = Vec::new();
     for (k, &(line, text)) in lines.iter().enumerate() {
         tokens.clear();
-        tokens.extend(text.split_whitespace());
+        // ASCII text without a vertical tab (the one ASCII byte Unicode
+        // calls white space and `u8::is_ascii_whitespace` does not) splits
+        // into the same tokens bytewise, several times faster.
+        if text.is_ascii() && !text.as_bytes().contains(&0x0B) {
+            tokens.extend(text.split_ascii_whitespace());
+        } else {
+            tokens.extend(text.split_whitespace());
+        }
         let is_last = k + 1 == lines.len();
         if tokens.len() < 2 + 13 {
             if is_last {
@@ -625,14 +632,47 @@ fn parse_imu_line(
 /// The seven values of an IMU line made of plain decimals only (exactly
 /// seven comma-separated fields, each [`crate::text::parse_plain_decimal`]:
 /// no space, no exponent): what [`imu_fields`] gives for it, bit for bit,
-/// without its trimming and splitting. None for any other line.
+/// in one pass over the bytes (no trimming, splitting or second scan of a
+/// field). None for any other line.
 fn plain_imu_fields(l: &str) -> Option<[f64; 7]> {
+    let bytes = l.as_bytes();
     let mut v = [0.0; 7];
-    let mut fields = l.as_bytes().split(|&b| b == b',');
-    for slot in &mut v {
-        *slot = crate::text::parse_plain_decimal(fields.next()?)?;
+    let mut i = 0;
+    for (k, slot) in v.iter_mut().enumerate() {
+        let negative = bytes.get(i) == Some(&b'-');
+        if negative || bytes.get(i) == Some(&b'+') {
+            i += 1;
+        }
+        let start = i;
+        let mut mantissa: u64 = 0;
+        let mut point = None;
+        while let Some(&b) = bytes.get(i) {
+            let digit = b.wrapping_sub(b'0');
+            if digit < 10 {
+                // Wraps only past 19 digits, refused below.
+                mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(digit));
+            } else if b == b'.' && point.is_none() {
+                point = Some(i);
+            } else {
+                break;
+            }
+            i += 1;
+        }
+        let digits = i - start - usize::from(point.is_some());
+        if digits == 0 || digits > 15 {
+            return None;
+        }
+        let after_point = point.map_or(0, |p| i - p - 1);
+        let x = mantissa as f64 / crate::text::EXACT_POWERS_OF_TEN[after_point];
+        *slot = if negative { -x } else { x };
+        if k < 6 {
+            if bytes.get(i) != Some(&b',') {
+                return None;
+            }
+            i += 1;
+        }
     }
-    fields.next().is_none().then_some(v)
+    (i == bytes.len()).then_some(v)
 }
 
 /// The seven values of IMU line number `line` (text `l`), checked in this
@@ -1127,6 +1167,27 @@ mod tests {
             assert_eq!(plain_imu_fields(l).is_some(), plain_shape, "`{l}`");
         }
         assert!(plain > 1_000, "{plain} plain lines");
+    }
+
+    /// The `.pos` reader's bytewise split of ASCII lines gives the tokens
+    /// `split_whitespace` gives, whatever ASCII byte separates them (but
+    /// the vertical tab, which goes to `split_whitespace`).
+    #[test]
+    fn ascii_pos_lines_split_as_split_whitespace_splits_them() {
+        for c in (0u8..128).filter(|&c| c != 0x0B) {
+            let c = char::from(c);
+            let line = format!("{c}2025/07/08 {c}{c}19:34:18.499{c}40.1 {c}");
+            assert_eq!(
+                line.split_ascii_whitespace().collect::<Vec<_>>(),
+                line.split_whitespace().collect::<Vec<_>>(),
+                "{c:?}"
+            );
+        }
+        let line = "1\u{b}2";
+        assert_ne!(
+            line.split_ascii_whitespace().count(),
+            line.split_whitespace().count()
+        );
     }
 
     #[test]

@@ -87,7 +87,7 @@ pub fn lines(text: &str) -> impl Iterator<Item = &str> {
 }
 
 /// Powers of ten exactly representable as f64.
-const EXACT_POWERS_OF_TEN: [f64; 16] = [
+pub(crate) const EXACT_POWERS_OF_TEN: [f64; 16] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
 ];
 
