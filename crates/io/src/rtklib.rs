@@ -1114,8 +1114,24 @@ mod tests {
             state
         };
         let pieces = [
-            "0.119", "-0.671", "261906", "+1.5", "1e3", " 0.1", "0.1 ", "", "-", ".5", "7.",
-            "1.2.3", "x", "nan", "inf", "0000000000000001", "123456789012345", "-0",
+            "0.119",
+            "-0.671",
+            "261906",
+            "+1.5",
+            "1e3",
+            " 0.1",
+            "0.1 ",
+            "",
+            "-",
+            ".5",
+            "7.",
+            "1.2.3",
+            "x",
+            "nan",
+            "inf",
+            "0000000000000001",
+            "123456789012345",
+            "-0",
         ];
         let mut lines: Vec<String> = vec![
             "0.119,0.027,1.013,-0.671,3.082,0.198,261906".into(),
@@ -1134,7 +1150,11 @@ mod tests {
                         pieces[(r >> 8) as usize % pieces.len()].to_string()
                     } else {
                         let digits = 1 + (r >> 8) % 15;
-                        let mut s = if r & 0x10 != 0 { "-".to_string() } else { String::new() };
+                        let mut s = if r & 0x10 != 0 {
+                            "-".to_string()
+                        } else {
+                            String::new()
+                        };
                         let point = (r >> 16) % (digits + 1);
                         for d in 0..digits {
                             if d == point && d > 0 {

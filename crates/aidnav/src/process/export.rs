@@ -258,53 +258,16 @@ pub fn write_solution(
     epochs: &[Epoch],
     between: &[SolutionRow],
 ) -> Result<Vec<String>, IoError> {
-    let (header, rows) = solution_table(epochs, between);
-    write_table_noting_infinities(path, &header, rows)
+    // The rows streamed as arrays: no table in memory, no allocation per row.
+    aidnav_io::writers::write_rows(path, &solution_header(), solution_rows(epochs, between))
 }
 
-/// The header and rows of `solution.csv` ([`write_solution`]).
-pub fn solution_table(
-    epochs: &[Epoch],
-    between: &[SolutionRow],
-) -> (Vec<&'static str>, Vec<Vec<f64>>) {
-    let navigation = |row: &SolutionRow| {
-        let (r, p, y) = row.attitude.euler_angles();
-        let mut v = time_and_positions(row.time_s, &row.antenna, &row.imu);
-        v.extend([
-            row.velocity.x(),
-            row.velocity.y(),
-            row.velocity.z(),
-            r.to_degrees(),
-            p.to_degrees(),
-            y.to_degrees(),
-        ]);
-        v.extend(row.sigma.iter());
-        v.extend(row.sigma_velocity.iter());
-        v.extend(row.sigma_attitude.iter().map(|a| a.to_degrees()));
-        v
-    };
-    let epoch_rows = epochs.iter().map(|e| {
-        let mut row = navigation(&e.row());
-        row.extend([e.nis, e.convergence, e.k_eff]);
-        row.extend(e.innovation.iter());
-        row.push(match e.outcome {
-            Some(Outcome::Accepted) => 1.0,
-            Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
-            Some(Outcome::Rejected) => 3.0,
-            Some(Outcome::Reset) => 4.0,
-            _ => 0.0,
-        });
-        row
-    });
-    let other_rows = between.iter().map(|b| {
-        let mut row = navigation(b);
-        // No fix: NIS, δ, K_eff, innovation are NaN, outcome 0.
-        row.extend([f64::NAN; 6]);
-        row.push(0.0);
-        row
-    });
-    let rows = merge_in_time(epoch_rows, other_rows, |row| row[0]).collect();
-    let header: Vec<&str> = POSITION_COLUMNS
+/// Columns of `solution.csv`.
+const SOLUTION_COLUMNS: usize = POSITION_COLUMNS.len() + 22;
+
+/// The header of `solution.csv`.
+fn solution_header() -> Vec<&'static str> {
+    POSITION_COLUMNS
         .iter()
         .copied()
         .chain([
@@ -331,8 +294,90 @@ pub fn solution_table(
             "innovation_d [m]",
             "outcome (1 accepted, 2 limited, 3 rejected, 4 reset to the fix, 0 no fix)",
         ])
-        .collect();
-    (header, rows)
+        .collect()
+}
+
+/// The navigation columns of a `solution.csv` row (all but NIS, δ, K_eff,
+/// innovation and outcome).
+fn navigation_values(row: &SolutionRow) -> [f64; SOLUTION_COLUMNS - 7] {
+    let (r, p, y) = row.attitude.euler_angles();
+    let [t, a0, a1, a2, i0, i1, i2] = time_and_positions(row.time_s, &row.antenna, &row.imu);
+    [
+        t,
+        a0,
+        a1,
+        a2,
+        i0,
+        i1,
+        i2,
+        row.velocity.x(),
+        row.velocity.y(),
+        row.velocity.z(),
+        r.to_degrees(),
+        p.to_degrees(),
+        y.to_degrees(),
+        row.sigma[0],
+        row.sigma[1],
+        row.sigma[2],
+        row.sigma_velocity[0],
+        row.sigma_velocity[1],
+        row.sigma_velocity[2],
+        row.sigma_attitude[0].to_degrees(),
+        row.sigma_attitude[1].to_degrees(),
+        row.sigma_attitude[2].to_degrees(),
+    ]
+}
+
+/// The rows of `solution.csv` in time order ([`write_solution`]).
+fn solution_rows<'a>(
+    epochs: &'a [Epoch],
+    between: &'a [SolutionRow],
+) -> impl Iterator<Item = [f64; SOLUTION_COLUMNS]> + 'a {
+    let row = |navigation: [f64; SOLUTION_COLUMNS - 7], rest: [f64; 7]| {
+        let mut row = [0.0; SOLUTION_COLUMNS];
+        row[..SOLUTION_COLUMNS - 7].copy_from_slice(&navigation);
+        row[SOLUTION_COLUMNS - 7..].copy_from_slice(&rest);
+        row
+    };
+    let epoch_rows = epochs.iter().map(move |e| {
+        let outcome = match e.outcome {
+            Some(Outcome::Accepted) => 1.0,
+            Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
+            Some(Outcome::Rejected) => 3.0,
+            Some(Outcome::Reset) => 4.0,
+            _ => 0.0,
+        };
+        row(
+            navigation_values(&e.row()),
+            [
+                e.nis,
+                e.convergence,
+                e.k_eff,
+                e.innovation[0],
+                e.innovation[1],
+                e.innovation[2],
+                outcome,
+            ],
+        )
+    });
+    // No fix: NIS, δ, K_eff, innovation are NaN, outcome 0.
+    let other_rows = between.iter().map(move |b| {
+        let mut rest = [f64::NAN; 7];
+        rest[6] = 0.0;
+        row(navigation_values(b), rest)
+    });
+    merge_in_time(epoch_rows, other_rows, |row| row[0])
+}
+
+/// The header and rows of `solution.csv` ([`write_solution`]).
+pub fn solution_table(
+    epochs: &[Epoch],
+    between: &[SolutionRow],
+) -> (Vec<&'static str>, Vec<Vec<f64>>) {
+    (
+        solution_header(),
+        solution_rows(epochs, between).map(Vec::from).collect(),
+    )
 }
 
 /// Write `navresult.txt` in KF-GINS's layout: the GNSS epochs and the rows
@@ -380,7 +425,7 @@ pub fn write_selected(path: &Path, selected: &[SelectedEpoch]) -> Result<Vec<Str
         Source::Gnss => 2.0,
     };
     let rows = selected.iter().map(|s| {
-        vec![
+        [
             s.time_s,
             code(s.position_source),
             s.position.latitude_rad.to_degrees(),
@@ -394,7 +439,7 @@ pub fn write_selected(path: &Path, selected: &[SelectedEpoch]) -> Result<Vec<Str
             s.k_eff_velocity,
         ]
     });
-    write_table_noting_infinities(
+    aidnav_io::writers::write_rows(
         path,
         &[
             POSITION_COLUMNS[0],
@@ -415,8 +460,13 @@ pub fn write_selected(path: &Path, selected: &[SelectedEpoch]) -> Result<Vec<Str
 
 /// Write `smoothed.csv`: time and the smoothed antenna and IMU positions.
 pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<Vec<String>, IoError> {
-    let (header, rows) = smoothed_table(smoothed);
-    write_table_noting_infinities(path, &header, rows)
+    aidnav_io::writers::write_rows(
+        path,
+        &POSITION_COLUMNS,
+        smoothed
+            .iter()
+            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position)),
+    )
 }
 
 /// The header and rows of `smoothed.csv` ([`write_smoothed`]).
@@ -425,7 +475,7 @@ pub fn smoothed_table(smoothed: &[Epoch]) -> (Vec<&'static str>, Vec<Vec<f64>>) 
         POSITION_COLUMNS.to_vec(),
         smoothed
             .iter()
-            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position))
+            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position).to_vec())
             .collect(),
     )
 }
@@ -442,8 +492,8 @@ const POSITION_COLUMNS: [&str; 7] = [
 ];
 
 /// The values of [`POSITION_COLUMNS`].
-fn time_and_positions(time_s: f64, antenna: &Geodetic, imu: &Geodetic) -> Vec<f64> {
-    vec![
+fn time_and_positions(time_s: f64, antenna: &Geodetic, imu: &Geodetic) -> [f64; 7] {
+    [
         time_s,
         antenna.latitude_rad.to_degrees(),
         antenna.longitude_rad.to_degrees(),
@@ -456,39 +506,52 @@ fn time_and_positions(time_s: f64, antenna: &Geodetic, imu: &Geodetic) -> Vec<f6
 
 /// Write `instruments.csv`: the instrument corrections after every epoch.
 pub fn write_instruments(path: &Path, epochs: &[Epoch]) -> Result<Vec<String>, IoError> {
-    let (header, rows) = instruments_table(epochs);
-    write_table_noting_infinities(path, &header, rows)
+    aidnav_io::writers::write_rows(
+        path,
+        &INSTRUMENT_COLUMNS,
+        epochs.iter().map(instrument_values),
+    )
+}
+
+/// The header of `instruments.csv`.
+const INSTRUMENT_COLUMNS: [&str; 13] = [
+    "time [s GPST since 1970]",
+    "gyro_bias_x [deg/h]",
+    "gyro_bias_y [deg/h]",
+    "gyro_bias_z [deg/h]",
+    "accel_bias_x [mg]",
+    "accel_bias_y [mg]",
+    "accel_bias_z [mg]",
+    "gyro_scale_x [ppm]",
+    "gyro_scale_y [ppm]",
+    "gyro_scale_z [ppm]",
+    "accel_scale_x [ppm]",
+    "accel_scale_y [ppm]",
+    "accel_scale_z [ppm]",
+];
+
+/// An epoch's row of `instruments.csv`: time, gyro bias \[deg/h\],
+/// accelerometer bias \[mg\], gyro and accelerometer scale factors \[ppm\].
+fn instrument_values(e: &Epoch) -> [f64; 13] {
+    let i = &e.instruments;
+    let mut row = [0.0; 13];
+    row[0] = e.time_s();
+    for k in 0..3 {
+        row[1 + k] = i.gyro_bias[k].to_degrees() * 3600.0;
+        row[4 + k] = i.accel_bias[k] / 9.806_65 * 1e3;
+        row[7 + k] = i.gyro_scale[k] * 1e6;
+        row[10 + k] = i.accel_scale[k] * 1e6;
+    }
+    row
 }
 
 /// The header and rows of `instruments.csv` ([`write_instruments`]).
 pub fn instruments_table(epochs: &[Epoch]) -> (Vec<&'static str>, Vec<Vec<f64>>) {
     (
-        vec![
-            "time [s GPST since 1970]",
-            "gyro_bias_x [deg/h]",
-            "gyro_bias_y [deg/h]",
-            "gyro_bias_z [deg/h]",
-            "accel_bias_x [mg]",
-            "accel_bias_y [mg]",
-            "accel_bias_z [mg]",
-            "gyro_scale_x [ppm]",
-            "gyro_scale_y [ppm]",
-            "gyro_scale_z [ppm]",
-            "accel_scale_x [ppm]",
-            "accel_scale_y [ppm]",
-            "accel_scale_z [ppm]",
-        ],
+        INSTRUMENT_COLUMNS.to_vec(),
         epochs
             .iter()
-            .map(|e| {
-                let i = &e.instruments;
-                let mut row = vec![e.time_s()];
-                row.extend(i.gyro_bias.iter().map(|v| v.to_degrees() * 3600.0));
-                row.extend(i.accel_bias.iter().map(|v| v / 9.806_65 * 1e3));
-                row.extend(i.gyro_scale.iter().map(|v| v * 1e6));
-                row.extend(i.accel_scale.iter().map(|v| v * 1e6));
-                row
-            })
+            .map(|e| instrument_values(e).to_vec())
             .collect(),
     )
 }
