@@ -271,11 +271,12 @@ fn push_number(text: &mut Vec<u8>, v: f64) {
 /// out — plain decimal, never an exponent (`1e-7` is `0.0000001`, `1e300` a
 /// 1 and 300 zeros), no trailing `.0`, `-0` for −0.0, `inf`/`-inf`.
 ///
-/// The digits are Ryū's, about three times faster than `core::fmt`'s
-/// Grisu/Dragon (float formatting was a tenth of `aidnav process`'s CPU).
+/// The digits are zmij's (a Schubfach-family shortest printer, faster than
+/// Ryū, which was about three times faster than `core::fmt`'s Grisu/Dragon;
+/// float formatting was a tenth of `aidnav process`'s CPU).
 /// Both give the shortest digit string that reads back as `v`, the one
-/// nearest to `v`; they differ only when two such strings are equally near
-/// (Ryū takes the even last digit, `core::fmt` rounds the tie up, e.g.
+/// nearest to `v`; they may differ only when two such strings are equally
+/// near (Ryū takes the even last digit, `core::fmt` rounds the tie up, e.g.
 /// 1234560000000000.25: `.2` and `.3`). Such a tie needs `v`'s exact
 /// decimal expansion to be one digit longer than its shortest form, so at
 /// most 18 significant digits, ending in 5 — a value with a short binary
@@ -288,19 +289,14 @@ pub fn push_display(text: &mut Vec<u8>, v: f64) {
         text.extend_from_slice(if v > 0.0 { b"inf" } else { b"-inf" });
         return;
     }
-    if short_exact_decimal(v) {
-        use std::io::Write as _;
-        // Writing into a Vec cannot fail.
-        let _ = write!(text, "{v}");
-        return;
-    }
-    let mut buffer = ryu::Buffer::new();
+    let exact_digits = short_exact_decimal(v);
+    let mut buffer = zmij::Buffer::new();
     let written = buffer.format_finite(v).as_bytes();
     let (negative, written) = match written.split_first() {
         Some((b'-', rest)) => (true, rest),
         _ => (false, written),
     };
-    // Ryū writes `d.ddd`, `0.000ddd` or `d.ddde±x`: the digits, where the
+    // zmij writes `d.ddd`, `0.000ddd` or `d.ddde±xx`: the digits, where the
     // decimal point sits among them, and a power of ten.
     let (mantissa, exponent) = match written.iter().position(|&b| b == b'e') {
         Some(e) => (&written[..e], parse_exponent(&written[e + 1..])),
@@ -321,6 +317,15 @@ pub fn push_display(text: &mut Vec<u8>, v: f64) {
     let mut significant = &digits[leading..count];
     while let [rest @ .., b'0'] = significant {
         significant = rest;
+    }
+    if exact_digits.is_some_and(|n| n != significant.len()) {
+        // Shorter than the exact expansion: a tie is possible, and
+        // `core::fmt` breaks it its own way. (As long as it, the shortest
+        // digits are the exact expansion, whichever printer finds them.)
+        use std::io::Write as _;
+        // Writing into a Vec cannot fail.
+        let _ = write!(text, "{v}");
+        return;
     }
     // The decimal point lies `point` digits into `significant`.
     let point = before_point as i64 - leading as i64 + exponent;
@@ -345,13 +350,15 @@ pub fn push_display(text: &mut Vec<u8>, v: f64) {
     }
 }
 
-/// Whether finite `v` has a fractional part and an exact decimal expansion
-/// of at most 18 significant digits (where the shortest round-trip digits
-/// may have a tie, see [`push_display`]). An integer cannot tie: its
+/// The number of significant digits of finite `v`'s exact decimal
+/// expansion when `v` has a fractional part and that expansion has at most
+/// 18 significant digits (where the shortest round-trip digits may have a
+/// tie, see [`push_display`]); None otherwise. An integer cannot tie: its
 /// rounding interval is narrower than the unit of any digit it could drop
 /// and still read back. With `v = m 2^(−f)` (m odd, f > 0) the expansion is
-/// the digits of `m 5^f`, more than 18 for f > 32 (5³³ > 10²³).
-fn short_exact_decimal(v: f64) -> bool {
+/// the digits of `m 5^f` (odd: no trailing zero), more than 18 for f > 32
+/// (5³³ > 10²³).
+fn short_exact_decimal(v: f64) -> Option<usize> {
     let bits = v.to_bits();
     let biased = ((bits >> 52) & 0x7FF) as i64;
     let fraction = bits & ((1 << 52) - 1);
@@ -361,22 +368,36 @@ fn short_exact_decimal(v: f64) -> bool {
         (fraction | (1 << 52), biased - 1075)
     };
     if m == 0 {
-        return false;
+        return None;
     }
     let zeros = m.trailing_zeros();
     m >>= zeros;
     e += i64::from(zeros);
     if !(-32..0).contains(&e) {
-        return false;
+        return None;
     }
-    let exact = u128::from(m) * 5_u128.pow((-e) as u32);
-    exact.ilog10() < 18
+    // m < 2⁵³ and 5³² < 2⁷⁵: the product fits in 128 bits.
+    let exact = u128::from(m) * POWERS_OF_FIVE[(-e) as usize];
+    let digits = exact.ilog10() as usize + 1;
+    (digits <= 18).then_some(digits)
 }
 
-/// The decimal exponent Ryū writes after `e` (an optional `-`, digits).
+/// 5ᵏ for k = 0 … 32 ([`short_exact_decimal`]'s exact expansions).
+const POWERS_OF_FIVE: [u128; 33] = {
+    let mut p = [1_u128; 33];
+    let mut k = 1;
+    while k < 33 {
+        p[k] = p[k - 1] * 5;
+        k += 1;
+    }
+    p
+};
+
+/// The decimal exponent written after `e` (an optional sign, digits).
 fn parse_exponent(bytes: &[u8]) -> i64 {
     let (sign, digits) = match bytes.split_first() {
         Some((b'-', rest)) => (-1, rest),
+        Some((b'+', rest)) => (1, rest),
         _ => (1, bytes),
     };
     sign * digits
@@ -828,7 +849,7 @@ mod tests {
 
     /// [`push_display`] against `format!("{v}")`, byte for byte: edge
     /// cases (zeros, subnormals, the extremes, integers, powers of ten and
-    /// their neighbours across the range where Ryū switches to an exponent,
+    /// their neighbours across the range where zmij switches to an exponent,
     /// 1e±16 and beyond), short decimals as logs hold them, and a million
     /// random bit patterns over every exponent.
     #[test]
@@ -869,6 +890,16 @@ mod tests {
             123_456.789,
             1.752003261729e9,
             std::f64::consts::PI,
+            // Ties between two shortest digit strings (`core::fmt` rounds
+            // up), and exact short expansions that are the shortest digits.
+            1_234_560_000_000_000.2,
+            1_234_560_000_000_000.3,
+            2_251_799_813_685_248.5,
+            1_125_899_906_842_624.2,
+            562_949_953_421_312.1,
+            1_752_003_258.5,
+            0.25,
+            0.000_030_517_578_125,
         ];
         for e in -325..=308 {
             let p: f64 = format!("1e{e}").parse().unwrap();
