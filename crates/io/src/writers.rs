@@ -292,6 +292,12 @@ pub fn push_display(text: &mut Vec<u8>, v: f64) {
     let exact_digits = short_exact_decimal(v);
     let mut buffer = zmij::Buffer::new();
     let written = buffer.format_finite(v).as_bytes();
+    if exact_digits.is_none() && !written.contains(&b'e') {
+        // zmij's plain form (`-ddd.ddd`, `0.000ddd`, `ddd.0`) is Display's
+        // but for the `.0` of an integer.
+        text.extend_from_slice(written.strip_suffix(b".0").unwrap_or(written));
+        return;
+    }
     let (negative, written) = match written.split_first() {
         Some((b'-', rest)) => (true, rest),
         _ => (false, written),
@@ -960,6 +966,13 @@ mod tests {
             let r = next();
             let v = (r % 10_000_000) as f64 / 10f64.powi((r >> 40) as i32 % 12);
             check(v);
+        }
+        // Full-precision values over the magnitudes the printer writes
+        // without an exponent (1e-7 … 1e17), as tables hold them.
+        for _ in 0..300_000 {
+            let r = next();
+            let unit = (r >> 11) as f64 / (1u64 << 53) as f64;
+            check(10f64.powf(-7.0 + 24.0 * unit));
         }
     }
 
