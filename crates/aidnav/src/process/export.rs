@@ -33,33 +33,34 @@ pub fn write_files(
     navresult: bool,
 ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
     begin_outputs(out)?;
-    // Two threads: this one writes the navigation tables (`solution.csv`,
-    // `navresult.txt`, `smoothed.csv`), a second one `selected.csv`,
-    // `instruments.csv` and the charts — the same files, listed in the same
-    // order, and the same error when one fails (the first in that order).
+    // Three threads: this one writes the navigation tables (`solution.csv`,
+    // `navresult.txt`, `smoothed.csv`), a second one `selected.csv` and
+    // `instruments.csv`, a third the charts (about as much work as the
+    // tables of either) — the same files, listed in the same order, and the
+    // same error when one fails (the first in that order).
     let trajectory = out.join("trajectory.svg");
     let innovations = out.join("innovations.svg");
     let drift = scores.map(|_| out.join("outage_drift.svg"));
     let (navigation, (others, charts)) = std::thread::scope(|s| {
-        let second = s.spawn(|| {
-            let others = write_other_tables(result, out);
-            let charts = (|| -> Result<(), IoError> {
-                trajectory_chart(result).write_svg(&trajectory)?;
-                innovations_chart(result).write_svg(&innovations)?;
-                if let (Some(scores), Some(path)) = (scores, &drift) {
-                    drift_chart(scores).write_svg(path)?;
-                }
-                Ok(())
-            })();
-            (others, charts)
+        let others = s.spawn(|| write_other_tables(result, out));
+        let charts = s.spawn(|| -> Result<(), IoError> {
+            trajectory_chart(result).write_svg(&trajectory)?;
+            innovations_chart(result).write_svg(&innovations)?;
+            if let (Some(scores), Some(path)) = (scores, &drift) {
+                drift_chart(scores).write_svg(path)?;
+            }
+            Ok(())
         });
         let navigation = write_navigation_tables(result, out, navresult);
-        // A panic on the second thread is re-raised here, as it would have
+        // A panic on another thread is re-raised here, as it would have
         // been on this one.
-        let second = second
+        let others = others
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (navigation, second)
+        let charts = charts
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (navigation, (others, charts))
     });
     let (mut files, mut warnings) = navigation?;
     let (other_files, other_warnings) = others?;
