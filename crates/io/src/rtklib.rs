@@ -540,10 +540,26 @@ pub fn read_tagged_imu(csv_path: &Path, tag_path: &Path) -> Result<(Vec<ImuSampl
 /// means the tag file does not belong to the log.
 const MAX_TICK_SCALE_ERROR: f64 = 0.1;
 
-/// Lines of an IMU CSV from which [`read_tagged_imu_from`] parses the file
-/// in two halves on two threads (about a minute of a 100 Hz log; below it a
-/// thread costs more than it saves).
-const PARALLEL_IMU_LINES: usize = 8_192;
+/// Bytes of an IMU CSV from which [`read_tagged_imu_from`] splits and
+/// parses the file in two halves on two threads (about a minute of a
+/// 100 Hz log; below it a thread costs more than it saves).
+const PARALLEL_IMU_BYTES: usize = 256 * 1024;
+
+/// Where [`read_tagged_imu_from`] cuts a large text in two: just after the
+/// first line terminator at or after the middle byte (after both bytes of
+/// a CR LF), so that the lines of the two parts are the lines of the
+/// whole. None when no terminator follows the middle or nothing follows it.
+fn line_boundary_near_middle(text: &str) -> Option<usize> {
+    let bytes = text.as_bytes();
+    let middle = bytes.len() / 2;
+    let at = middle + memchr::memchr2(b'\n', b'\r', &bytes[middle..])?;
+    let end = if bytes[at..].starts_with(b"\r\n") {
+        at + 2
+    } else {
+        at + 1
+    };
+    (end < bytes.len()).then_some(end)
+}
 
 /// Parsed IMU lines: each line's sample (SI, body of the sensor) with its
 /// tick \[ms\] in place of the time (the tick-to-time scale needs the last
@@ -753,54 +769,87 @@ pub fn read_tagged_imu_from(
         .map(|&(ms, _)| ms)
         .ok_or_else(|| data_error(tag_path, 0, "(tags)", "no time tags"))?;
     let text = crate::text::decode(csv, csv_path)?;
-    let lines: Vec<&str> = crate::text::lines(text).collect();
+    // A large file is cut at a line boundary near its middle; each part is
+    // split into lines and parsed on its own thread. The second part's
+    // lines are numbered from 1 until the first part's count is known
+    // (its error, if any, is made again below with the line's number).
+    // Each part stops at its first error; the error reported is the first
+    // in file order, as a parse from the top finds it: the first part's,
+    // else the tick of the second part's first line against the first
+    // part's last (the last check of that line), else the second part's.
+    let boundary = if text.len() >= PARALLEL_IMU_BYTES {
+        line_boundary_near_middle(text)
+    } else {
+        None
+    };
+    // The first part is parsed from its second line (the file's first is
+    // not parsed), the whole file's body from line 2 to the last but one.
+    let body_start = 1;
+    let (lines, (mut parsed, first_error), second) = match boundary {
+        Some(cut) => std::thread::scope(|s| {
+            let second = s.spawn(|| {
+                let lines: Vec<&str> = crate::text::lines(&text[cut..]).collect();
+                // The file's last line is not parsed.
+                let body = 0..lines.len().saturating_sub(1);
+                let parsed = parse_imu_lines(&lines, body.clone(), csv_path, body.len());
+                (lines, parsed)
+            });
+            let lines: Vec<&str> = crate::text::lines(&text[..cut]).collect();
+            // Room for about as many lines again: the second part is
+            // appended without a copy of the first.
+            let first = parse_imu_lines(&lines, body_start..lines.len(), csv_path, 2 * lines.len());
+            let second = second
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (lines, first, Some(second))
+        }),
+        None => {
+            let lines: Vec<&str> = crate::text::lines(text).collect();
+            let body = body_start..lines.len().saturating_sub(1);
+            let first = parse_imu_lines(&lines, body.clone(), csv_path, body.len());
+            (lines, first, None)
+        }
+    };
+    let line_count = lines.len() + second.as_ref().map_or(0, |(l, _)| l.len());
     let mut warnings = Vec::new();
-    if lines.len() < 4 {
+    if line_count < 4 {
         return Err(data_error(
             csv_path,
             0,
             "(file)",
-            format!("{} lines: too short for an IMU log", lines.len()),
+            format!("{line_count} lines: too short for an IMU log"),
         ));
     }
     warnings.push(format!(
         "{}: first and last line dropped (logger artefact, as upstream)",
         csv_path.display()
     ));
-    // The lines between the first and the last, parsed in two halves on two
-    // threads for a large file. Each half stops at its first error; the
-    // error reported is the first in file order, as a parse from the top
-    // finds it: the first half's, else the tick of the second half's first
-    // line against the first half's last (the last check of that line),
-    // else the second half's.
-    let body = 1..lines.len() - 1;
-    let (first, second) = if body.len() >= PARALLEL_IMU_LINES {
-        let middle = body.start + body.len() / 2;
-        std::thread::scope(|s| {
-            let second =
-                s.spawn(|| parse_imu_lines(&lines, middle..body.end, csv_path, body.end - middle));
-            // Room for the second half too: it is appended without a copy
-            // of the first.
-            let first = parse_imu_lines(&lines, body.start..middle, csv_path, body.len());
-            let second = second
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-            (first, second)
-        })
-    } else {
-        (
-            parse_imu_lines(&lines, body.clone(), csv_path, body.len()),
-            (ParsedImu::default(), None),
-        )
-    };
-    let (mut parsed, first_error) = first;
     if let Some(e) = first_error {
         return Err(e);
     }
-    let (rest, second_error) = second;
+    let (rest, second_error) = match second {
+        Some((rest_lines, (rest, error))) => {
+            // The second part's error again, numbered in the file: the
+            // line's number and the line before's (as the parse from the
+            // top passes it) are offset by the first part's lines.
+            let error = error.map(|_| {
+                let j = rest.samples.len();
+                let previous = j
+                    .checked_sub(1)
+                    .map(|p| (lines.len() + j, rest.samples[p].time_s));
+                parse_imu_line(rest_lines[j], lines.len() + j + 1, csv_path, previous)
+                    .err()
+                    .unwrap_or_else(|| {
+                        data_error(csv_path, lines.len() + j + 1, "(line)", "unreadable line")
+                    })
+            });
+            (rest, error)
+        }
+        None => (ParsedImu::default(), None),
+    };
     if let (Some(last), Some(next)) = (parsed.samples.last(), rest.samples.first()) {
-        // The second half's first line is the line after the first half's last.
-        let line = body.start + parsed.samples.len() + 1;
+        // The second part's first line is the line after the first part's last.
+        let line = body_start + parsed.samples.len() + 1;
         check_tick(csv_path, line, next.time_s, line - 1, last.time_s)?;
     }
     if let Some(e) = second_error {
@@ -821,7 +870,7 @@ pub fn read_tagged_imu_from(
     if !(0.5..=2.0).contains(&median) {
         return Err(data_error(
             csv_path,
-            body.start + 1,
+            body_start + 1,
             "ax [g]",
             format!(
                 "median |f| = {median:.3} in the file's unit, expected ≈ 1 g{}",
@@ -1048,11 +1097,15 @@ mod tests {
     /// it, and a tick that does not increase across the halves' boundary.
     #[test]
     fn a_file_parsed_in_halves_reports_the_first_error_in_file_order() {
-        let n = 2 * PARALLEL_IMU_LINES + 11;
+        // About twice the bytes from which the file is cut in two.
+        let n = PARALLEL_IMU_BYTES / 16 + 11;
         let line = |k: usize| format!("0.01,0.02,1.0,0.1,-0.2,0.3,{}", 1000 + 10 * k);
         let good: Vec<String> = (0..n).map(line).collect();
         let tags = [(0, 0), (10 * (n as u32 - 3), 100)];
         let whole = |lines: &[String]| lines.join("\n") + "\n";
+        let text = whole(&good);
+        assert!(text.len() >= 2 * PARALLEL_IMU_BYTES);
+        let cut = line_boundary_near_middle(&text).unwrap();
         let (samples, _) = imu(&whole(&good), &tags).unwrap();
         assert_eq!(samples.len(), n - 2);
         let from_the_top = |lines: &[String]| {
@@ -1061,14 +1114,15 @@ mod tests {
                 .1
                 .map(|e| e.to_string())
         };
-        // Body lines are 2 … n − 1; the second half starts at line
-        // 2 + (n − 2) / 2.
-        let boundary = 2 + (n - 2) / 2;
+        // The second part starts at line `boundary`. The spoiled lines keep
+        // their length, so the cut stays where it is.
+        let boundary = crate::text::lines(&text[..cut]).count() + 1;
         let bad_tick = |lines: &mut Vec<String>, at: usize| {
-            lines[at - 1] = "0.01,0.02,1.0,0.1,-0.2,0.3,5".into();
+            let (head, tick) = lines[at - 1].rsplit_once(',').unwrap();
+            lines[at - 1] = format!("{head},{:0>w$}", 5, w = tick.len());
         };
         let bad_field = |lines: &mut Vec<String>, at: usize| {
-            lines[at - 1] = "0.01,x,1.0,0.1,-0.2,0.3,7".into();
+            lines[at - 1] = lines[at - 1].replacen("0.02", "0.0x", 1);
         };
         type Spoil = fn(&mut Vec<String>, usize);
         let cases: [&[(usize, Spoil)]; 6] = [
@@ -1084,6 +1138,7 @@ mod tests {
             for (at, spoil) in spoils {
                 spoil(&mut lines, *at);
             }
+            assert_eq!(line_boundary_near_middle(&whole(&lines)), Some(cut));
             let expected = from_the_top(&lines).expect("an error");
             let e = imu(&whole(&lines), &tags).unwrap_err().to_string();
             assert_eq!(e, expected);
@@ -1187,6 +1242,43 @@ mod tests {
             assert_eq!(plain_imu_fields(l).is_some(), plain_shape, "`{l}`");
         }
         assert!(plain > 1_000, "{plain} plain lines");
+    }
+
+    /// Cutting a text where [`line_boundary_near_middle`] says keeps its
+    /// lines: those of the two parts are those of the whole, whatever the
+    /// terminators (LF, CR LF, lone CR, empty lines).
+    #[test]
+    fn the_cut_near_the_middle_keeps_the_lines() {
+        let mut state: u64 = 0x1234_5678_9ABC_DEF1;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut cut_somewhere = 0;
+        for _ in 0..5_000 {
+            let len = (next() % 40) as usize;
+            let text: String = (0..len)
+                .map(|_| match next() % 6 {
+                    0 => '\n',
+                    1 => '\r',
+                    2 => 'x',
+                    3 => ',',
+                    _ => '1',
+                })
+                .collect();
+            let whole: Vec<&str> = crate::text::lines(&text).collect();
+            if let Some(cut) = line_boundary_near_middle(&text) {
+                cut_somewhere += 1;
+                assert!(cut >= text.len() / 2 && cut < text.len());
+                let parts: Vec<&str> = crate::text::lines(&text[..cut])
+                    .chain(crate::text::lines(&text[cut..]))
+                    .collect();
+                assert_eq!(parts, whole, "{text:?} cut at {cut}");
+            }
+        }
+        assert!(cut_somewhere > 1_000);
     }
 
     /// The `.pos` reader's bytewise split of ASCII lines gives the tokens
