@@ -652,8 +652,9 @@ mod tests {
     /// sometimes inexactly symmetric; long enough for many batches)
     /// through the worker and inline: marks, mirrored state and every
     /// smoothed number bit for bit equal; a copy taken midway smooths like
-    /// an inline recorder stopped there; the mark limit overflows the same
-    /// way.
+    /// an inline recorder stopped there; a visit that fails stops the
+    /// backward pass at the same mark with its error; the mark limit
+    /// overflows the same way.
     #[test]
     fn the_worker_records_exactly_what_the_recorder_does_inline() {
         const EPOCHS: usize = 12_000;
@@ -740,6 +741,26 @@ mod tests {
             let (sb, si) = (sb.unwrap(), si.unwrap());
             assert_eq!(sb.len(), (EPOCHS - 1) / 4);
             assert_eq!(sb, si);
+            // A visit that fails stops the pass there, with its error, and
+            // the recording goes on answering (the pass again, whole).
+            let stopped = |rec: &Recording<4>| {
+                let mut visited = 0;
+                let result = rec.smooth_with(|m, _, _| {
+                    visited += 1;
+                    if m == 1000 {
+                        return Err(EstimationError::Singular {
+                            step: aidnav_estimation::Step::Smooth,
+                            matrix: aidnav_estimation::Matrix::P,
+                        });
+                    }
+                    Ok(())
+                });
+                (visited, result)
+            };
+            let (visited, result) = stopped(&background);
+            assert_eq!((visited, &result), (sb.len() - 1000, &stopped(&inline).1));
+            assert!(result.is_err());
+            assert_eq!(smoothed(&background).unwrap(), si);
             let (cb, ci) = (copy_b.unwrap(), copy_i.unwrap());
             assert!(matches!(cb, Recording::Inline(_)));
             assert_eq!(smoothed(&cb).unwrap(), smoothed(&ci).unwrap());
