@@ -5,60 +5,96 @@
 //! step into the backward map, a few 21³ products) inline, which made the
 //! smoother about as expensive as the forward pass it records. None of it
 //! feeds back into the filter, so [`Recording`] runs it on a second thread:
-//! the filter sends the recorder's calls, in batches (a wake-up per call
-//! cost more than the call on a busy machine), through a bounded channel
-//! and goes on, and the worker calls the same recorder in the same order — the
+//! the filter writes the recorder's calls into flat batch buffers that go
+//! to the worker through a bounded channel and come back to be filled
+//! again, and the worker calls the same recorder in the same order — the
 //! arithmetic, hence every smoothed number, is the engine's, bit for bit.
 //! What the filter asks back (the marks, the open epoch's predicted state)
 //! is mirrored on the filter's side by the recorder's own rules, so a call
 //! never waits for the worker; only the backward pass does.
+//!
+//! The filter's side is a copy per call, so it sends only what the
+//! recorder cannot do without, in a form the worker expands to the same
+//! bits:
+//!
+//! - P⁻ and P as lower triangles when they are exactly symmetric (every
+//!   upper element has the bits of its mirror, which the filter's
+//!   covariances do by construction); the worker mirrors them. Any other
+//!   matrix goes whole.
+//! - Φ's rows that can hold off-diagonal elements and its diagonal, when
+//!   every other element is +0.0 (the structure of the last Φ is tried
+//!   first: a transition keeps it from epoch to epoch); the worker writes
+//!   the zeros. Any other Φ goes whole.
+//! - An update's call replaces the one before it when nothing came
+//!   between (the recorder keeps only the latest filtered estimate of an
+//!   epoch).
 
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
-use aidnav_estimation::smoother::copy_matrix;
 use aidnav_estimation::{EstimationError, RtsRecorder};
 use nalgebra::{SMatrix, SVector};
 
-/// Calls sent to the worker at once.
-const BATCH: usize = 32;
+/// Floats of calls a batch holds before it goes to the worker: about 80
+/// calls for 21 states (a wake-up of the worker per call cost more than
+/// the call on a busy machine; 16 Ki and 64 Ki floats measured the same
+/// on the drive, 64 Ki with a quarter of the wake-ups but more pages).
+const BATCH_FLOATS: usize = 32 * 1024;
 
-/// Batches queued before the filter waits for the worker: the worker may
-/// lag by `QUEUE · BATCH` calls (≈ 7 kB each for 21 states).
-const QUEUE: usize = 4;
+/// Buffers out at once (being written, queued, at the worker) before the
+/// filter waits for one back: the worker may lag by about
+/// `IN_FLIGHT · BATCH_FLOATS` floats (4 MiB, over a thousand calls) — the
+/// memory of the hand-off whatever the log's length — so the filter does
+/// not wait in the normal case, only when the worker has no core.
+const IN_FLIGHT: usize = 16;
 
-/// A prediction's Φ, x⁻, P⁻.
-type Prediction<const N: usize> = (SMatrix<f64, N, N>, SVector<f64, N>, SMatrix<f64, N, N>);
+/// Call kinds, in the tag that starts each call in a batch.
+const PREDICT: usize = 0;
+const FILTERED: usize = 1;
+const MARK: usize = 2;
 
-/// An update's x⁻, x, P.
-type Update<const N: usize> = (SVector<f64, N>, SVector<f64, N>, SMatrix<f64, N, N>);
-
-/// A recorder call for the worker. The boxes go back to the filter with
-/// their batch and are filled again (no allocation per call).
-enum Call<const N: usize> {
-    Predict(Box<Prediction<N>>),
-    Filtered(Box<Update<N>>),
-    Mark,
-    /// Answer once every earlier call is done.
-    Flush(SyncSender<()>),
+/// A call's tag: its kind, whether its covariance is a lower triangle and,
+/// for a prediction, Φ's full rows (N: Φ whole). Small integers, exact in
+/// an f64.
+fn tag(kind: usize, packed: bool, phi_rows: usize) -> f64 {
+    (kind + 4 * usize::from(packed) + 8 * phi_rows) as f64
 }
 
-/// Calls not yet sent, and the boxes of calls the worker has done.
-struct Pending<const N: usize> {
-    calls: Vec<Call<N>>,
-    predictions: Vec<Box<Prediction<N>>>,
-    updates: Vec<Box<Update<N>>>,
+/// `tag`'s fields back.
+fn untag(t: f64) -> (usize, bool, usize) {
+    let t = t as usize;
+    (t % 4, (t / 4) % 2 == 1, t / 8)
+}
+
+/// Calls for the worker, written one after another; `flush` is answered
+/// once they are done.
+struct Batch {
+    data: Vec<f64>,
+    flush: Option<SyncSender<()>>,
+}
+
+/// The batch being written and the buffers of batches the worker is done
+/// with.
+struct Pending {
+    data: Vec<f64>,
+    /// Start of the last call when it is an update's (one that a next
+    /// update replaces).
+    last_filtered: Option<usize>,
+    free: Vec<Vec<f64>>,
+    /// Buffers handed out (queued, at the worker, or back but not yet
+    /// taken from `returns`), the one being written included.
+    buffers: usize,
 }
 
 /// The worker thread and the filter's mirror of the recorder's marks.
 pub(crate) struct Worker<const N: usize> {
-    calls: Option<SyncSender<Vec<Call<N>>>>,
-    /// Batches the worker has done, for their boxes.
-    done: Receiver<Vec<Call<N>>>,
+    calls: Option<SyncSender<Batch>>,
+    /// Buffers of batches the worker has done.
+    returns: Receiver<Vec<f64>>,
     /// Calls not yet sent (behind a lock only so that the backward pass,
     /// which takes `&self`, can send them).
-    batch: Mutex<Pending<N>>,
+    batch: Mutex<Pending>,
     thread: Option<JoinHandle<()>>,
     recorder: Arc<Mutex<RtsRecorder<N>>>,
     x_predicted: SVector<f64, N>,
@@ -66,6 +102,8 @@ pub(crate) struct Worker<const N: usize> {
     marks: usize,
     max_marks: usize,
     overflow: bool,
+    /// Full rows of the last Φ sent by its structure (N: none).
+    phi_rows: usize,
 }
 
 /// An [`RtsRecorder`] fed either inline or, when a thread could be
@@ -76,24 +114,31 @@ pub(crate) enum Recording<const N: usize> {
     Background(Box<Worker<N>>),
 }
 
+/// Floats of a batch buffer: a full batch and the largest call (a
+/// prediction with Φ and P⁻ whole), so that a call never reallocates.
+const fn buffer_floats(n: usize) -> usize {
+    BATCH_FLOATS + 2 * n * n + n + 1
+}
+
 impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::new`], on a worker thread unless none can be started.
     pub(crate) fn new(x: &SVector<f64, N>, p: &SMatrix<f64, N, N>, max_marks: usize) -> Self {
         let recorder = Arc::new(Mutex::new(RtsRecorder::new(x, p, max_marks)));
-        let (calls, queue) = sync_channel(QUEUE);
-        let (returns, done) = sync_channel(1);
+        let (calls, queue) = sync_channel(IN_FLIGHT);
+        let (done, returns) = sync_channel(IN_FLIGHT);
         let shared = Arc::clone(&recorder);
         match std::thread::Builder::new()
             .name("aidnav-smoother".into())
-            .spawn(move || work(&shared, &queue, &returns))
+            .spawn(move || work(&shared, &queue, &done))
         {
             Ok(thread) => Self::Background(Box::new(Worker {
                 calls: Some(calls),
-                done,
+                returns,
                 batch: Mutex::new(Pending {
-                    calls: Vec::with_capacity(BATCH),
-                    predictions: Vec::new(),
-                    updates: Vec::new(),
+                    data: Vec::with_capacity(buffer_floats(N)),
+                    last_filtered: None,
+                    free: Vec::new(),
+                    buffers: 1,
                 }),
                 thread: Some(thread),
                 recorder,
@@ -102,6 +147,7 @@ impl<const N: usize> Recording<N> {
                 marks: 0,
                 max_marks,
                 overflow: false,
+                phi_rows: N,
             })),
             Err(_) => {
                 let recorder = Arc::try_unwrap(recorder).map_or_else(
@@ -129,14 +175,16 @@ impl<const N: usize> Recording<N> {
                 }
                 w.x_predicted = *x_predicted;
                 w.open_mark = None;
+                let rows = w.structure_of(phi);
                 w.send_with(|pending| {
-                    let mut call = pending.predictions.pop().unwrap_or_else(|| {
-                        Box::new((SMatrix::zeros(), SVector::zeros(), SMatrix::zeros()))
-                    });
-                    copy_matrix(&mut call.0, phi);
-                    call.1 = *x_predicted;
-                    copy_matrix(&mut call.2, p_predicted);
-                    Call::Predict(call)
+                    let data = &mut pending.data;
+                    let start = data.len();
+                    data.push(0.0);
+                    write_phi(data, phi, rows);
+                    data.extend_from_slice(x_predicted.as_slice());
+                    let packed = write_covariance(data, p_predicted);
+                    data[start] = tag(PREDICT, packed, rows);
+                    pending.last_filtered = None;
                 });
             }
         }
@@ -154,13 +202,19 @@ impl<const N: usize> Recording<N> {
             Self::Background(w) => {
                 w.x_predicted = *x_predicted;
                 w.send_with(|pending| {
-                    let mut call = pending.updates.pop().unwrap_or_else(|| {
-                        Box::new((SVector::zeros(), SVector::zeros(), SMatrix::zeros()))
-                    });
-                    call.0 = *x_predicted;
-                    call.1 = *x;
-                    copy_matrix(&mut call.2, p);
-                    Call::Filtered(call)
+                    let data = &mut pending.data;
+                    // The recorder's `filtered` overwrites all that the
+                    // previous one set: the later call alone does the same.
+                    if let Some(previous) = pending.last_filtered {
+                        data.truncate(previous);
+                    }
+                    let start = data.len();
+                    data.push(0.0);
+                    data.extend_from_slice(x_predicted.as_slice());
+                    data.extend_from_slice(x.as_slice());
+                    let packed = write_covariance(data, p);
+                    data[start] = tag(FILTERED, packed, 0);
+                    pending.last_filtered = Some(start);
                 });
             }
         }
@@ -174,7 +228,10 @@ impl<const N: usize> Recording<N> {
                 if let Some(m) = w.open_mark {
                     return Some(m);
                 }
-                w.send_with(|_| Call::Mark);
+                w.send_with(|pending| {
+                    pending.data.push(tag(MARK, false, 0));
+                    pending.last_filtered = None;
+                });
                 if w.marks >= w.max_marks {
                     w.overflow = true;
                     return None;
@@ -225,73 +282,224 @@ impl<const N: usize> Recording<N> {
     }
 }
 
+/// Append Φ: with `rows` < N its first `rows` rows and its diagonal below
+/// them, column by column (every other element is +0.0, see
+/// [`Worker::structure_of`]); else whole.
+fn write_phi<const N: usize>(data: &mut Vec<f64>, phi: &SMatrix<f64, N, N>, rows: usize) {
+    let s = phi.as_slice();
+    if rows >= N {
+        data.extend_from_slice(s);
+        return;
+    }
+    for (j, column) in s.chunks_exact(N).enumerate() {
+        data.extend_from_slice(&column[..rows]);
+        if j >= rows {
+            data.push(column[j]);
+        }
+    }
+}
+
+/// Φ from what [`write_phi`] appended at the start of `data` into `phi`;
+/// returns the floats read.
+fn read_phi<const N: usize>(data: &[f64], phi: &mut SMatrix<f64, N, N>, rows: usize) -> usize {
+    let s = phi.as_mut_slice();
+    if rows >= N {
+        s.copy_from_slice(&data[..N * N]);
+        return N * N;
+    }
+    let mut at = 0;
+    for (j, column) in s.chunks_exact_mut(N).enumerate() {
+        column[..rows].copy_from_slice(&data[at..at + rows]);
+        at += rows;
+        column[rows..].fill(0.0);
+        if j >= rows {
+            column[j] = data[at];
+            at += 1;
+        }
+    }
+    at
+}
+
+/// Append a covariance: its lower triangle, column by column, when it is
+/// exactly symmetric (bit for bit), else whole; returns whether packed.
+fn write_covariance<const N: usize>(data: &mut Vec<f64>, p: &SMatrix<f64, N, N>) -> bool {
+    let s = p.as_slice();
+    // Branch-free: the XOR of each pair's bits, OR-ed (column j below the
+    // diagonal against row j, indexed so that no bound is checked).
+    let mut differ = 0_u64;
+    for j in 0..N {
+        for i in (j + 1)..N {
+            differ |= p[(i, j)].to_bits() ^ p[(j, i)].to_bits();
+        }
+    }
+    if differ != 0 {
+        data.extend_from_slice(s);
+        return false;
+    }
+    for (j, column) in s.chunks_exact(N).enumerate() {
+        data.extend_from_slice(&column[j..]);
+    }
+    true
+}
+
+/// A covariance from what [`write_covariance`] appended at the start of
+/// `data` into `p`; returns the floats read.
+fn read_covariance<const N: usize>(
+    data: &[f64],
+    p: &mut SMatrix<f64, N, N>,
+    packed: bool,
+) -> usize {
+    if !packed {
+        p.as_mut_slice().copy_from_slice(&data[..N * N]);
+        return N * N;
+    }
+    let mut at = 0;
+    for j in 0..N {
+        for i in j..N {
+            p[(i, j)] = data[at];
+            p[(j, i)] = data[at];
+            at += 1;
+        }
+    }
+    at
+}
+
 /// The recorder, whatever a panicking holder left (the worker holds it
-/// only inside one recorder call).
+/// only while it does a batch).
 fn lock<const N: usize>(r: &Mutex<RtsRecorder<N>>) -> std::sync::MutexGuard<'_, RtsRecorder<N>> {
     r.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// Buffers the worker expands the calls into.
+struct Expanded<const N: usize> {
+    phi: SMatrix<f64, N, N>,
+    x_predicted: SVector<f64, N>,
+    x: SVector<f64, N>,
+    p: SMatrix<f64, N, N>,
+}
+
 /// The worker: the calls, in order, until the filter drops its end; each
-/// batch done goes back (for its boxes) unless the filter has enough.
+/// batch's buffer goes back to the filter.
 fn work<const N: usize>(
     recorder: &Mutex<RtsRecorder<N>>,
-    batches: &Receiver<Vec<Call<N>>>,
-    returns: &SyncSender<Vec<Call<N>>>,
+    batches: &Receiver<Batch>,
+    returns: &SyncSender<Vec<f64>>,
 ) {
-    for batch in batches.iter() {
-        for call in &batch {
-            match call {
-                Call::Predict(a) => lock(recorder).predict(&a.0, &a.1, &a.2),
-                Call::Filtered(a) => lock(recorder).filtered(&a.0, &a.1, &a.2),
-                Call::Mark => {
-                    lock(recorder).mark();
-                }
-                Call::Flush(done) => {
-                    let _ = done.send(());
+    let mut e = Box::new(Expanded::<N> {
+        phi: SMatrix::zeros(),
+        x_predicted: SVector::zeros(),
+        x: SVector::zeros(),
+        p: SMatrix::zeros(),
+    });
+    for Batch { mut data, flush } in batches.iter() {
+        {
+            let mut recorder = lock(recorder);
+            let mut at = 0;
+            while at < data.len() {
+                let (kind, packed, rows) = untag(data[at]);
+                at += 1;
+                match kind {
+                    PREDICT => {
+                        at += read_phi(&data[at..], &mut e.phi, rows);
+                        e.x_predicted.copy_from_slice(&data[at..at + N]);
+                        at += N;
+                        at += read_covariance(&data[at..], &mut e.p, packed);
+                        recorder.predict(&e.phi, &e.x_predicted, &e.p);
+                    }
+                    FILTERED => {
+                        e.x_predicted.copy_from_slice(&data[at..at + N]);
+                        e.x.copy_from_slice(&data[at + N..at + 2 * N]);
+                        at += 2 * N;
+                        at += read_covariance(&data[at..], &mut e.p, packed);
+                        recorder.filtered(&e.x_predicted, &e.x, &e.p);
+                    }
+                    _ => {
+                        recorder.mark();
+                    }
                 }
             }
         }
-        let _ = returns.try_send(batch);
+        if let Some(done) = flush {
+            let _ = done.send(());
+        }
+        data.clear();
+        // The filter holds at most `IN_FLIGHT` buffers out, so this never
+        // waits; an error is the filter gone.
+        let _ = returns.try_send(data);
     }
 }
 
 impl<const N: usize> Worker<N> {
-    /// Queue the call `make` builds (from a box of a done call when there
-    /// is one); send the batch when full.
-    fn send_with(&self, make: impl FnOnce(&mut Pending<N>) -> Call<N>) {
+    /// Full rows by which to send `phi`: those of the last Φ when every
+    /// element of `phi` outside them and the diagonal is +0.0 (the worker
+    /// writes +0.0 there), else the tightest such structure of `phi`
+    /// (N: none), kept for the next Φ.
+    fn structure_of(&mut self, phi: &SMatrix<f64, N, N>) -> usize {
+        let s = phi.as_slice();
+        let zero_below = |rows: usize| {
+            // The bits OR-ed over each column's rows from `rows` on, its
+            // diagonal aside (two runs that vectorise).
+            let or = |v: &[f64]| v.iter().fold(0_u64, |a, x| a | x.to_bits());
+            let mut bits = 0_u64;
+            for (j, column) in s.chunks_exact(N).enumerate() {
+                bits |= if j < rows {
+                    or(&column[rows..])
+                } else {
+                    or(&column[rows..j]) | or(&column[j + 1..])
+                };
+            }
+            bits == 0
+        };
+        if self.phi_rows < N && zero_below(self.phi_rows) {
+            return self.phi_rows;
+        }
+        // One past the last row holding anything but +0.0 off the diagonal.
+        let mut rows = 0;
+        for (j, column) in s.chunks_exact(N).enumerate() {
+            if let Some(i) = (rows..N)
+                .rev()
+                .find(|&i| i != j && column[i].to_bits() != 0)
+            {
+                rows = i + 1;
+            }
+        }
+        self.phi_rows = rows;
+        rows
+    }
+
+    /// Append a call by `write` (which also keeps `last_filtered`); send
+    /// the batch when full.
+    fn send_with(&self, write: impl FnOnce(&mut Pending)) {
         let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
-        let call = make(&mut pending);
-        pending.calls.push(call);
-        if pending.calls.len() >= BATCH {
-            self.send_batch(&mut pending);
+        write(&mut pending);
+        if pending.data.len() >= BATCH_FLOATS {
+            self.send_batch(&mut pending, None);
         }
     }
 
-    /// Send the queued calls; the next batch reuses a done one, its boxes
-    /// kept for the next calls.
-    fn send_batch(&self, pending: &mut Pending<N>) {
-        let next = match self.done.try_recv() {
-            Ok(mut done) => {
-                // At most a batch of each kept (the rest freed): memory
-                // stays that of the calls in flight.
-                for call in done.drain(..) {
-                    match call {
-                        Call::Predict(b) if pending.predictions.len() < BATCH => {
-                            pending.predictions.push(b);
-                        }
-                        Call::Filtered(b) if pending.updates.len() < BATCH => {
-                            pending.updates.push(b);
-                        }
-                        _ => {}
-                    }
-                }
-                done
+    /// Send the calls written so far (and `flush` to answer after them);
+    /// the next calls go into a buffer the worker is done with, or a new
+    /// one while fewer than `IN_FLIGHT` are out, or else the next one the
+    /// worker gives back.
+    fn send_batch(&self, pending: &mut Pending, flush: Option<SyncSender<()>>) {
+        while let Ok(buffer) = self.returns.try_recv() {
+            pending.free.push(buffer);
+        }
+        let next = match pending.free.pop() {
+            Some(buffer) => buffer,
+            None if pending.buffers < IN_FLIGHT => {
+                pending.buffers += 1;
+                Vec::with_capacity(buffer_floats(N))
             }
-            Err(_) => Vec::with_capacity(BATCH),
+            None => match self.returns.recv() {
+                Ok(buffer) => buffer,
+                Err(_) => self.worker_died(),
+            },
         };
-        let batch = std::mem::replace(&mut pending.calls, next);
+        let data = std::mem::replace(&mut pending.data, next);
+        pending.last_filtered = None;
         if let Some(calls) = &self.calls
-            && calls.send(batch).is_err()
+            && calls.send(Batch { data, flush }).is_err()
         {
             self.worker_died();
         }
@@ -302,8 +510,7 @@ impl<const N: usize> Worker<N> {
         let (done, wait) = sync_channel(1);
         {
             let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
-            pending.calls.push(Call::Flush(done));
-            self.send_batch(&mut pending);
+            self.send_batch(&mut pending, Some(done));
         }
         if wait.recv().is_err() {
             self.worker_died();
@@ -358,40 +565,142 @@ impl<const N: usize> std::fmt::Debug for Recording<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Matrix2, Vector2};
+    use nalgebra::{Matrix4, Vector4};
 
-    /// The same forward pass (a constant-velocity model measured in
-    /// position, an update in most epochs, marks in some, one mark
-    /// repeated) through the worker and inline: marks, mirrored state and
-    /// every smoothed number bit for bit equal; a copy taken midway
-    /// smooths like an inline recorder stopped there; the mark limit
+    /// Position, velocity, an acceleration bias and a scale-like state: Φ
+    /// with two full rows and a diagonal below, as the navigation filter's.
+    fn transition() -> Matrix4<f64> {
+        Matrix4::new(
+            1.0, 0.1, 0.005, 0.0, //
+            0.0, 1.0, 0.1, 0.02, //
+            0.0, 0.0, 1.0, 0.0, //
+            0.0, 0.0, 0.0, 0.999,
+        )
+    }
+
+    /// The Φ of epoch k: mostly the structured one, some dense (an element
+    /// below the full rows), some with −0.0 off the structure (which the
+    /// worker must not turn into +0.0), some diagonal.
+    fn transition_at(k: usize) -> Matrix4<f64> {
+        let mut phi = transition();
+        match k % 13 {
+            5 => phi[(3, 1)] = 1e-3,
+            7 => phi[(2, 0)] = -0.0,
+            11 => phi = Matrix4::from_diagonal(&phi.diagonal()),
+            _ => {}
+        }
+        phi
+    }
+
+    /// P made inexactly symmetric by an ulp in an upper element (the worker
+    /// must send it whole).
+    fn skewed(mut p: Matrix4<f64>) -> Matrix4<f64> {
+        p[(0, 2)] = f64::from_bits(p[(0, 2)].to_bits() + 1);
+        p
+    }
+
+    /// Every Φ and covariance form sent comes back with the same bits:
+    /// structured, dense, −0.0 off the structure, diagonal; exactly and
+    /// inexactly symmetric covariances (and a packed form is used where it
+    /// applies).
+    #[test]
+    fn what_the_filter_writes_the_worker_reads_back_bit_for_bit() {
+        let x = Vector4::new(0.0, 1.0, 2.0, 3.0);
+        let p = Matrix4::from_fn(|i, j| 1.0 / (1.0 + i as f64 + j as f64));
+        let mut w = match Recording::<4>::new(&x, &p, 10) {
+            Recording::Background(w) => w,
+            Recording::Inline(_) => panic!("no worker thread"),
+        };
+        let bits = |m: &Matrix4<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for k in 0..13 {
+            let phi = transition_at(k);
+            let rows = w.structure_of(&phi);
+            let mut data = Vec::new();
+            write_phi(&mut data, &phi, rows);
+            let mut back = Matrix4::from_element(7.0);
+            assert_eq!(read_phi(&data, &mut back, rows), data.len());
+            assert_eq!(bits(&back), bits(&phi), "Φ at {k}");
+            // The tightest structure bit for bit; the one sent may be the
+            // last Φ's when it holds, looser.
+            let tightest = match k % 13 {
+                5 => 4,
+                7 => 3,
+                11 => 0,
+                _ => 2,
+            };
+            assert!(rows >= tightest, "structure at {k}: {rows}");
+            assert_eq!(rows == 4, tightest == 4, "structure at {k}: {rows}");
+        }
+        for (q, packed) in [(p, true), (skewed(p), false)] {
+            let mut data = Vec::new();
+            assert_eq!(write_covariance(&mut data, &q), packed);
+            assert_eq!(data.len(), if packed { 10 } else { 16 });
+            let mut back = Matrix4::from_element(7.0);
+            assert_eq!(read_covariance(&data, &mut back, packed), data.len());
+            assert_eq!(bits(&back), bits(&q));
+        }
+        // −0.0 against +0.0 in a mirrored pair is not symmetric bit for bit.
+        let mut signed = p;
+        (signed[(1, 3)], signed[(3, 1)]) = (0.0, -0.0);
+        assert!(!write_covariance(&mut Vec::new(), &signed));
+    }
+
+    /// The same forward pass (a four-state model measured in position in
+    /// most epochs and in velocity in some, so that two updates follow
+    /// each other; marks in some epochs, one mark repeated, one between
+    /// two updates; Φ in every form of [`transition_at`], covariances
+    /// sometimes inexactly symmetric; long enough for many batches)
+    /// through the worker and inline: marks, mirrored state and every
+    /// smoothed number bit for bit equal; a copy taken midway smooths like
+    /// an inline recorder stopped there; a visit that fails stops the
+    /// backward pass at the same mark with its error; the mark limit
     /// overflows the same way.
     #[test]
     fn the_worker_records_exactly_what_the_recorder_does_inline() {
-        let phi = Matrix2::new(1.0, 0.1, 0.0, 1.0);
-        let q = Matrix2::new(1e-4, 5e-4, 5e-4, 1e-2);
-        let run = |rec: &mut Recording<2>, copy_at: usize| {
-            let (mut x, mut p) = (Vector2::new(0.0, 1.0), Matrix2::identity());
+        const EPOCHS: usize = 12_000;
+        let q = Matrix4::from_diagonal(&Vector4::new(1e-6, 1e-4, 1e-8, 1e-9));
+        let run = |rec: &mut Recording<4>, copy_at: usize| {
+            let (mut x, mut p) = (Vector4::new(0.0, 1.0, 0.0, 0.0), Matrix4::identity());
             let (mut marks, mut predicted) = (Vec::new(), Vec::new());
             let mut copy = None;
-            for k in 1..200 {
+            let update = |rec: &mut Recording<4>,
+                          x: &mut Vector4<f64>,
+                          p: &mut Matrix4<f64>,
+                          state: usize,
+                          z: f64,
+                          symmetric: bool| {
+                let s = p[(state, state)] + 0.01;
+                let gain = p.column(state) / s;
+                let x_predicted = rec.x_predicted() - *x;
+                *x += gain * (z - x[state]);
+                *p -= gain * p.row(state);
+                *p = (*p + p.transpose()) * 0.5;
+                if !symmetric {
+                    *p = skewed(*p);
+                }
+                rec.filtered(&(x_predicted + *x), x, p);
+            };
+            for k in 1..EPOCHS {
+                let phi = transition_at(k);
                 x = phi * x;
                 p = phi * p * phi.transpose() + q;
+                if k % 5 == 0 {
+                    p = skewed(p);
+                }
                 rec.predict(&phi, &x, &p);
+                let t = k as f64 * 0.1;
                 if k % 3 != 0 {
-                    let z = 0.1 * k as f64 + (k as f64 * 0.7).sin() * 0.05;
-                    let s = p[(0, 0)] + 0.01;
-                    let gain = p.column(0) / s;
-                    let x_predicted = x;
-                    x += gain * (z - x[0]);
-                    p -= gain * p.row(0);
-                    p = (p + p.transpose()) * 0.5;
-                    rec.filtered(&x_predicted, &x, &p);
+                    let z = t + (k as f64 * 0.7).sin() * 0.05;
+                    update(rec, &mut x, &mut p, 0, z, k % 7 != 0);
                 }
                 if k % 4 == 0 {
                     marks.push(rec.mark());
                     marks.push(rec.mark());
                     assert_eq!(rec.open_mark(), *marks.last().unwrap());
+                }
+                if k % 3 == 1 {
+                    let z = 1.0 + (k as f64 * 0.3).cos() * 0.02;
+                    update(rec, &mut x, &mut p, 1, z, k % 11 != 0);
                 }
                 predicted.push(rec.x_predicted());
                 if k == copy_at {
@@ -400,7 +709,7 @@ mod tests {
             }
             (marks, predicted, copy, rec.overflowed())
         };
-        let smoothed = |rec: &Recording<2>| {
+        let smoothed = |rec: &Recording<4>| {
             let mut out = Vec::new();
             rec.smooth_with(|m, x, p| {
                 out.push((m, *x, *p));
@@ -408,13 +717,13 @@ mod tests {
             })
             .map(|()| out)
         };
-        for max_marks in [1000, 20] {
-            let (x0, p0) = (Vector2::new(0.0, 1.0), Matrix2::identity());
+        for max_marks in [EPOCHS, 20] {
+            let (x0, p0) = (Vector4::new(0.0, 1.0, 0.0, 0.0), Matrix4::identity());
             let mut background = Recording::new(&x0, &p0, max_marks);
             assert!(matches!(background, Recording::Background(_)));
             let mut inline = Recording::Inline(Box::new(RtsRecorder::new(&x0, &p0, max_marks)));
-            let (marks_b, predicted_b, copy_b, over_b) = run(&mut background, 100);
-            let (marks_i, predicted_i, copy_i, over_i) = run(&mut inline, 100);
+            let (marks_b, predicted_b, copy_b, over_b) = run(&mut background, 5_000);
+            let (marks_i, predicted_i, copy_i, over_i) = run(&mut inline, 5_000);
             assert_eq!(marks_b, marks_i);
             assert_eq!(predicted_b, predicted_i);
             assert_eq!(over_b, over_i);
@@ -430,8 +739,28 @@ mod tests {
                 continue;
             }
             let (sb, si) = (sb.unwrap(), si.unwrap());
-            assert_eq!(sb.len(), 49);
+            assert_eq!(sb.len(), (EPOCHS - 1) / 4);
             assert_eq!(sb, si);
+            // A visit that fails stops the pass there, with its error, and
+            // the recording goes on answering (the pass again, whole).
+            let stopped = |rec: &Recording<4>| {
+                let mut visited = 0;
+                let result = rec.smooth_with(|m, _, _| {
+                    visited += 1;
+                    if m == 1000 {
+                        return Err(EstimationError::Singular {
+                            step: aidnav_estimation::Step::Smooth,
+                            matrix: aidnav_estimation::Matrix::P,
+                        });
+                    }
+                    Ok(())
+                });
+                (visited, result)
+            };
+            let (visited, result) = stopped(&background);
+            assert_eq!((visited, &result), (sb.len() - 1000, &stopped(&inline).1));
+            assert!(result.is_err());
+            assert_eq!(smoothed(&background).unwrap(), si);
             let (cb, ci) = (copy_b.unwrap(), copy_i.unwrap());
             assert!(matches!(cb, Recording::Inline(_)));
             assert_eq!(smoothed(&cb).unwrap(), smoothed(&ci).unwrap());
