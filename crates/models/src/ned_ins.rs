@@ -262,9 +262,71 @@ const F_COLUMN_ROWS: [([usize; STATES], usize); STATES] = {
 /// velocity, attitude (the instruments' rows hold only their diagonal).
 const COUPLED: usize = GYRO_BIAS;
 
-/// Whether every nonzero of `f` lies in [`F_ROW_COLUMNS`].
+/// For each column j, the rows i of F that may hold a nonzero in it (bit i).
+const F_COLUMN_MASKS: [u32; STATES] = {
+    let mut masks = [0; STATES];
+    let mut i = 0;
+    while i < STATES {
+        let mut j = 0;
+        while j < STATES {
+            if F_ROW_MASKS[i] & (1 << j) != 0 {
+                masks[j] |= 1 << i;
+            }
+            j += 1;
+        }
+        i += 1;
+    }
+    masks
+};
+
+/// For each column k, the rows `lo..hi` of the coupled rows (below
+/// [`COUPLED`]) that hold every nonzero F may have there (`0..0`: none).
+/// The products of [`discrete_of_pattern`] run over these rows only: the
+/// others' terms are products with an exact zero of FΔt.
+const F_COLUMN_COUPLED_ROWS: [(usize, usize); STATES] = {
+    let mut ranges = [(0, 0); STATES];
+    let mut k = 0;
+    while k < STATES {
+        let coupled = F_COLUMN_MASKS[k] & ((1 << COUPLED) - 1);
+        if coupled != 0 {
+            ranges[k] = (
+                coupled.trailing_zeros() as usize,
+                32 - coupled.leading_zeros() as usize,
+            );
+        }
+        k += 1;
+    }
+    ranges
+};
+
+/// Whether every nonzero of `f` lies in [`F_ROW_COLUMNS`]: the bits
+/// without the sign of every element outside the pattern OR-ed, column by
+/// column, without a branch (a NaN has nonzero bits too).
 fn follows_pattern(f: &Matrix21) -> bool {
-    (0..STATES).all(|j| (0..STATES).all(|i| F_ROW_MASKS[i] & (1 << j) != 0 || f[(i, j)] == 0.0))
+    let mut outside = 0_u64;
+    for (column, &allowed) in f.as_slice().chunks_exact(STATES).zip(&F_COLUMN_MASKS) {
+        for (i, v) in column.iter().enumerate() {
+            // All ones where row i may not hold a nonzero, else zero.
+            let keep = u64::from((allowed >> i) & 1).wrapping_sub(1);
+            outside |= (v.to_bits() << 1) & keep;
+        }
+    }
+    outside == 0
+}
+
+/// Whether every value is finite: Σ v·0 is ±0 when every v is finite and
+/// NaN as soon as one is ±∞ or NaN, over 8 partial sums (no branch, and it
+/// vectorises).
+fn all_finite(values: &[f64]) -> bool {
+    let mut partial = [0.0_f64; 8];
+    let chunks = values.chunks_exact(8);
+    let rest = chunks.remainder().iter().fold(0.0, |s, &v| s + v * 0.0);
+    for chunk in chunks {
+        for (s, &v) in partial.iter_mut().zip(chunk) {
+            *s += v * 0.0;
+        }
+    }
+    partial.iter().fold(rest, |s, &v| s + v) == 0.0
 }
 
 /// [`NedErrorModel::discrete`] for an F with [`continuous`](NedErrorModel::continuous)'s
@@ -278,10 +340,11 @@ fn follows_pattern(f: &Matrix21) -> bool {
 /// x + y = 0 rounds to +0), so the results are equal to the bit. Likewise
 /// F Q_c. Columns: Φ(·, j) gains Σ_k FΔt(·, k) FΔt(k, j) over the rows k
 /// of F that may hold column j ([`F_COLUMN_ROWS`]), a contiguous update of
-/// the coupled rows (position, velocity, attitude); the instruments' rows
-/// gain their diagonal term. Q is computed
-/// by its formula at every element (symmetric in i and j, Q_c exactly
-/// symmetric).
+/// the coupled rows (position, velocity, attitude) that F's column k may
+/// hold ([`F_COLUMN_COUPLED_ROWS`]: the rows outside add ±0); the
+/// instruments' rows gain their diagonal term. Q is computed by its formula
+/// on the lower triangle and mirrored (the formula is symmetric in i and j,
+/// Q_c exactly symmetric).
 fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
     const N: usize = STATES;
     // Column-major slices: element (i, j) at j N + i, the diagonal every
@@ -297,7 +360,9 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
         let out = &mut p[j * N..j * N + COUPLED];
         for &k in &rows[..*count] {
             let b = f[j * N + k];
-            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
+            // Rows outside F's column k add 0.5 · (±0) · b = ±0: left out.
+            let (lo, hi) = F_COLUMN_COUPLED_ROWS[k];
+            for (o, &a) in out[lo..hi].iter_mut().zip(&f[k * N + lo..k * N + hi]) {
                 *o += 0.5 * a * b;
             }
         }
@@ -314,7 +379,8 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
         let out = &mut g[j * N..j * N + COUPLED];
         for k in block_of(j) {
             let b = c[j * N + k];
-            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
+            let (lo, hi) = F_COLUMN_COUPLED_ROWS[k];
+            for (o, &a) in out[lo..hi].iter_mut().zip(&f[k * N + lo..k * N + hi]) {
                 *o += a * b;
             }
         }
@@ -323,10 +389,21 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
             g[d] += f[d] * c[d];
         }
     }
-    // Each element by the formula (symmetric in i and j, Q_c exactly
-    // symmetric, so the upper triangle equals the lower to the bit).
+    // Each element of the lower triangle by the formula, mirrored: the
+    // formula is symmetric in i and j (Q_c exactly symmetric, the sum of
+    // the two F Q_c terms commutes), so the upper triangle it would give
+    // equals the mirrored lower one to the bit.
     let half_dt = 0.5 * dt;
-    let q = Matrix21::from_fn(|i, j| c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]));
+    let mut q = Matrix21::zeros();
+    let e = q.as_mut_slice();
+    for j in 0..N {
+        for i in j..N {
+            e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
+        }
+        for i in 0..j {
+            e[j * N + i] = e[i * N + j];
+        }
+    }
     (phi, q)
 }
 
@@ -466,8 +543,7 @@ impl NedErrorModel {
         let fdt = f.map(|v| v * dt);
         let qc = self.spectral_density(c_bn);
         let pattern = follows_pattern(f);
-        let finite = |m: &Matrix21| m.as_slice().iter().fold(true, |ok, v| ok & v.is_finite());
-        if pattern && finite(&fdt) && finite(&qc) {
+        if pattern && all_finite(fdt.as_slice()) && all_finite(qc.as_slice()) {
             discrete_of_pattern(&fdt, &qc, dt)
         } else {
             discrete_of_any(&fdt, &qc, dt, pattern)
