@@ -457,15 +457,15 @@ impl NedFilter {
         let dt = self.pending_dt;
         let s = self.ins.state();
         let c = s.attitude.matrix();
-        let f = self.model.continuous(
+        let (phi, q) = self.model.transition(
             c.as_raw(),
             (self.pending_force / dt).as_raw(),
             (self.pending_angle / dt).as_raw(),
             earth_rate_ned(s.position.latitude_rad).as_raw(),
             transport_rate_ned(&s.position, &s.velocity).as_raw(),
             s.position.latitude_rad,
+            dt,
         );
-        let (phi, q) = self.model.discrete(&f, c.as_raw(), dt);
         self.pending_force = Vec3::zeros();
         self.pending_angle = Vec3::zeros();
         self.pending_dt = 0.0;

@@ -262,56 +262,36 @@ const F_COLUMN_ROWS: [([usize; STATES], usize); STATES] = {
 /// velocity, attitude (the instruments' rows hold only their diagonal).
 const COUPLED: usize = GYRO_BIAS;
 
-/// For each column j, the rows i of F that may hold a nonzero in it (bit i).
-const F_COLUMN_MASKS: [u32; STATES] = {
-    let mut masks = [0; STATES];
-    let mut i = 0;
-    while i < STATES {
-        let mut j = 0;
-        while j < STATES {
-            if F_ROW_MASKS[i] & (1 << j) != 0 {
-                masks[j] |= 1 << i;
-            }
-            j += 1;
-        }
-        i += 1;
-    }
-    masks
-};
-
-/// For each column k, the rows `lo..hi` of the coupled rows (below
-/// [`COUPLED`]) that hold every nonzero F may have there (`0..0`: none).
-/// The products of [`discrete_of_pattern`] run over these rows only: the
-/// others' terms are products with an exact zero of FΔt.
-const F_COLUMN_COUPLED_ROWS: [(usize, usize); STATES] = {
-    let mut ranges = [(0, 0); STATES];
-    let mut k = 0;
-    while k < STATES {
-        let coupled = F_COLUMN_MASKS[k] & ((1 << COUPLED) - 1);
-        if coupled != 0 {
-            ranges[k] = (
-                coupled.trailing_zeros() as usize,
-                32 - coupled.leading_zeros() as usize,
-            );
-        }
-        k += 1;
-    }
-    ranges
-};
-
-/// Whether every nonzero of `f` lies in [`F_ROW_COLUMNS`]: the bits
-/// without the sign of every element outside the pattern OR-ed, column by
-/// column, without a branch (a NaN has nonzero bits too).
+/// Whether every nonzero of `f` lies in [`F_ROW_COLUMNS`].
 fn follows_pattern(f: &Matrix21) -> bool {
-    let mut outside = 0_u64;
-    for (column, &allowed) in f.as_slice().chunks_exact(STATES).zip(&F_COLUMN_MASKS) {
-        for (i, v) in column.iter().enumerate() {
-            // All ones where row i may not hold a nonzero, else zero.
-            let keep = u64::from((allowed >> i) & 1).wrapping_sub(1);
-            outside |= (v.to_bits() << 1) & keep;
+    (0..STATES).all(|j| (0..STATES).all(|i| F_ROW_MASKS[i] & (1 << j) != 0 || f[(i, j)] == 0.0))
+}
+
+/// Whether every element of `m` inside [`F_ROW_COLUMNS`]'s pattern is
+/// finite (Σ v·0 over them, as [`all_finite`]).
+fn pattern_finite(m: &Matrix21) -> bool {
+    let s = m.as_slice();
+    let mut sum = 0.0;
+    for (i, row) in F_ROW_COLUMNS.iter().enumerate() {
+        for &j in row.iter() {
+            sum += s[j * STATES + i] * 0.0;
         }
     }
-    outside == 0
+    sum == 0.0
+}
+
+/// Whether the elements of a Q_c that [`NedErrorModel::spectral_density`]
+/// writes (its velocity and attitude blocks, the instruments' diagonal) are
+/// finite; every other element is +0.
+fn spectral_density_finite(qc: &Matrix21) -> bool {
+    let s = qc.as_slice();
+    let mut sum = 0.0;
+    for j in VELOCITY..STATES {
+        for k in block_of(j) {
+            sum += s[j * STATES + k] * 0.0;
+        }
+    }
+    sum == 0.0
 }
 
 /// Whether every value is finite: Σ v·0 is ±0 when every v is finite and
@@ -340,9 +320,8 @@ fn all_finite(values: &[f64]) -> bool {
 /// x + y = 0 rounds to +0), so the results are equal to the bit. Likewise
 /// F Q_c. Columns: Φ(·, j) gains Σ_k FΔt(·, k) FΔt(k, j) over the rows k
 /// of F that may hold column j ([`F_COLUMN_ROWS`]), a contiguous update of
-/// the coupled rows (position, velocity, attitude) that F's column k may
-/// hold ([`F_COLUMN_COUPLED_ROWS`]: the rows outside add ±0); the
-/// instruments' rows gain their diagonal term. Q is computed by its formula
+/// the coupled rows (position, velocity, attitude); the instruments' rows
+/// gain their diagonal term. Q is computed by its formula
 /// on the lower triangle and mirrored (the formula is symmetric in i and j,
 /// Q_c exactly symmetric).
 fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
@@ -360,9 +339,7 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
         let out = &mut p[j * N..j * N + COUPLED];
         for &k in &rows[..*count] {
             let b = f[j * N + k];
-            // Rows outside F's column k add 0.5 · (±0) · b = ±0: left out.
-            let (lo, hi) = F_COLUMN_COUPLED_ROWS[k];
-            for (o, &a) in out[lo..hi].iter_mut().zip(&f[k * N + lo..k * N + hi]) {
+            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
                 *o += 0.5 * a * b;
             }
         }
@@ -379,8 +356,7 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
         let out = &mut g[j * N..j * N + COUPLED];
         for k in block_of(j) {
             let b = c[j * N + k];
-            let (lo, hi) = F_COLUMN_COUPLED_ROWS[k];
-            for (o, &a) in out[lo..hi].iter_mut().zip(&f[k * N + lo..k * N + hi]) {
+            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
                 *o += a * b;
             }
         }
@@ -547,6 +523,35 @@ impl NedErrorModel {
             discrete_of_pattern(&fdt, &qc, dt)
         } else {
             discrete_of_any(&fdt, &qc, dt, pattern)
+        }
+    }
+
+    /// [`discrete`](Self::discrete) of [`continuous`](Self::continuous)'s F
+    /// at these arguments, bit for bit, for the filter's covariance rate:
+    /// that F has [`F_ROW_COLUMNS`]'s pattern by construction (every element
+    /// outside it is never written, +0), so the pattern is not checked, and
+    /// FΔt and Q_c are finite exactly when Δt, F's blocks and Q_c's blocks
+    /// are (an element never written is +0, and +0 · Δt is finite for a
+    /// finite Δt), so only those are checked.
+    #[allow(clippy::too_many_arguments)]
+    pub fn transition(
+        &self,
+        c_bn: &Matrix3<f64>,
+        f_body: &Vector3<f64>,
+        w_body: &Vector3<f64>,
+        w_ie: &Vector3<f64>,
+        w_en: &Vector3<f64>,
+        latitude_rad: f64,
+        dt: f64,
+    ) -> (Matrix21, Matrix21) {
+        let f = self.continuous(c_bn, f_body, w_body, w_ie, w_en, latitude_rad);
+        debug_assert!(follows_pattern(&f));
+        let fdt = f.map(|v| v * dt);
+        let qc = self.spectral_density(c_bn);
+        if dt.is_finite() && pattern_finite(&fdt) && spectral_density_finite(&qc) {
+            discrete_of_pattern(&fdt, &qc, dt)
+        } else {
+            discrete_of_any(&fdt, &qc, dt, true)
         }
     }
 
@@ -811,6 +816,58 @@ mod tests {
         };
         assert_eq!(nan_or_bits(&phi), nan_or_bits(&phi_ref));
         assert_eq!(nan_or_bits(&q), nan_or_bits(&q_ref));
+    }
+
+    /// `transition` (no pattern check, finiteness of the written elements
+    /// only) equals `discrete` of `continuous`'s F to the bit on random
+    /// states, and with a NaN or infinite input (a force, a rate, Δt) the
+    /// same NaN and infinity positions.
+    #[test]
+    fn transition_equals_discrete_of_continuous_bitwise() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
+        let nan_or_bits = |a: &Matrix21| {
+            a.iter()
+                .map(|v| if v.is_nan() { None } else { Some(v.to_bits()) })
+                .collect::<Vec<_>>()
+        };
+        for case in 0..300 {
+            let m = NedErrorModel {
+                noise: ImuNoise {
+                    arw_deg_per_sqrt_h: PerAxis::all(rng.random_range(0.1..20.0)),
+                    scale_factors: case % 3 != 0,
+                    ..ImuNoise::default()
+                },
+            };
+            let c = nalgebra::Rotation3::from_euler_angles(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-3.0..3.0),
+            )
+            .into_inner();
+            let mut vector = |scale: f64| {
+                Vector3::from_fn(|_, _| match rng.random_range(0..6) {
+                    0 => 0.0,
+                    1 => -0.0,
+                    _ => scale * rng.random_range(-1.0..1.0),
+                })
+            };
+            let (mut force, rate) = (vector(12.0), vector(1.0));
+            let (w_ie, w_en) = (vector(7.3e-5), vector(1e-5));
+            let mut dt = [0.05, 0.01, 0.0123, 1.0][case % 4];
+            match case % 25 {
+                5 => force[1] = f64::NAN,
+                10 => force[2] = f64::INFINITY,
+                15 => dt = f64::INFINITY,
+                20 => dt = f64::NAN,
+                _ => {}
+            }
+            let (phi, q) = m.transition(&c, &force, &rate, &w_ie, &w_en, 0.6, dt);
+            let f = m.continuous(&c, &force, &rate, &w_ie, &w_en, 0.6);
+            let (phi_ref, q_ref) = m.discrete(&f, &c, dt);
+            assert_eq!(nan_or_bits(&phi), nan_or_bits(&phi_ref), "case {case}");
+            assert_eq!(nan_or_bits(&q), nan_or_bits(&q_ref), "case {case}");
+        }
     }
 
     #[test]
