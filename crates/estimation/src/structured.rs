@@ -89,8 +89,9 @@ impl TrailingDiagonal {
     where
         DefaultAllocator: Allocator<N, N>,
     {
-        let n = phi.nrows();
-        phi.ncols() == n
+        let (nd, cd) = phi.shape_generic();
+        let n = nd.value();
+        cd.value() == n
             && (self.full_rows >= n
                 || trailing_rows_are_diagonal(n, self.full_rows, phi.as_slice()))
     }
@@ -99,7 +100,9 @@ impl TrailingDiagonal {
 /// Whether the rows from r on of the square (n × n, column-major) `phi`
 /// are zero off the diagonal, read column by column (contiguous).
 /// Without early exits, so that the loop vectorises (Φ has the structure
-/// nearly always; a check that stops early saves nothing then).
+/// nearly always; a check that stops early saves nothing then); inlined, so
+/// that a compile-time n fixes the column lengths.
+#[inline(always)]
 fn trailing_rows_are_diagonal(n: usize, r: usize, phi: &[f64]) -> bool {
     // A value is nonzero when its bits without the sign are; the bits are
     // OR-ed over each column's rows r.. but the diagonal (integer ORs that
