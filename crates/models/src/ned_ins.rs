@@ -321,9 +321,8 @@ fn all_finite(values: &[f64]) -> bool {
 /// F Q_c. Columns: Φ(·, j) gains Σ_k FΔt(·, k) FΔt(k, j) over the rows k
 /// of F that may hold column j ([`F_COLUMN_ROWS`]), a contiguous update of
 /// the coupled rows (position, velocity, attitude); the instruments' rows
-/// gain their diagonal term. Q is computed by its formula
-/// on the lower triangle and mirrored (the formula is symmetric in i and j,
-/// Q_c exactly symmetric).
+/// gain their diagonal term. Q is computed by its formula at every element
+/// (symmetric in i and j, Q_c exactly symmetric).
 fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
     const N: usize = STATES;
     // Column-major slices: element (i, j) at j N + i, the diagonal every
@@ -365,21 +364,10 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
             g[d] += f[d] * c[d];
         }
     }
-    // Each element of the lower triangle by the formula, mirrored: the
-    // formula is symmetric in i and j (Q_c exactly symmetric, the sum of
-    // the two F Q_c terms commutes), so the upper triangle it would give
-    // equals the mirrored lower one to the bit.
+    // Each element by the formula (symmetric in i and j, Q_c exactly
+    // symmetric, so the upper triangle equals the lower to the bit).
     let half_dt = 0.5 * dt;
-    let mut q = Matrix21::zeros();
-    let e = q.as_mut_slice();
-    for j in 0..N {
-        for i in j..N {
-            e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
-        }
-        for i in 0..j {
-            e[j * N + i] = e[i * N + j];
-        }
-    }
+    let q = Matrix21::from_fn(|i, j| c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]));
     (phi, q)
 }
 
