@@ -324,13 +324,29 @@ fn all_finite(values: &[f64]) -> bool {
 /// gain their diagonal term. Q is computed by its formula at every element
 /// (symmetric in i and j, Q_c exactly symmetric).
 fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
+    let (mut phi, mut q) = (Matrix21::zeros(), Matrix21::zeros());
+    discrete_of_pattern_into(fdt, qc, dt, &mut phi, &mut q);
+    (phi, q)
+}
+
+/// [`discrete_of_pattern`] into `phi` and `q` (every element written): the
+/// filter's buffers, without two 21 × 21 results copied out on the way.
+fn discrete_of_pattern_into(
+    fdt: &Matrix21,
+    qc: &Matrix21,
+    dt: f64,
+    phi: &mut Matrix21,
+    q: &mut Matrix21,
+) {
     const N: usize = STATES;
     // Column-major slices: element (i, j) at j N + i, the diagonal every
     // (N + 1)-th.
     let f = fdt.as_slice();
     // I + FΔt (0 + a, as the identity's zeros add: −0 becomes +0).
-    let mut phi = fdt.map(|a| 0.0 + a);
     let p = phi.as_mut_slice();
+    for (o, &a) in p.iter_mut().zip(f) {
+        *o = 0.0 + a;
+    }
     for d in (0..N).map(|i| i * (N + 1)) {
         p[d] = 1.0 + f[d];
     }
@@ -367,8 +383,12 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
     // Each element by the formula (symmetric in i and j, Q_c exactly
     // symmetric, so the upper triangle equals the lower to the bit).
     let half_dt = 0.5 * dt;
-    let q = Matrix21::from_fn(|i, j| c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]));
-    (phi, q)
+    let e = q.as_mut_slice();
+    for j in 0..N {
+        for i in 0..N {
+            e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
+        }
+    }
 }
 
 /// [`NedErrorModel::discrete`] for any F: (FΔt)² and F Q_c summed over
@@ -532,14 +552,32 @@ impl NedErrorModel {
         latitude_rad: f64,
         dt: f64,
     ) -> (Matrix21, Matrix21) {
+        let (mut phi, mut q) = (Matrix21::zeros(), Matrix21::zeros());
+        let rates = [f_body, w_body, w_ie, w_en];
+        self.transition_into(c_bn, rates, latitude_rad, dt, (&mut phi, &mut q));
+        (phi, q)
+    }
+
+    /// [`transition`](Self::transition) into the caller's Φ and Q (every
+    /// element written), `rates` = (f^b, ω^b, ω_ie, ω_en): the filter
+    /// keeps the two buffers, and a 21 × 21 result returned by value is
+    /// copied on its way out (twice per flush, a memory copy each).
+    pub fn transition_into(
+        &self,
+        c_bn: &Matrix3<f64>,
+        [f_body, w_body, w_ie, w_en]: [&Vector3<f64>; 4],
+        latitude_rad: f64,
+        dt: f64,
+        (phi, q): (&mut Matrix21, &mut Matrix21),
+    ) {
         let f = self.continuous(c_bn, f_body, w_body, w_ie, w_en, latitude_rad);
         debug_assert!(follows_pattern(&f));
         let fdt = f.map(|v| v * dt);
         let qc = self.spectral_density(c_bn);
         if dt.is_finite() && pattern_finite(&fdt) && spectral_density_finite(&qc) {
-            discrete_of_pattern(&fdt, &qc, dt)
+            discrete_of_pattern_into(&fdt, &qc, dt, phi, q);
         } else {
-            discrete_of_any(&fdt, &qc, dt, true)
+            (*phi, *q) = discrete_of_any(&fdt, &qc, dt, true);
         }
     }
 
