@@ -730,7 +730,12 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<N, M> {
 /// are that function's arguments, so the compiler knows that they do not
 /// overlap (matrices reached through a struct's fields lose that, and the
 /// output columns are no longer kept in registers).
-pub(crate) trait Widened {
+///
+/// Public (re-exported at the crate root) for model crates whose own
+/// element-wise kernels gain from the same dispatch; the work must not
+/// depend on the vector width (no reassociated sums), so that its result is
+/// the same on every CPU.
+pub trait Widened {
     /// Do the work.
     fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]);
 }
@@ -747,7 +752,7 @@ pub(crate) trait Widened {
 /// multiply and an add anyway), so only the number of elements per
 /// instruction changes.
 #[inline(always)]
-pub(crate) fn run_widest<W: Widened>(
+pub fn run_widest<W: Widened>(
     work: W,
     out: &mut [f64],
     scratch: &mut [f64],

@@ -339,11 +339,49 @@ fn discrete_of_pattern_into(
     q: &mut Matrix21,
 ) {
     const N: usize = STATES;
+    // Φ and F Q_c with the widest vectors the CPU has (the same operations
+    // on each element in the same order, so the same bits).
+    let mut fq = Matrix21::zeros();
+    aidnav_estimation::run_widest(
+        PatternProducts,
+        phi.as_mut_slice(),
+        fq.as_mut_slice(),
+        fdt.as_slice(),
+        qc.as_slice(),
+    );
+    let (c, g) = (qc.as_slice(), fq.as_slice());
+    // Each element by the formula (symmetric in i and j, Q_c exactly
+    // symmetric, so the upper triangle equals the lower to the bit).
+    let half_dt = 0.5 * dt;
+    let e = q.as_mut_slice();
+    for j in 0..N {
+        for i in 0..N {
+            e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
+        }
+    }
+}
+
+/// The products of [`discrete_of_pattern_into`] on column-major slices:
+/// `out` = Φ = I + FΔt + (FΔt)²/2, `scratch` = FΔt Q_c (zeros on entry),
+/// `a` = FΔt, `b` = Q_c.
+struct PatternProducts;
+
+impl aidnav_estimation::Widened for PatternProducts {
+    #[inline(always)]
+    fn run(self, phi: &mut [f64], fq: &mut [f64], fdt: &[f64], qc: &[f64]) {
+        pattern_products(phi, fq, fdt, qc);
+    }
+}
+
+/// See [`PatternProducts`].
+#[inline(always)]
+fn pattern_products(phi: &mut [f64], fq: &mut [f64], fdt: &[f64], qc: &[f64]) {
+    const N: usize = STATES;
     // Column-major slices: element (i, j) at j N + i, the diagonal every
     // (N + 1)-th.
-    let f = fdt.as_slice();
+    let (phi, fq, f, c) = (&mut phi[..N * N], &mut fq[..N * N], &fdt[..N * N], &qc[..N * N]);
     // I + FΔt (0 + a, as the identity's zeros add: −0 becomes +0).
-    let p = phi.as_mut_slice();
+    let p = phi;
     for (o, &a) in p.iter_mut().zip(f) {
         *o = 0.0 + a;
     }
@@ -364,9 +402,7 @@ fn discrete_of_pattern_into(
         p[d] += 0.5 * a * a;
     }
     // F Q_c: Q_c's velocity and attitude blocks, its diagonal beyond.
-    let c = qc.as_slice();
-    let mut fq = Matrix21::zeros();
-    let g = fq.as_mut_slice();
+    let g = fq;
     for j in VELOCITY..N {
         let out = &mut g[j * N..j * N + COUPLED];
         for k in block_of(j) {
@@ -378,15 +414,6 @@ fn discrete_of_pattern_into(
         if j >= COUPLED {
             let d = j * (N + 1);
             g[d] += f[d] * c[d];
-        }
-    }
-    // Each element by the formula (symmetric in i and j, Q_c exactly
-    // symmetric, so the upper triangle equals the lower to the bit).
-    let half_dt = 0.5 * dt;
-    let e = q.as_mut_slice();
-    for j in 0..N {
-        for i in 0..N {
-            e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
         }
     }
 }
