@@ -752,13 +752,7 @@ pub trait Widened {
 /// multiply and an add anyway), so only the number of elements per
 /// instruction changes.
 #[inline(always)]
-pub fn run_widest<W: Widened>(
-    work: W,
-    out: &mut [f64],
-    scratch: &mut [f64],
-    a: &[f64],
-    b: &[f64],
-) {
+pub fn run_widest<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
     #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
     if std::arch::is_x86_feature_detected!("avx2") {
         #[allow(unsafe_code)]

@@ -79,8 +79,8 @@ pub use batch::{
     filter_batch, filter_batch_plain,
 };
 pub use cancel::{Cancel, Cancelled};
-pub use dense::{Widened, run_widest};
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
+pub use dense::{Widened, run_widest};
 pub use error::{EstimationError, Matrix, Result, Step};
 pub use information::{FisherInformation, InformationFilter};
 pub use kalman::{

@@ -554,7 +554,11 @@ mod tests {
                 let mut kf = KalmanFilter::new(SVector::<f64, 21>::zeros(), p0).unwrap();
                 kf.predict_structured(&phi, &q, TrailingDiagonal::new(full_rows))
                     .unwrap();
-                assert_eq!(bits(kf.covariance()), bits(&expected), "{full_rows} rows, round {round}");
+                assert_eq!(
+                    bits(kf.covariance()),
+                    bits(&expected),
+                    "{full_rows} rows, round {round}"
+                );
             }
         }
     }

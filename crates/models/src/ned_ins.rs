@@ -379,7 +379,12 @@ fn pattern_products(phi: &mut [f64], fq: &mut [f64], fdt: &[f64], qc: &[f64]) {
     const N: usize = STATES;
     // Column-major slices: element (i, j) at j N + i, the diagonal every
     // (N + 1)-th.
-    let (phi, fq, f, c) = (&mut phi[..N * N], &mut fq[..N * N], &fdt[..N * N], &qc[..N * N]);
+    let (phi, fq, f, c) = (
+        &mut phi[..N * N],
+        &mut fq[..N * N],
+        &fdt[..N * N],
+        &qc[..N * N],
+    );
     // I + FΔt (0 + a, as the identity's zeros add: −0 becomes +0).
     let p = phi;
     for (o, &a) in p.iter_mut().zip(f) {
@@ -597,9 +602,12 @@ impl NedErrorModel {
         dt: f64,
         (phi, q): (&mut Matrix21, &mut Matrix21),
     ) {
-        let f = self.continuous(c_bn, f_body, w_body, w_ie, w_en, latitude_rad);
-        debug_assert!(follows_pattern(&f));
-        let fdt = f.map(|v| v * dt);
+        let mut fdt = self.continuous(c_bn, f_body, w_body, w_ie, w_en, latitude_rad);
+        debug_assert!(follows_pattern(&fdt));
+        // F Δt in place (`map` builds a new matrix and copies it out).
+        for v in fdt.as_mut_slice() {
+            *v *= dt;
+        }
         let qc = self.spectral_density(c_bn);
         if dt.is_finite() && pattern_finite(&fdt) && spectral_density_finite(&qc) {
             discrete_of_pattern_into(&fdt, &qc, dt, phi, q);
