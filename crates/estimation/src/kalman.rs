@@ -704,7 +704,10 @@ where
     /// once for many epochs (shape, finite): the same arithmetic, the
     /// state's check kept.
     pub(crate) fn predict_state_prechecked(&mut self, phi: &OMatrix<f64, N, N>) -> Result<()> {
-        self.x = phi * &self.x;
+        // Φ x as nalgebra's product, bit for bit, with wider vectors.
+        let mut x = self.x.clone();
+        dense::matrix_vector(&mut x, phi, &self.x);
+        self.x = x;
         check::finite(&self.x, Step::Predict, Matrix::X)
     }
 
