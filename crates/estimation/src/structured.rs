@@ -208,9 +208,10 @@ where
 
 /// Φ P for a Φ whose rows from r on are diagonal and a finite, exactly
 /// symmetric P, on column-major slices: `out` = Φ P, `scratch` = (Φ P)ᵀ,
-/// `a` = P, `b` = Φ. (Φ P)ᵀ = P Φᵀ column by column
-/// ([`times_transpose_of_finite`]), then turned over: the second product
-/// reads Φ P by columns.
+/// `a` = P, `b` = Φ. (Φ P)ᵀ = P Φᵀ column by column ([`times_transpose`];
+/// leaving out the terms of Φ's exact zeros there would give the same bits
+/// but measured slower: the branch costs more than the products it skips),
+/// then turned over: the second product reads Φ P by columns.
 struct StructuredProduct<D: Dim> {
     n: D,
     r: usize,
@@ -222,7 +223,7 @@ impl<D: Dim> dense::Widened for StructuredProduct<D> {
         let n = self.n.value();
         let nn = n * n;
         let (phi_p, phi_p_t, p, phi) = (&mut out[..nn], &mut scratch[..nn], &a[..nn], &b[..nn]);
-        times_transpose_of_finite(n, self.r, p, phi, phi_p_t);
+        times_transpose(n, self.r, p, phi, phi_p_t);
         transpose(n, phi_p_t, phi_p);
     }
 }
@@ -242,38 +243,6 @@ impl<D: Dim> dense::Widened for StructuredCongruence<D> {
         let (out, phi_p, phi) = (&mut out[..nn], &a[..nn], &b[..nn]);
         add_times_transpose_lower(n, self.r, phi_p, phi, out);
         dense::mirror_lower_slice(n, out);
-    }
-}
-
-/// [`times_transpose`] for a finite S, leaving out the terms of an exact
-/// zero Φ(j, k). The same result to the bit: each column j < r is a sum
-/// from +0 of the products `S(i, k) Φ(j, k)`; a left-out product is ±0
-/// (S finite), and adding ±0 leaves every sum that is not −0 as it is, while
-/// a sum from +0 is never −0 (x + y rounds to −0 only when both are −0).
-/// A navigation Φ's leading rows hold a third of their elements as zeros.
-#[inline(always)]
-fn times_transpose_of_finite(n: usize, r: usize, s: &[f64], phi: &[f64], out: &mut [f64]) {
-    for j in 0..n {
-        let oc = &mut out[j * n..(j + 1) * n];
-        if j < r {
-            oc.fill(0.0);
-            for k in 0..n {
-                let f = phi[k * n + j];
-                if f == 0.0 {
-                    continue;
-                }
-                let sc = &s[k * n..(k + 1) * n];
-                for (o, &x) in oc.iter_mut().zip(sc) {
-                    *o += x * f;
-                }
-            }
-        } else {
-            let f = phi[j * n + j];
-            let sc = &s[j * n..(j + 1) * n];
-            for (o, &x) in oc.iter_mut().zip(sc) {
-                *o = 0.0 + x * f;
-            }
-        }
     }
 }
 
@@ -499,9 +468,8 @@ mod tests {
         }
     }
 
-    /// The previous formulation of the structured time update (every term
-    /// of the first product, without the wider dispatch), the reference of
-    /// the one in use.
+    /// The previous formulation of the structured time update (without the
+    /// wider dispatch), the reference of the one in use.
     fn reference_propagate<const N: usize>(
         p: &SMatrix<f64, N, N>,
         phi: &SMatrix<f64, N, N>,
@@ -518,10 +486,10 @@ mod tests {
         out
     }
 
-    /// The time update in use (zero terms of Φ left out, AVX2 where the CPU
-    /// has it) equals the previous formulation to the bit, the sign of
-    /// exact zeros included, on random Φ (a fifth of the leading rows' entries
-    /// ±0), P and Q with exact zeros and −0s.
+    /// The time update in use (AVX2 where the CPU has it) equals the
+    /// previous formulation to the bit, the sign of exact zeros included,
+    /// on random Φ (a fifth of the leading rows' entries ±0), P and Q with
+    /// exact zeros and −0s.
     #[test]
     fn structured_predict_equals_the_previous_formulation_to_the_bit() {
         let mut rng = StdRng::seed_from_u64(29);
