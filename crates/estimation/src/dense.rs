@@ -650,7 +650,12 @@ impl<D: Dim> Widened for MatrixVector<D> {
         }
         for (k, &xk) in x.iter().enumerate().skip(1) {
             for (o, &f) in y.iter_mut().zip(&phi[k * n..(k + 1) * n]) {
-                *o = f * xk + *o;
+                // nalgebra's operand order (term + y), kept so that even a
+                // NaN propagates as it did.
+                #[allow(clippy::assign_op_pattern)]
+                {
+                    *o = f * xk + *o;
+                }
             }
         }
     }

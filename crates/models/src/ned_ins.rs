@@ -568,8 +568,8 @@ impl NedErrorModel {
 
     /// [`discrete`](Self::discrete) of [`continuous`](Self::continuous)'s F
     /// at these arguments, bit for bit, for the filter's covariance rate:
-    /// that F has [`F_ROW_COLUMNS`]'s pattern by construction (every element
-    /// outside it is never written, +0), so the pattern is not checked, and
+    /// that F has the pattern `discrete` checks for by construction (every
+    /// element outside it is never written, +0), so it is not checked, and
     /// FΔt and Q_c are finite exactly when Δt, F's blocks and Q_c's blocks
     /// are (an element never written is +0, and +0 · Δt is finite for a
     /// finite Δt), so only those are checked.
