@@ -31,7 +31,7 @@
 //! 6 measurements runs about 1.3× faster. The one `unsafe` call of the
 //! crate is that dispatch, after run-time detection.
 
-use nalgebra::{DefaultAllocator, Dim, OMatrix, allocator::Allocator};
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, allocator::Allocator};
 
 /// Largest run-time dimension handled by the kernels; larger `Dyn` products
 /// go to nalgebra (packed, cache-blocked `matrixmultiply`).
@@ -608,6 +608,59 @@ impl<N: Dim, M: Dim> Widened for GainSolve<N, M> {
     }
 }
 
+/// `y = Φ x` (the time update's state) as nalgebra's product computes it
+/// (its gemv: `y = Φ(·, 0) x₀`, then `y = Φ(·, k) x_k + y` for k = 1, 2, …,
+/// its multiplications by α = β = 1 exact), through [`run_widest`]: the
+/// same bits with wider vectors, where nalgebra's strided loop was one
+/// element at a time.
+pub(crate) fn matrix_vector<D: Dim>(
+    y: &mut OVector<f64, D>,
+    phi: &OMatrix<f64, D, D>,
+    x: &OVector<f64, D>,
+) where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
+    let (nd, _) = phi.shape_generic();
+    run_widest(
+        MatrixVector { n: nd },
+        y.as_mut_slice(),
+        &mut [],
+        phi.as_slice(),
+        x.as_slice(),
+    );
+}
+
+/// [`matrix_vector`] on the column-major slices: `out` = y (n), `a` = Φ
+/// (n × n), `b` = x (n).
+struct MatrixVector<D: Dim> {
+    n: D,
+}
+
+impl<D: Dim> Widened for MatrixVector<D> {
+    #[inline(always)]
+    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
+        let n = self.n.value();
+        if n == 0 {
+            return;
+        }
+        let (y, phi, x) = (&mut out[..n], &a[..n * n], &b[..n]);
+        let x0 = x[0];
+        for (o, &f) in y.iter_mut().zip(&phi[..n]) {
+            *o = f * x0;
+        }
+        for (k, &xk) in x.iter().enumerate().skip(1) {
+            for (o, &f) in y.iter_mut().zip(&phi[k * n..(k + 1) * n]) {
+                // nalgebra's operand order (term + y), kept so that even a
+                // NaN propagates as it did.
+                #[allow(clippy::assign_op_pattern)]
+                {
+                    *o = f * xk + *o;
+                }
+            }
+        }
+    }
+}
+
 /// `out = Φ p Φᵀ + out` for a symmetric `out` and `p` (the time update's
 /// covariance, `out` holding Q on entry): Φ P as [`gemm`] computes it, then
 /// the lower triangle of (Φ P) Φᵀ as [`gemm_nt_lower`] does, and
@@ -730,7 +783,12 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<N, M> {
 /// are that function's arguments, so the compiler knows that they do not
 /// overlap (matrices reached through a struct's fields lose that, and the
 /// output columns are no longer kept in registers).
-pub(crate) trait Widened {
+///
+/// Public (re-exported at the crate root) for model crates whose own
+/// element-wise kernels gain from the same dispatch; the work must not
+/// depend on the vector width (no reassociated sums), so that its result is
+/// the same on every CPU.
+pub trait Widened {
     /// Do the work.
     fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]);
 }
@@ -747,13 +805,7 @@ pub(crate) trait Widened {
 /// multiply and an add anyway), so only the number of elements per
 /// instruction changes.
 #[inline(always)]
-pub(crate) fn run_widest<W: Widened>(
-    work: W,
-    out: &mut [f64],
-    scratch: &mut [f64],
-    a: &[f64],
-    b: &[f64],
-) {
+pub fn run_widest<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
     #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
     if std::arch::is_x86_feature_detected!("avx2") {
         #[allow(unsafe_code)]
@@ -796,7 +848,55 @@ pub(crate) fn mirror_lower_slice(n: usize, s: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{DMatrix, Dyn, SMatrix};
+    use nalgebra::{DMatrix, DVector, Dyn, SMatrix, SVector};
+
+    /// `matrix_vector` equals nalgebra's `Φ * x` to the bit (the sign of
+    /// zeros included) at fixed size 21 and run-time sizes, with exact
+    /// zeros, −0 and negative rows in Φ and a zero x among the cases.
+    #[test]
+    fn matrix_vector_equals_nalgebras_product_to_the_bit() {
+        let mut seed = 12345_u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let u = (seed >> 11) as f64 / (1u64 << 53) as f64;
+            match seed % 7 {
+                0 => 0.0,
+                1 => -0.0,
+                _ => 4.0 * u - 2.0,
+            }
+        };
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for round in 0..50 {
+            let mut phi = SMatrix::<f64, 21, 21>::from_fn(|_, _| next());
+            if round % 5 == 0 {
+                // A row of negative values and −0: Φ 0 is −0 there.
+                for j in 0..21 {
+                    phi[(4, j)] = -(phi[(4, j)].abs());
+                }
+            }
+            let x = if round % 3 == 0 {
+                SVector::<f64, 21>::zeros()
+            } else {
+                SVector::<f64, 21>::from_fn(|_, _| next())
+            };
+            let mut y = SVector::<f64, 21>::zeros();
+            matrix_vector(&mut y, &phi, &x);
+            assert_eq!(
+                bits(y.as_slice()),
+                bits((phi * x).as_slice()),
+                "round {round}"
+            );
+        }
+        for n in [1, 5, 40] {
+            let phi = DMatrix::from_fn(n, n, |_, _| next());
+            let x = DVector::from_fn(n, |_, _| next());
+            let mut y = DVector::zeros(n);
+            matrix_vector(&mut y, &phi, &x);
+            assert_eq!(bits(y.as_slice()), bits((&phi * &x).as_slice()), "n {n}");
+        }
+    }
 
     #[test]
     fn kernels_match_nalgebra() {

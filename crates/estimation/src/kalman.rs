@@ -136,9 +136,23 @@ where
     /// Start from `x0` and its covariance `p0` (symmetric, finite; it may be
     /// singular, e.g. for states known exactly).
     pub fn new(x0: OVector<f64, N>, p0: OMatrix<f64, N, N>) -> Result<Self> {
+        let p = Self::checked_covariance(&x0, p0)?;
+        Ok(Self {
+            x: x0,
+            p,
+            covariance_update: CovarianceUpdate::Joseph,
+        })
+    }
+
+    /// The checks of [`new`](Self::new) on a covariance for the state `x`,
+    /// and P symmetrised.
+    fn checked_covariance(
+        x: &OVector<f64, N>,
+        p0: OMatrix<f64, N, N>,
+    ) -> Result<OMatrix<f64, N, N>> {
         let step = Step::Initialise;
-        check::shape(&p0, (x0.len(), x0.len()), step, Matrix::P)?;
-        check::finite(&x0, step, Matrix::X)?;
+        check::shape(&p0, (x.len(), x.len()), step, Matrix::P)?;
+        check::finite(x, step, Matrix::X)?;
         check::finite(&p0, step, Matrix::P)?;
         check::symmetric(&p0, step, Matrix::P)?;
         let mut p = p0;
@@ -149,11 +163,7 @@ where
                 matrix: Matrix::P,
             });
         }
-        Ok(Self {
-            x: x0,
-            p,
-            covariance_update: CovarianceUpdate::Joseph,
-        })
+        Ok(p)
     }
 
     /// Choose the covariance update form (Joseph by default).
@@ -192,8 +202,8 @@ where
 
     /// Replace the covariance (checked as in [`KalmanFilter::new`]).
     pub fn set_covariance(&mut self, p: OMatrix<f64, N, N>) -> Result<()> {
-        let fresh = Self::new(self.x.clone(), p)?;
-        self.p = fresh.p;
+        // The checks of `new` without building a filter (a copy of x and P).
+        self.p = Self::checked_covariance(&self.x, p)?;
         Ok(())
     }
 
@@ -694,7 +704,10 @@ where
     /// once for many epochs (shape, finite): the same arithmetic, the
     /// state's check kept.
     pub(crate) fn predict_state_prechecked(&mut self, phi: &OMatrix<f64, N, N>) -> Result<()> {
-        self.x = phi * &self.x;
+        // Φ x as nalgebra's product, bit for bit, with wider vectors.
+        let mut x = self.x.clone();
+        dense::matrix_vector(&mut x, phi, &self.x);
+        self.x = x;
         check::finite(&self.x, Step::Predict, Matrix::X)
     }
 

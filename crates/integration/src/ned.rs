@@ -15,8 +15,8 @@ use aidnav_estimation::{
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_models::ned_ins::{
-    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, Matrix3x21, NedErrorModel, POSITION,
-    STATES, VELOCITY, Vector21,
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, Matrix3x21, Matrix21, NedErrorModel,
+    POSITION, STATES, VELOCITY, Vector21,
 };
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
@@ -191,6 +191,9 @@ pub struct NedFilter {
     fed_back: Vector21,
     adaptive: Option<InnovationFeedbackNoise<Const<STATES>, U3>>,
     recovery: Option<Box<Recovery>>,
+    /// Φ and Q of the last covariance flush: buffers the model writes into.
+    phi: Matrix21,
+    q: Matrix21,
 }
 
 /// The reset recovery of the GNSS updates: when a run of refused (rejected
@@ -323,6 +326,8 @@ impl NedFilter {
             fed_back: Vector21::zeros(),
             adaptive: None,
             recovery: None,
+            phi: Matrix21::zeros(),
+            q: Matrix21::zeros(),
         })
     }
 
@@ -457,37 +462,43 @@ impl NedFilter {
         let dt = self.pending_dt;
         let s = self.ins.state();
         let c = s.attitude.matrix();
-        let f = self.model.continuous(
+        let rates = [
+            (self.pending_force / dt).raw(),
+            (self.pending_angle / dt).raw(),
+            earth_rate_ned(s.position.latitude_rad).raw(),
+            transport_rate_ned(&s.position, &s.velocity).raw(),
+        ];
+        // Into the filter's own buffers (no 21 × 21 copies on the way).
+        let (phi, q) = (&mut self.phi, &mut self.q);
+        self.model.transition_into(
             c.as_raw(),
-            (self.pending_force / dt).as_raw(),
-            (self.pending_angle / dt).as_raw(),
-            earth_rate_ned(s.position.latitude_rad).as_raw(),
-            transport_rate_ned(&s.position, &s.velocity).as_raw(),
+            [&rates[0], &rates[1], &rates[2], &rates[3]],
             s.position.latitude_rad,
+            dt,
+            (phi, q),
         );
-        let (phi, q) = self.model.discrete(&f, c.as_raw(), dt);
+        let (phi, q) = (&self.phi, &self.q);
         self.pending_force = Vec3::zeros();
         self.pending_angle = Vec3::zeros();
         self.pending_dt = 0.0;
         self.kf
-            .predict_structured(&phi, &q, NedErrorModel::TRANSITION)?;
+            .predict_structured(phi, q, NedErrorModel::TRANSITION)?;
         if let Some(m) = self.monitor.as_mut() {
-            m.fisher.propagate(&phi)?;
+            m.fisher.propagate(phi)?;
         }
         if let Some(r) = self.recovery.as_mut() {
-            r.position.propagate(&phi, dt);
-            r.velocity.propagate(&phi, dt);
+            r.position.propagate(phi, dt);
+            r.velocity.propagate(phi, dt);
         }
         if let Some(r) = self.record.as_mut() {
-            r.rts
-                .predict(&phi, &Vector21::zeros(), self.kf.covariance());
+            r.rts.predict(phi, &Vector21::zeros(), self.kf.covariance());
             r.open_state = *self.ins.state();
         }
         #[cfg(test)]
         if let Some(r) = self.full_record.as_mut() {
             let p = *self.kf.covariance();
             r.epochs.push(aidnav_estimation::ForwardEpoch {
-                phi,
+                phi: *phi,
                 x_predicted: Vector21::zeros(),
                 p_predicted: p,
                 x_filtered: Vector21::zeros(),
@@ -940,12 +951,13 @@ impl NedFilter {
         self.instruments.accel_bias += v3(ACCEL_BIAS);
         self.instruments.gyro_scale += v3(GYRO_SCALE);
         self.instruments.accel_scale += v3(ACCEL_SCALE);
-        let (p, state) = (*self.kf.covariance(), *self.ins.state());
+        // P by reference: a copy of it per update is a 3.5 kB memory copy.
+        let (p, state) = (self.kf.covariance(), *self.ins.state());
         if let Some(r) = self.record.as_mut() {
             // Errors relative to the post-feedback nominal: the prediction
             // sat the feedback δ away from it.
             let x_predicted = r.rts.x_predicted() - x;
-            r.rts.filtered(&x_predicted, &Vector21::zeros(), &p);
+            r.rts.filtered(&x_predicted, &Vector21::zeros(), p);
             r.open_state = state;
             if r.rts.open_mark().is_some()
                 && let Some(st) = r.states.last_mut()
@@ -958,7 +970,7 @@ impl NedFilter {
             && let (Some(e), Some(st)) = (r.epochs.last_mut(), r.states.last_mut())
         {
             e.x_predicted -= x;
-            e.p_filtered = p;
+            e.p_filtered = *p;
             *st = state;
         }
         self.kf.set_state(Vector21::zeros())

@@ -267,6 +267,48 @@ fn follows_pattern(f: &Matrix21) -> bool {
     (0..STATES).all(|j| (0..STATES).all(|i| F_ROW_MASKS[i] & (1 << j) != 0 || f[(i, j)] == 0.0))
 }
 
+/// Whether every element of `m` inside [`F_ROW_COLUMNS`]'s pattern is
+/// finite (Σ v·0 over them, as [`all_finite`]).
+fn pattern_finite(m: &Matrix21) -> bool {
+    let s = m.as_slice();
+    let mut sum = 0.0;
+    for (i, row) in F_ROW_COLUMNS.iter().enumerate() {
+        for &j in row.iter() {
+            sum += s[j * STATES + i] * 0.0;
+        }
+    }
+    sum == 0.0
+}
+
+/// Whether the elements of a Q_c that [`NedErrorModel::spectral_density`]
+/// writes (its velocity and attitude blocks, the instruments' diagonal) are
+/// finite; every other element is +0.
+fn spectral_density_finite(qc: &Matrix21) -> bool {
+    let s = qc.as_slice();
+    let mut sum = 0.0;
+    for j in VELOCITY..STATES {
+        for k in block_of(j) {
+            sum += s[j * STATES + k] * 0.0;
+        }
+    }
+    sum == 0.0
+}
+
+/// Whether every value is finite: Σ v·0 is ±0 when every v is finite and
+/// NaN as soon as one is ±∞ or NaN, over 8 partial sums (no branch, and it
+/// vectorises).
+fn all_finite(values: &[f64]) -> bool {
+    let mut partial = [0.0_f64; 8];
+    let chunks = values.chunks_exact(8);
+    let rest = chunks.remainder().iter().fold(0.0, |s, &v| s + v * 0.0);
+    for chunk in chunks {
+        for (s, &v) in partial.iter_mut().zip(chunk) {
+            *s += v * 0.0;
+        }
+    }
+    partial.iter().fold(rest, |s, &v| s + v) == 0.0
+}
+
 /// [`NedErrorModel::discrete`] for an F with [`continuous`](NedErrorModel::continuous)'s
 /// pattern ([`F_ROW_COLUMNS`]), FΔt and Q_c finite: the same sums as
 /// [`discrete_of_any`] to the bit, by columns and without a branch.
@@ -279,17 +321,75 @@ fn follows_pattern(f: &Matrix21) -> bool {
 /// F Q_c. Columns: Φ(·, j) gains Σ_k FΔt(·, k) FΔt(k, j) over the rows k
 /// of F that may hold column j ([`F_COLUMN_ROWS`]), a contiguous update of
 /// the coupled rows (position, velocity, attitude); the instruments' rows
-/// gain their diagonal term. Q is computed
-/// by its formula at every element (symmetric in i and j, Q_c exactly
-/// symmetric).
+/// gain their diagonal term. Q is computed by its formula at every element
+/// (symmetric in i and j, Q_c exactly symmetric).
 fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
+    let (mut phi, mut q) = (Matrix21::zeros(), Matrix21::zeros());
+    discrete_of_pattern_into(fdt, qc, dt, &mut phi, &mut q);
+    (phi, q)
+}
+
+/// [`discrete_of_pattern`] into `phi` and `q` (every element written): the
+/// filter's buffers, without two 21 × 21 results copied out on the way.
+fn discrete_of_pattern_into(
+    fdt: &Matrix21,
+    qc: &Matrix21,
+    dt: f64,
+    phi: &mut Matrix21,
+    q: &mut Matrix21,
+) {
+    const N: usize = STATES;
+    // Φ and F Q_c with the widest vectors the CPU has (the same operations
+    // on each element in the same order, so the same bits).
+    let mut fq = Matrix21::zeros();
+    aidnav_estimation::run_widest(
+        PatternProducts,
+        phi.as_mut_slice(),
+        fq.as_mut_slice(),
+        fdt.as_slice(),
+        qc.as_slice(),
+    );
+    let (c, g) = (qc.as_slice(), fq.as_slice());
+    // Each element by the formula (symmetric in i and j, Q_c exactly
+    // symmetric, so the upper triangle equals the lower to the bit).
+    let half_dt = 0.5 * dt;
+    let e = q.as_mut_slice();
+    for j in 0..N {
+        for i in 0..N {
+            e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
+        }
+    }
+}
+
+/// The products of [`discrete_of_pattern_into`] on column-major slices:
+/// `out` = Φ = I + FΔt + (FΔt)²/2, `scratch` = FΔt Q_c (zeros on entry),
+/// `a` = FΔt, `b` = Q_c.
+struct PatternProducts;
+
+impl aidnav_estimation::Widened for PatternProducts {
+    #[inline(always)]
+    fn run(self, phi: &mut [f64], fq: &mut [f64], fdt: &[f64], qc: &[f64]) {
+        pattern_products(phi, fq, fdt, qc);
+    }
+}
+
+/// See [`PatternProducts`].
+#[inline(always)]
+fn pattern_products(phi: &mut [f64], fq: &mut [f64], fdt: &[f64], qc: &[f64]) {
     const N: usize = STATES;
     // Column-major slices: element (i, j) at j N + i, the diagonal every
     // (N + 1)-th.
-    let f = fdt.as_slice();
+    let (phi, fq, f, c) = (
+        &mut phi[..N * N],
+        &mut fq[..N * N],
+        &fdt[..N * N],
+        &qc[..N * N],
+    );
     // I + FΔt (0 + a, as the identity's zeros add: −0 becomes +0).
-    let mut phi = fdt.map(|a| 0.0 + a);
-    let p = phi.as_mut_slice();
+    let p = phi;
+    for (o, &a) in p.iter_mut().zip(f) {
+        *o = 0.0 + a;
+    }
     for d in (0..N).map(|i| i * (N + 1)) {
         p[d] = 1.0 + f[d];
     }
@@ -307,9 +407,7 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
         p[d] += 0.5 * a * a;
     }
     // F Q_c: Q_c's velocity and attitude blocks, its diagonal beyond.
-    let c = qc.as_slice();
-    let mut fq = Matrix21::zeros();
-    let g = fq.as_mut_slice();
+    let g = fq;
     for j in VELOCITY..N {
         let out = &mut g[j * N..j * N + COUPLED];
         for k in block_of(j) {
@@ -323,11 +421,6 @@ fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Mat
             g[d] += f[d] * c[d];
         }
     }
-    // Each element by the formula (symmetric in i and j, Q_c exactly
-    // symmetric, so the upper triangle equals the lower to the bit).
-    let half_dt = 0.5 * dt;
-    let q = Matrix21::from_fn(|i, j| c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]));
-    (phi, q)
 }
 
 /// [`NedErrorModel::discrete`] for any F: (FΔt)² and F Q_c summed over
@@ -466,11 +559,60 @@ impl NedErrorModel {
         let fdt = f.map(|v| v * dt);
         let qc = self.spectral_density(c_bn);
         let pattern = follows_pattern(f);
-        let finite = |m: &Matrix21| m.as_slice().iter().fold(true, |ok, v| ok & v.is_finite());
-        if pattern && finite(&fdt) && finite(&qc) {
+        if pattern && all_finite(fdt.as_slice()) && all_finite(qc.as_slice()) {
             discrete_of_pattern(&fdt, &qc, dt)
         } else {
             discrete_of_any(&fdt, &qc, dt, pattern)
+        }
+    }
+
+    /// [`discrete`](Self::discrete) of [`continuous`](Self::continuous)'s F
+    /// at these arguments, bit for bit, for the filter's covariance rate:
+    /// that F has the pattern `discrete` checks for by construction (every
+    /// element outside it is never written, +0), so it is not checked, and
+    /// FΔt and Q_c are finite exactly when Δt, F's blocks and Q_c's blocks
+    /// are (an element never written is +0, and +0 · Δt is finite for a
+    /// finite Δt), so only those are checked.
+    #[allow(clippy::too_many_arguments)]
+    pub fn transition(
+        &self,
+        c_bn: &Matrix3<f64>,
+        f_body: &Vector3<f64>,
+        w_body: &Vector3<f64>,
+        w_ie: &Vector3<f64>,
+        w_en: &Vector3<f64>,
+        latitude_rad: f64,
+        dt: f64,
+    ) -> (Matrix21, Matrix21) {
+        let (mut phi, mut q) = (Matrix21::zeros(), Matrix21::zeros());
+        let rates = [f_body, w_body, w_ie, w_en];
+        self.transition_into(c_bn, rates, latitude_rad, dt, (&mut phi, &mut q));
+        (phi, q)
+    }
+
+    /// [`transition`](Self::transition) into the caller's Φ and Q (every
+    /// element written), `rates` = (f^b, ω^b, ω_ie, ω_en): the filter
+    /// keeps the two buffers, and a 21 × 21 result returned by value is
+    /// copied on its way out (twice per flush, a memory copy each).
+    pub fn transition_into(
+        &self,
+        c_bn: &Matrix3<f64>,
+        [f_body, w_body, w_ie, w_en]: [&Vector3<f64>; 4],
+        latitude_rad: f64,
+        dt: f64,
+        (phi, q): (&mut Matrix21, &mut Matrix21),
+    ) {
+        let mut fdt = self.continuous(c_bn, f_body, w_body, w_ie, w_en, latitude_rad);
+        debug_assert!(follows_pattern(&fdt));
+        // F Δt in place (`map` builds a new matrix and copies it out).
+        for v in fdt.as_mut_slice() {
+            *v *= dt;
+        }
+        let qc = self.spectral_density(c_bn);
+        if dt.is_finite() && pattern_finite(&fdt) && spectral_density_finite(&qc) {
+            discrete_of_pattern_into(&fdt, &qc, dt, phi, q);
+        } else {
+            (*phi, *q) = discrete_of_any(&fdt, &qc, dt, true);
         }
     }
 
@@ -735,6 +877,58 @@ mod tests {
         };
         assert_eq!(nan_or_bits(&phi), nan_or_bits(&phi_ref));
         assert_eq!(nan_or_bits(&q), nan_or_bits(&q_ref));
+    }
+
+    /// `transition` (no pattern check, finiteness of the written elements
+    /// only) equals `discrete` of `continuous`'s F to the bit on random
+    /// states, and with a NaN or infinite input (a force, a rate, Δt) the
+    /// same NaN and infinity positions.
+    #[test]
+    fn transition_equals_discrete_of_continuous_bitwise() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
+        let nan_or_bits = |a: &Matrix21| {
+            a.iter()
+                .map(|v| if v.is_nan() { None } else { Some(v.to_bits()) })
+                .collect::<Vec<_>>()
+        };
+        for case in 0..300 {
+            let m = NedErrorModel {
+                noise: ImuNoise {
+                    arw_deg_per_sqrt_h: PerAxis::all(rng.random_range(0.1..20.0)),
+                    scale_factors: case % 3 != 0,
+                    ..ImuNoise::default()
+                },
+            };
+            let c = nalgebra::Rotation3::from_euler_angles(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-1.5..1.5),
+                rng.random_range(-3.0..3.0),
+            )
+            .into_inner();
+            let mut vector = |scale: f64| {
+                Vector3::from_fn(|_, _| match rng.random_range(0..6) {
+                    0 => 0.0,
+                    1 => -0.0,
+                    _ => scale * rng.random_range(-1.0..1.0),
+                })
+            };
+            let (mut force, rate) = (vector(12.0), vector(1.0));
+            let (w_ie, w_en) = (vector(7.3e-5), vector(1e-5));
+            let mut dt = [0.05, 0.01, 0.0123, 1.0][case % 4];
+            match case % 25 {
+                5 => force[1] = f64::NAN,
+                10 => force[2] = f64::INFINITY,
+                15 => dt = f64::INFINITY,
+                20 => dt = f64::NAN,
+                _ => {}
+            }
+            let (phi, q) = m.transition(&c, &force, &rate, &w_ie, &w_en, 0.6, dt);
+            let f = m.continuous(&c, &force, &rate, &w_ie, &w_en, 0.6);
+            let (phi_ref, q_ref) = m.discrete(&f, &c, dt);
+            assert_eq!(nan_or_bits(&phi), nan_or_bits(&phi_ref), "case {case}");
+            assert_eq!(nan_or_bits(&q), nan_or_bits(&q_ref), "case {case}");
+        }
     }
 
     #[test]
