@@ -800,6 +800,35 @@ mod tests {
         }
     }
 
+    /// A random attitude (roll, pitch, yaw over most of their ranges).
+    fn random_attitude(rng: &mut impl rand::Rng) -> Matrix3<f64> {
+        use rand::RngExt;
+        nalgebra::Rotation3::from_euler_angles(
+            rng.random_range(-3.0..3.0),
+            rng.random_range(-1.5..1.5),
+            rng.random_range(-3.0..3.0),
+        )
+        .into_inner()
+    }
+
+    /// A random vector of magnitude up to `scale` per element, with exact
+    /// +0 and −0 elements a third of the time.
+    fn random_vector(rng: &mut impl rand::Rng, scale: f64) -> Vector3<f64> {
+        use rand::RngExt;
+        Vector3::from_fn(|_, _| match rng.random_range(0..6) {
+            0 => 0.0,
+            1 => -0.0,
+            _ => scale * rng.random_range(-1.0..1.0),
+        })
+    }
+
+    /// The bits of every element, NaN as None (any NaN payload).
+    fn nan_or_bits(a: &Matrix21) -> Vec<Option<u64>> {
+        a.iter()
+            .map(|v| if v.is_nan() { None } else { Some(v.to_bits()) })
+            .collect()
+    }
+
     /// The branch-free column path (`continuous`'s pattern, finite values)
     /// equals the loop over every column to the bit on random models and
     /// states — zero rates and forces, exact zeros and −0 inside the
@@ -827,19 +856,8 @@ mod tests {
                     scale_factors: case % 5 != 0,
                 },
             };
-            let c = nalgebra::Rotation3::from_euler_angles(
-                rng.random_range(-3.0..3.0),
-                rng.random_range(-1.5..1.5),
-                rng.random_range(-3.0..3.0),
-            )
-            .into_inner();
-            let mut vector = |scale: f64| {
-                Vector3::from_fn(|_, _| match rng.random_range(0..6) {
-                    0 => 0.0,
-                    1 => -0.0,
-                    _ => scale * rng.random_range(-1.0..1.0),
-                })
-            };
+            let c = random_attitude(&mut rng);
+            let mut vector = |scale: f64| random_vector(&mut rng, scale);
             let (force, rate) = (vector(12.0), vector(1.0));
             let (w_ie, w_en) = (vector(7.3e-5), vector(1e-5));
             let mut f = m.continuous(&c, &force, &rate, &w_ie, &w_en, 0.6);
@@ -870,11 +888,6 @@ mod tests {
         f[(7, 9)] = f64::INFINITY;
         let (phi, q) = m.discrete(&f, &c, 0.05);
         let (phi_ref, q_ref) = discrete_every_column(&m, &f, &c, 0.05);
-        let nan_or_bits = |a: &Matrix21| {
-            a.iter()
-                .map(|v| if v.is_nan() { None } else { Some(v.to_bits()) })
-                .collect::<Vec<_>>()
-        };
         assert_eq!(nan_or_bits(&phi), nan_or_bits(&phi_ref));
         assert_eq!(nan_or_bits(&q), nan_or_bits(&q_ref));
     }
@@ -887,11 +900,6 @@ mod tests {
     fn transition_equals_discrete_of_continuous_bitwise() {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
-        let nan_or_bits = |a: &Matrix21| {
-            a.iter()
-                .map(|v| if v.is_nan() { None } else { Some(v.to_bits()) })
-                .collect::<Vec<_>>()
-        };
         for case in 0..300 {
             let m = NedErrorModel {
                 noise: ImuNoise {
@@ -900,19 +908,8 @@ mod tests {
                     ..ImuNoise::default()
                 },
             };
-            let c = nalgebra::Rotation3::from_euler_angles(
-                rng.random_range(-3.0..3.0),
-                rng.random_range(-1.5..1.5),
-                rng.random_range(-3.0..3.0),
-            )
-            .into_inner();
-            let mut vector = |scale: f64| {
-                Vector3::from_fn(|_, _| match rng.random_range(0..6) {
-                    0 => 0.0,
-                    1 => -0.0,
-                    _ => scale * rng.random_range(-1.0..1.0),
-                })
-            };
+            let c = random_attitude(&mut rng);
+            let mut vector = |scale: f64| random_vector(&mut rng, scale);
             let (mut force, rate) = (vector(12.0), vector(1.0));
             let (w_ie, w_en) = (vector(7.3e-5), vector(1e-5));
             let mut dt = [0.05, 0.01, 0.0123, 1.0][case % 4];
