@@ -777,9 +777,11 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<N, M> {
 
 /// Work that [`run_widest`] may compile for a wider instruction set, on
 /// column-major slices: `out` and `scratch` written, `a` and `b` read.
-/// Every implementation marks `run` `#[inline(always)]`, so that its body
-/// (and the `#[inline(always)]` kernels it calls) is compiled into the
-/// dispatching function with that function's target features; the slices
+/// An implementation should mark `run` `#[inline(always)]` (nothing
+/// enforces it; without it the work runs as compiled for the baseline
+/// target: slower, same result), so that its body (and the
+/// `#[inline(always)]` kernels it calls) is compiled into the dispatching
+/// function with that function's target features; the slices
 /// are that function's arguments, so the compiler knows that they do not
 /// overlap (matrices reached through a struct's fields lose that, and the
 /// output columns are no longer kept in registers).
