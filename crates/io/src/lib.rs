@@ -33,5 +33,18 @@ pub mod text;
 pub mod ubx;
 pub mod writers;
 
+/// Marsaglia's xorshift64 from `seed` (nonzero): the tests' reproducible
+/// stream of 64-bit words, without a random-number crate.
+#[cfg(test)]
+pub(crate) fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    }
+}
+
 pub use config::{Invalid, Validate, load_toml, parse_toml};
 pub use error::{IoError, Result};

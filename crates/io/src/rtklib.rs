@@ -1161,13 +1161,7 @@ mod tests {
     /// (spaces, exponents, signs, field counts, stray bytes).
     #[test]
     fn plain_imu_lines_read_as_the_general_parse_reads_them() {
-        let mut state: u64 = 0x2545_F491_4F6C_DD1D;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::xorshift(0x2545_F491_4F6C_DD1D);
         let pieces = [
             "0.119",
             "-0.671",
@@ -1201,7 +1195,7 @@ mod tests {
             let line: Vec<String> = (0..fields)
                 .map(|_| {
                     let r = next();
-                    if r % 4 == 0 {
+                    if r.is_multiple_of(4) {
                         pieces[(r >> 8) as usize % pieces.len()].to_string()
                     } else {
                         let digits = 1 + (r >> 8) % 15;
@@ -1249,13 +1243,7 @@ mod tests {
     /// terminators (LF, CR LF, lone CR, empty lines).
     #[test]
     fn the_cut_near_the_middle_keeps_the_lines() {
-        let mut state: u64 = 0x1234_5678_9ABC_DEF1;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::xorshift(0x1234_5678_9ABC_DEF1);
         let mut cut_somewhere = 0;
         for _ in 0..5_000 {
             let len = (next() % 40) as usize;

@@ -336,13 +336,7 @@ mod tests {
     /// every length and sign, and on what it hands over.
     #[test]
     fn parse_f64_equals_std_parse() {
-        let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::xorshift(0x9E37_79B9_7F4A_7C15);
         let mut cases: Vec<String> = [
             "0",
             "-0",

@@ -767,13 +767,7 @@ mod tests {
             }
             w.into_inner().unwrap()
         };
-        let mut state = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = crate::xorshift(0x9E37_79B9_7F4A_7C15);
         let headers: [&[&str]; 4] = [
             &["a"],
             &["time [s]", "x, \"quoted\""],
