@@ -567,32 +567,14 @@ impl NedErrorModel {
     }
 
     /// [`discrete`](Self::discrete) of [`continuous`](Self::continuous)'s F
-    /// at these arguments, bit for bit, for the filter's covariance rate:
-    /// that F has the pattern `discrete` checks for by construction (every
-    /// element outside it is never written, +0), so it is not checked, and
-    /// FΔt and Q_c are finite exactly when Δt, F's blocks and Q_c's blocks
-    /// are (an element never written is +0, and +0 · Δt is finite for a
-    /// finite Δt), so only those are checked.
-    #[allow(clippy::too_many_arguments)]
-    pub fn transition(
-        &self,
-        c_bn: &Matrix3<f64>,
-        f_body: &Vector3<f64>,
-        w_body: &Vector3<f64>,
-        w_ie: &Vector3<f64>,
-        w_en: &Vector3<f64>,
-        latitude_rad: f64,
-        dt: f64,
-    ) -> (Matrix21, Matrix21) {
-        let (mut phi, mut q) = (Matrix21::zeros(), Matrix21::zeros());
-        let rates = [f_body, w_body, w_ie, w_en];
-        self.transition_into(c_bn, rates, latitude_rad, dt, (&mut phi, &mut q));
-        (phi, q)
-    }
-
-    /// [`transition`](Self::transition) into the caller's Φ and Q (every
-    /// element written), `rates` = (f^b, ω^b, ω_ie, ω_en): the filter
-    /// keeps the two buffers, and a 21 × 21 result returned by value is
+    /// at these arguments, bit for bit, into the caller's Φ and Q (every
+    /// element written), `rates` = (f^b, ω^b, ω_ie, ω_en), for the filter's
+    /// covariance rate: that F has the pattern `discrete` checks for by
+    /// construction (every element outside it is never written, +0), so it
+    /// is not checked, and FΔt and Q_c are finite exactly when Δt, F's
+    /// blocks and Q_c's blocks are (an element never written is +0, and
+    /// +0 · Δt is finite for a finite Δt), so only those are checked. The
+    /// filter keeps the two buffers: a 21 × 21 result returned by value is
     /// copied on its way out (twice per flush, a memory copy each).
     pub fn transition_into(
         &self,
@@ -892,8 +874,8 @@ mod tests {
         assert_eq!(nan_or_bits(&q), nan_or_bits(&q_ref));
     }
 
-    /// `transition` (no pattern check, finiteness of the written elements
-    /// only) equals `discrete` of `continuous`'s F to the bit on random
+    /// `transition_into` (no pattern check, finiteness of the written
+    /// elements only; every element of Φ and Q written) equals `discrete` of `continuous`'s F to the bit on random
     /// states, and with a NaN or infinite input (a force, a rate, Δt) the
     /// same NaN and infinity positions.
     #[test]
@@ -920,7 +902,10 @@ mod tests {
                 20 => dt = f64::NAN,
                 _ => {}
             }
-            let (phi, q) = m.transition(&c, &force, &rate, &w_ie, &w_en, 0.6, dt);
+            // NaN-filled buffers: an element left unwritten shows.
+            let (mut phi, mut q) = (Matrix21::repeat(f64::NAN), Matrix21::repeat(f64::NAN));
+            let rates = [&force, &rate, &w_ie, &w_en];
+            m.transition_into(&c, rates, 0.6, dt, (&mut phi, &mut q));
             let f = m.continuous(&c, &force, &rate, &w_ie, &w_en, 0.6);
             let (phi_ref, q_ref) = m.discrete(&f, &c, dt);
             assert_eq!(nan_or_bits(&phi), nan_or_bits(&phi_ref), "case {case}");
