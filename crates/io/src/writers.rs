@@ -578,8 +578,7 @@ const TABLE_CHUNK_BYTES: usize = 1 << 20;
 /// a data row's cells are numbers as [`push_display`] writes them, or
 /// empty, which never need quotes, so a row is its cells joined by commas,
 /// formatted straight into one buffer that is written in chunks of about a
-/// megabyte. A table of fewer than two columns goes through the `csv`
-/// crate (which quotes a lone empty cell).
+/// megabyte; a row of no bytes is `""`, as the `csv` crate writes it.
 pub fn write_rows<R: AsRef<[f64]>>(
     path: &Path,
     header: &[&str],
@@ -588,65 +587,44 @@ pub fn write_rows<R: AsRef<[f64]>>(
     let name = path
         .file_name()
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    use std::io::Write as _;
     let mut non_finite = NonFinite::default();
-    if header.len() < 2 {
-        let mut w = StagedCsv::create(path)?;
-        w.write_record(header)?;
-        // A row's cells are formatted into one reused buffer (`text`, cell c
-        // ending at `ends[c]`): no allocation per cell.
-        let mut text = Vec::new();
-        let mut ends = Vec::with_capacity(header.len());
-        for (k, row) in rows.into_iter().enumerate() {
-            let row = row.as_ref();
-            check_row_length(path, row, header)?;
-            text.clear();
-            ends.clear();
-            for (&v, column) in row.iter().zip(header) {
-                note_non_finite(v, &mut non_finite, &name, column, k + 1, true);
-                push_number(&mut text, v);
-                ends.push(text.len());
-            }
-            let mut start = 0;
-            w.write_record(ends.iter().map(|&end| {
-                let cell = &text[start..end];
-                start = end;
-                cell
-            }))?;
-        }
-        w.commit()?;
-    } else {
-        use std::io::Write as _;
-        let staged = Staged::new(path);
-        let mut file = File::create(staged.tmp()).map_err(|e| write_err(path, e))?;
-        let mut text: Vec<u8> = Vec::with_capacity(TABLE_CHUNK_BYTES + (1 << 14));
-        {
-            let mut header_writer = csv::Writer::from_writer(&mut text);
-            header_writer
-                .write_record(header)
-                .and_then(|()| header_writer.flush().map_err(csv::Error::from))
-                .map_err(|e| write_err(path, e))?;
-        }
-        for (k, row) in rows.into_iter().enumerate() {
-            let row = row.as_ref();
-            check_row_length(path, row, header)?;
-            for (c, (&v, column)) in row.iter().zip(header).enumerate() {
-                if c > 0 {
-                    text.push(b',');
-                }
-                note_non_finite(v, &mut non_finite, &name, column, k + 1, true);
-                push_number(&mut text, v);
-            }
-            text.push(b'\n');
-            if text.len() >= TABLE_CHUNK_BYTES {
-                file.write_all(&text).map_err(|e| write_err(path, e))?;
-                text.clear();
-            }
-        }
-        file.write_all(&text).map_err(|e| write_err(path, e))?;
-        file.sync_all().map_err(|e| write_err(path, e))?;
-        drop(file);
-        staged.commit()?;
+    let staged = Staged::new(path);
+    let mut file = File::create(staged.tmp()).map_err(|e| write_err(path, e))?;
+    let mut text: Vec<u8> = Vec::with_capacity(TABLE_CHUNK_BYTES + (1 << 14));
+    {
+        let mut header_writer = csv::Writer::from_writer(&mut text);
+        header_writer
+            .write_record(header)
+            .and_then(|()| header_writer.flush().map_err(csv::Error::from))
+            .map_err(|e| write_err(path, e))?;
     }
+    for (k, row) in rows.into_iter().enumerate() {
+        let row = row.as_ref();
+        check_row_length(path, row, header)?;
+        let row_start = text.len();
+        for (c, (&v, column)) in row.iter().zip(header).enumerate() {
+            if c > 0 {
+                text.push(b',');
+            }
+            note_non_finite(v, &mut non_finite, &name, column, k + 1, true);
+            push_number(&mut text, v);
+        }
+        if text.len() == row_start {
+            // A record of no bytes (no column, or one empty cell): the csv
+            // crate writes it as `""`, so that it is not a blank line.
+            text.extend_from_slice(b"\"\"");
+        }
+        text.push(b'\n');
+        if text.len() >= TABLE_CHUNK_BYTES {
+            file.write_all(&text).map_err(|e| write_err(path, e))?;
+            text.clear();
+        }
+    }
+    file.write_all(&text).map_err(|e| write_err(path, e))?;
+    file.sync_all().map_err(|e| write_err(path, e))?;
+    drop(file);
+    staged.commit()?;
     Ok(non_finite
         .warnings()
         .into_iter()
@@ -768,11 +746,12 @@ mod tests {
             w.into_inner().unwrap()
         };
         let mut next = crate::xorshift(0x9E37_79B9_7F4A_7C15);
-        let headers: [&[&str]; 4] = [
+        let headers: [&[&str]; 5] = [
             &["a"],
             &["time [s]", "x, \"quoted\""],
             &["δ (Cramér–Rao)", "", "line\nbreak", "d"],
             &["a", "b", "c", "d", "e", "f", "g", "h"],
+            &[],
         ];
         for (h, header) in headers.iter().enumerate() {
             let rows: Vec<Vec<f64>> = (0..if h == 3 { 30_000 } else { 50 })
@@ -791,10 +770,13 @@ mod tests {
             let path = dir.path().join(format!("t{h}.csv"));
             write_table(&path, header, rows.clone()).unwrap();
             let written = std::fs::read(&path).unwrap();
-            assert!(h < 3 || written.len() > TABLE_CHUNK_BYTES);
+            assert!(h != 3 || written.len() > TABLE_CHUNK_BYTES);
             assert!(written == reference(header, &rows), "table {h}");
         }
-        assert_eq!(names(dir.path()), ["t0.csv", "t1.csv", "t2.csv", "t3.csv"]);
+        assert_eq!(
+            names(dir.path()),
+            ["t0.csv", "t1.csv", "t2.csv", "t3.csv", "t4.csv"]
+        );
     }
 
     #[test]
