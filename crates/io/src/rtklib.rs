@@ -655,32 +655,9 @@ fn plain_imu_fields(l: &str) -> Option<[f64; 7]> {
     let mut v = [0.0; 7];
     let mut i = 0;
     for (k, slot) in v.iter_mut().enumerate() {
-        let negative = bytes.get(i) == Some(&b'-');
-        if negative || bytes.get(i) == Some(&b'+') {
-            i += 1;
-        }
-        let start = i;
-        let mut mantissa: u64 = 0;
-        let mut point = None;
-        while let Some(&b) = bytes.get(i) {
-            let digit = b.wrapping_sub(b'0');
-            if digit < 10 {
-                // Wraps only past 19 digits, refused below.
-                mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(digit));
-            } else if b == b'.' && point.is_none() {
-                point = Some(i);
-            } else {
-                break;
-            }
-            i += 1;
-        }
-        let digits = i - start - usize::from(point.is_some());
-        if digits == 0 || digits > 15 {
-            return None;
-        }
-        let after_point = point.map_or(0, |p| i - p - 1);
-        let x = mantissa as f64 / crate::text::EXACT_POWERS_OF_TEN[after_point];
-        *slot = if negative { -x } else { x };
+        let (x, len) = crate::text::plain_decimal_prefix(&bytes[i..])?;
+        *slot = x;
+        i += len;
         if k < 6 {
             if bytes.get(i) != Some(&b',') {
                 return None;

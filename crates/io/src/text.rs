@@ -87,7 +87,7 @@ pub fn lines(text: &str) -> impl Iterator<Item = &str> {
 }
 
 /// Powers of ten exactly representable as f64.
-pub(crate) const EXACT_POWERS_OF_TEN: [f64; 16] = [
+const EXACT_POWERS_OF_TEN: [f64; 16] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
 ];
 
@@ -117,34 +117,41 @@ pub fn parse_f64(s: &str) -> Option<f64> {
 /// text (which `parse` may still read, or refuse).
 #[inline]
 pub fn parse_plain_decimal(bytes: &[u8]) -> Option<f64> {
-    let (negative, body) = match bytes.first() {
-        Some(b'-') => (true, &bytes[1..]),
-        Some(b'+') => (false, &bytes[1..]),
-        _ => (false, bytes),
-    };
-    // At most 15 digits and a point: the mantissa below cannot overflow.
-    if body.len() > 16 {
-        return None;
-    }
+    plain_decimal_prefix(bytes).and_then(|(v, end)| (end == bytes.len()).then_some(v))
+}
+
+/// The plain decimal that starts `bytes` (as [`parse_plain_decimal`]
+/// reads it, up to the first byte that is neither a digit nor its first
+/// point) and the number of bytes it spans; None when that prefix is no
+/// plain decimal (no digit, more than 15). One pass: the IMU reader
+/// continues from the end it returns.
+#[inline(always)]
+pub(crate) fn plain_decimal_prefix(bytes: &[u8]) -> Option<(f64, usize)> {
+    let negative = bytes.first() == Some(&b'-');
+    let mut i = usize::from(negative || bytes.first() == Some(&b'+'));
+    let start = i;
     let mut mantissa: u64 = 0;
-    let mut point = body.len();
-    for (i, &b) in body.iter().enumerate() {
+    let mut point = None;
+    while let Some(&b) = bytes.get(i) {
         let digit = b.wrapping_sub(b'0');
         if digit < 10 {
-            mantissa = mantissa * 10 + u64::from(digit);
-        } else if b == b'.' && point == body.len() {
-            point = i;
+            // Wraps only past 19 digits, refused below.
+            mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(digit));
+        } else if b == b'.' && point.is_none() {
+            point = Some(i);
         } else {
-            return None;
+            break;
         }
+        i += 1;
     }
-    let after_point = body.len().saturating_sub(point + 1);
-    let digits = body.len() - usize::from(point < body.len());
+    let digits = i - start - usize::from(point.is_some());
     if digits == 0 || digits > 15 {
         return None;
     }
+    // At most 15 digits: m < 10¹⁵ < 2⁵³ and 10^(after the point) exact.
+    let after_point = point.map_or(0, |p| i - p - 1);
     let v = mantissa as f64 / EXACT_POWERS_OF_TEN[after_point];
-    Some(if negative { -v } else { v })
+    Some((if negative { -v } else { v }, i))
 }
 
 /// At most [`EXCERPT_CHARS`] characters of `s`, control characters escaped,
