@@ -461,23 +461,22 @@ pub fn write_selected(path: &Path, selected: &[SelectedEpoch]) -> Result<Vec<Str
 
 /// Write `smoothed.csv`: time and the smoothed antenna and IMU positions.
 pub fn write_smoothed(path: &Path, smoothed: &[Epoch]) -> Result<Vec<String>, IoError> {
-    aidnav_io::writers::write_rows(
-        path,
-        &POSITION_COLUMNS,
-        smoothed
-            .iter()
-            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position)),
-    )
+    aidnav_io::writers::write_rows(path, &POSITION_COLUMNS, smoothed_rows(smoothed))
+}
+
+/// The rows of `smoothed.csv`: time and the smoothed antenna and IMU
+/// positions of each epoch.
+fn smoothed_rows(smoothed: &[Epoch]) -> impl Iterator<Item = [f64; 7]> + '_ {
+    smoothed
+        .iter()
+        .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position))
 }
 
 /// The header and rows of `smoothed.csv` ([`write_smoothed`]).
 pub fn smoothed_table(smoothed: &[Epoch]) -> (Vec<&'static str>, Vec<Vec<f64>>) {
     (
         POSITION_COLUMNS.to_vec(),
-        smoothed
-            .iter()
-            .map(|e| time_and_positions(e.time_s(), &e.antenna, &e.imu_position).to_vec())
-            .collect(),
+        smoothed_rows(smoothed).map(Vec::from).collect(),
     )
 }
 
