@@ -444,3 +444,78 @@ fn a_gyro_unit_mistake_in_a_generic_csv_is_refused_by_the_gnss_course() {
         "{e}"
     );
 }
+
+#[test]
+fn the_tables_written_beside_the_smoother_are_those_written_after_it() {
+    use aidnav::jobs::ProcessRun;
+    use aidnav::process::Process;
+    let (config, cfg, _) = drive();
+    assert!(cfg.output.smooth, "the example configuration smooths");
+    let load = || Process::load(cfg.clone(), config.parent().unwrap()).unwrap();
+    // `beside` sees the forward pass: nothing smoothed yet.
+    let (whole, seen) = load()
+        .run_beside(|forward| {
+            let smoothed_epochs = forward
+                .epochs
+                .iter()
+                .filter(|e| e.smoothed_antenna.is_some() || e.smoothed_imu.is_some())
+                .count();
+            (
+                forward.smoothed.len(),
+                forward.tracking_smoothed_rms_m,
+                smoothed_epochs,
+                forward.epochs.len(),
+            )
+        })
+        .unwrap();
+    assert_eq!(seen, (0, None, 0, whole.epochs.len()));
+    let after = load().run().unwrap();
+    assert!(
+        whole.smoothed.len() > 2_000,
+        "{} smoothed epochs",
+        whole.smoothed.len()
+    );
+    assert_eq!(whole.smoothed.len(), after.smoothed.len());
+    // Debug prints the shortest digits that read back to the same f64.
+    assert_eq!(
+        format!("{:?}", whole.tracking_smoothed_rms_m),
+        format!("{:?}", after.tracking_smoothed_rms_m)
+    );
+    // The files of `aidnav process --no-score`, written in turn and beside
+    // the smoother: the same names in the same order, the same bytes
+    // (summary.json apart from the timing and the output directory).
+    let dir = tempfile::tempdir().unwrap();
+    let (in_turn, beside) = (dir.path().join("in_turn"), dir.path().join("beside"));
+    let a = ProcessRun::run(load(), false, 0.0)
+        .unwrap()
+        .write(&in_turn, "drive_0708.toml")
+        .unwrap();
+    let b = ProcessRun::run_writing(load(), 0.0, &beside, "drive_0708.toml").unwrap();
+    let names = |files: &[std::path::PathBuf]| {
+        files
+            .iter()
+            .map(|f| f.file_name().unwrap().to_string_lossy().into_owned())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(names(&a.files), names(&b.files));
+    assert!(names(&a.files).contains(&"smoothed.csv".to_string()));
+    for name in names(&a.files) {
+        let (x, y) = (in_turn.join(&name), beside.join(&name));
+        if name == "summary.json" {
+            let summary = |p: &Path| {
+                let mut v: serde_json::Value =
+                    serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap();
+                v["result"]["timing_s"] = serde_json::Value::Null;
+                v.to_string()
+                    .replace(&*in_turn.to_string_lossy(), "OUT")
+                    .replace(&*beside.to_string_lossy(), "OUT")
+            };
+            assert_eq!(summary(&x), summary(&y));
+        } else {
+            assert!(
+                std::fs::read(&x).unwrap() == std::fs::read(&y).unwrap(),
+                "{name} differs"
+            );
+        }
+    }
+}

@@ -88,7 +88,9 @@ pub struct ProcessReport {
     /// fitted noise and GNSS σ scale); None: the configured noise.
     pub tuning: Option<crate::process::tune::TuneResult>,
     /// Wall time \[s\]: reading (and tuning, with `auto`), one filter
-    /// pass, scoring.
+    /// pass, scoring. Without scoring the filter pass's time includes the
+    /// part of writing the forward tables that its smoothing did not
+    /// cover ([`ProcessRun::run_writing`]).
     pub timing_s: [f64; 3],
     /// Files written.
     pub files: Vec<PathBuf>,
@@ -138,12 +140,15 @@ pub fn process(
     let t_read = Instant::now();
     let process = crate::process::Process::load(cfg, base).map_err(process_error)?;
     let read_s = t_read.elapsed().as_secs_f64();
-    let run = ProcessRun::run(process, score, read_s)?;
     let name = config.file_name().map_or_else(
         || config.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    run.write(out, &name)
+    if score {
+        ProcessRun::run(process, score, read_s)?.write(out, &name)
+    } else {
+        ProcessRun::run_writing(process, read_s, out, &name)
+    }
 }
 
 /// A processed log: the [`crate::process::Process`] (configuration and
@@ -182,6 +187,38 @@ impl ProcessRun {
             scores,
             timing_s: [read_s, run_s, score_s],
         })
+    }
+
+    /// [`run`](Self::run) without scoring, then [`write`](Self::write),
+    /// the forward tables and charts written while the log is smoothed
+    /// ([`Process::run_beside`](crate::process::Process::run_beside)): the
+    /// same files and report. The run's time (`timing_s[1]`) then includes
+    /// what of the writing the smoothing did not cover. When smoothing
+    /// fails, the forward files stay written, without `summary.json` (as
+    /// a run that fails leaves its outputs).
+    pub fn run_writing(
+        process: crate::process::Process,
+        read_s: f64,
+        out: &Path,
+        config_name: &str,
+    ) -> JobResult<ProcessReport> {
+        use crate::process::export;
+        use std::time::Instant;
+        let t_run = Instant::now();
+        let navresult = process.config().output.kf_gins_text;
+        let (result, forward) = aidnav_sim::Cancel::catch(|| {
+            process.run_beside(|forward| export::write_forward_files(forward, None, out, navresult))
+        })?
+        .map_err(process_error)?;
+        let run_s = t_run.elapsed().as_secs_f64();
+        let (files, written) = forward?.and_smoothed(&result, out)?;
+        let run = Self {
+            process,
+            result,
+            scores: None,
+            timing_s: [read_s, run_s, 0.0],
+        };
+        run.finish_writing(out, config_name, files, written)
     }
 
     /// The report `summary.json` holds under `result`, with `files` listed
@@ -229,12 +266,27 @@ impl ProcessRun {
         use crate::process::export;
         let cfg = self.process.config();
         aidnav_io::writers::begin_outputs(out)?;
-        let (mut files, mut written) = export::write_files(
+        let (files, written) = export::write_files(
             &self.result,
             self.scores.as_ref(),
             out,
             cfg.output.kf_gins_text,
         )?;
+        self.finish_writing(out, config_name, files, written)
+    }
+
+    /// [`write`](Self::write) after the tables and charts (`files`, with
+    /// their warnings `written`): the tuning's files, the report and
+    /// `summary.json`.
+    fn finish_writing(
+        &self,
+        out: &Path,
+        config_name: &str,
+        mut files: Vec<PathBuf>,
+        mut written: Vec<String>,
+    ) -> JobResult<ProcessReport> {
+        use crate::process::export;
+        let cfg = self.process.config();
         if let Some(t) = self.process.tuning() {
             let (f, w) = export::write_tune_files(t, out, config_name)?;
             files.extend(f);

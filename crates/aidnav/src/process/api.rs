@@ -9,7 +9,7 @@ use aidnav_frames::earth::Geodetic;
 
 use super::config::{PolicyName, ProcessConfig};
 use super::consistency::{NisConsistency, nis_consistency};
-use super::run::{Epoch, ResetEvent, RunPlan, SolutionRow, reset_events, run_filter_rows};
+use super::run::{Epoch, ResetEvent, RunPlan, SolutionRow, reset_events, run_filter_forward};
 use super::score::{convergence_times, reference_epochs, tracking_rms};
 use super::scoring::{Scores, score_log};
 use super::tune::{TuneResult, tune};
@@ -233,6 +233,21 @@ impl Process {
     /// Filter the whole log with every fix (and smooth, and monitor the
     /// instruments' convergence, as configured).
     pub fn run(&self) -> Result<ProcessResult, ProcessError> {
+        Ok(self.run_beside(|_| ())?.0)
+    }
+
+    /// [`run`](Self::run), calling `beside` on a second thread with the
+    /// forward pass's result while this thread runs the smoother's backward
+    /// pass: the result without the smoothed solution (`smoothed` empty,
+    /// `tracking_smoothed_rms_m` None, the epochs' smoothed positions
+    /// None), everything else final. Returns the whole result and what
+    /// `beside` returned. Without smoothing `beside` gets the whole result,
+    /// on this thread. What `aidnav process` writes the forward tables in
+    /// while the log is smoothed.
+    pub fn run_beside<T: Send>(
+        &self,
+        beside: impl FnOnce(&ProcessResult) -> T + Send,
+    ) -> Result<(ProcessResult, T), ProcessError> {
         let (cfg, inputs) = (&self.cfg, &self.inputs);
         let plan = RunPlan {
             smooth: cfg.output.smooth,
@@ -241,7 +256,8 @@ impl Process {
             ..RunPlan::default()
         };
         let begin = initialise(cfg, inputs)?;
-        let run = run_filter_rows(cfg, inputs, &plan, cfg.gnss.policy, cfg.output.interval_s)?;
+        let (run, pending) =
+            run_filter_forward(cfg, inputs, &plan, cfg.gnss.policy, cfg.output.interval_s)?;
         let start_time_s = inputs.imu[begin.index].time_s;
         let first_fix_in_imu_span_s = inputs
             .gnss
@@ -249,7 +265,6 @@ impl Process {
             .map(|g| g.time_s)
             .find(|&t| t >= inputs.imu[0].time_s)
             .unwrap_or(start_time_s);
-        let smoothed: Vec<Epoch> = run.epochs.iter().filter_map(|e| e.smoothed()).collect();
         let epochs = run.epochs;
         let reference = &cfg.score.reference_quality;
         let t0 = inputs.imu[0].time_s;
@@ -262,7 +277,7 @@ impl Process {
         warnings.extend(divergence_warnings(&epochs, t0));
         warnings.extend(rejection_run_warnings(&epochs, t0));
         let selected = super::selection::select_sources(cfg, &epochs);
-        Ok(ProcessResult {
+        let mut result = ProcessResult {
             imu_samples: inputs.imu.len(),
             gnss_epochs: inputs.gnss.len(),
             policy: cfg.gnss.policy,
@@ -270,8 +285,7 @@ impl Process {
             resets: reset_events(&epochs),
             reference_epochs: reference_epochs(&epochs, reference),
             tracking_rms_m: tracking_rms(&epochs, reference),
-            tracking_smoothed_rms_m: (!smoothed.is_empty())
-                .then(|| tracking_rms(&smoothed, reference)),
+            tracking_smoothed_rms_m: None,
             nis: nis_consistency(&epochs),
             instrument_convergence_s: if cfg.filter.convergence_monitor {
                 [0.03, 0.01]
@@ -296,9 +310,28 @@ impl Process {
             standstill_updates: run.standstill_updates,
             warnings,
             between: run.between,
-            smoothed,
+            smoothed: Vec::new(),
             epochs,
-        })
+        };
+        let Some(pending) = pending else {
+            let beside = beside(&result);
+            return Ok((result, beside));
+        };
+        let (smoothed, beside) = std::thread::scope(|s| {
+            let beside = s.spawn(|| beside(&result));
+            let smoothed = pending.finish();
+            // A panic on the other thread is re-raised here, as it would
+            // have been on this one.
+            let beside = beside
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (smoothed, beside)
+        });
+        smoothed?.apply(&mut result.epochs);
+        result.smoothed = result.epochs.iter().filter_map(|e| e.smoothed()).collect();
+        result.tracking_smoothed_rms_m =
+            (!result.smoothed.is_empty()).then(|| tracking_rms(&result.smoothed, reference));
+        Ok((result, beside))
     }
 
     /// Score the log (see [`Scores`]): many filter passes with prepared

@@ -32,12 +32,39 @@ pub fn write_files(
     out: &Path,
     navresult: bool,
 ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
+    write_forward_files(result, scores, out, navresult)?.and_smoothed(result, out)
+}
+
+/// The files of [`write_files`] written by [`write_forward_files`], to be
+/// listed with `smoothed.csv` by [`ForwardFiles::and_smoothed`].
+#[derive(Debug)]
+pub struct ForwardFiles {
+    /// `solution.csv`, then `navresult.txt` when written.
+    navigation: Vec<PathBuf>,
+    /// The navigation tables' warnings.
+    navigation_warnings: Vec<String>,
+    /// `selected.csv`, `trajectory.svg`, `instruments.csv`,
+    /// `innovations.svg`, then `outage_drift.svg` when written.
+    others: Vec<PathBuf>,
+    /// The other tables' warnings.
+    other_warnings: Vec<String>,
+}
+
+/// Every file of [`write_files`] but `smoothed.csv` — none of them depends
+/// on the smoothed solution, so they can be written while the log is
+/// smoothed ([`Process::run_beside`](super::Process::run_beside)).
+pub fn write_forward_files(
+    result: &ProcessResult,
+    scores: Option<&Scores>,
+    out: &Path,
+    navresult: bool,
+) -> Result<ForwardFiles, IoError> {
     begin_outputs(out)?;
     // Three threads: this one writes the navigation tables (`solution.csv`,
-    // `navresult.txt`, `smoothed.csv`), a second one `selected.csv` and
-    // `instruments.csv`, a third the charts (about as much work as the
-    // tables of either) — the same files, listed in the same order, and the
-    // same error when one fails (the first in that order).
+    // `navresult.txt`), a second one `selected.csv` and `instruments.csv`,
+    // a third the charts (about as much work as the tables of either) —
+    // the same error when one fails as written in turn (the first in
+    // `aidnav process`'s order).
     let trajectory = out.join("trajectory.svg");
     let innovations = out.join("innovations.svg");
     let drift = scores.map(|_| out.join("outage_drift.svg"));
@@ -62,21 +89,45 @@ pub fn write_files(
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         (navigation, (others, charts))
     });
-    let (mut files, mut warnings) = navigation?;
-    let (other_files, other_warnings) = others?;
+    let (navigation, navigation_warnings) = navigation?;
+    let ([selected, instruments], other_warnings) = others?;
     charts?;
-    warnings.extend(other_warnings);
     // `aidnav process`'s order: trajectory.svg after selected.csv,
     // innovations.svg after instruments.csv, outage_drift.svg last.
-    let [selected, instruments] = other_files;
-    files.extend([selected, trajectory, instruments, innovations]);
-    files.extend(drift);
-    Ok((files, warnings))
+    let mut others = vec![selected, trajectory, instruments, innovations];
+    others.extend(drift);
+    Ok(ForwardFiles {
+        navigation,
+        navigation_warnings,
+        others,
+        other_warnings,
+    })
 }
 
-/// The navigation tables of [`write_files`], in its order: `solution.csv`,
-/// `navresult.txt` (with `navresult`), `smoothed.csv` (when smoothed);
-/// returns the files and the tables' warnings.
+impl ForwardFiles {
+    /// Write `smoothed.csv` when `result` is smoothed, and list every file
+    /// and warning in [`write_files`]'s order: `solution.csv`,
+    /// `navresult.txt`, `smoothed.csv`, then the others.
+    pub fn and_smoothed(
+        self,
+        result: &ProcessResult,
+        out: &Path,
+    ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
+        let (mut files, mut warnings) = (self.navigation, self.navigation_warnings);
+        if !result.smoothed.is_empty() {
+            let path = out.join("smoothed.csv");
+            warnings.extend(write_smoothed(&path, &result.smoothed)?);
+            files.push(path);
+        }
+        files.extend(self.others);
+        warnings.extend(self.other_warnings);
+        Ok((files, warnings))
+    }
+}
+
+/// The navigation tables of [`write_forward_files`], in its order:
+/// `solution.csv`, `navresult.txt` (with `navresult`); returns the files
+/// and the tables' warnings.
 fn write_navigation_tables(
     result: &ProcessResult,
     out: &Path,
@@ -90,11 +141,6 @@ fn write_navigation_tables(
     if navresult {
         let path = out.join("navresult.txt");
         write_navresult(&path, &result.epochs, &result.between)?;
-        files.push(path);
-    }
-    if !result.smoothed.is_empty() {
-        let path = out.join("smoothed.csv");
-        warnings.extend(write_smoothed(&path, &result.smoothed)?);
         files.push(path);
     }
     Ok((files, warnings))

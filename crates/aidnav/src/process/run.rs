@@ -413,6 +413,65 @@ pub fn run_filter_rows(
     policy: PolicyName,
     interval_s: f64,
 ) -> Result<Run, ProcessError> {
+    let (mut run, pending) = run_filter_forward(cfg, inputs, plan, policy, interval_s)?;
+    if let Some(pending) = pending {
+        pending.finish()?.apply(&mut run.epochs);
+    }
+    Ok(run)
+}
+
+/// A forward pass whose smoothing is still to do: the filter and its
+/// recording, from [`run_filter_forward`].
+pub(crate) struct PendingSmoothing {
+    filter: NedFilter,
+}
+
+/// The RTS-smoothed antenna and IMU positions and the antenna position's
+/// covariance, by the filter's record index (see [`Epoch::record_index`]).
+pub(crate) struct SmoothedPositions(Vec<(Geodetic, Geodetic, Matrix3<f64>)>);
+
+impl PendingSmoothing {
+    /// The backward pass; the recording is freed before it returns.
+    pub(crate) fn finish(self) -> Result<SmoothedPositions, ProcessError> {
+        let filter = self.filter;
+        let states = filter.smoothed_states_with_covariance()?.ok_or_else(|| {
+            ProcessError::Data(format!(
+                "the log is too long to smooth: more than {MAX_SMOOTHED_EPOCHS} GNSS epochs ({} MB)",
+                (MAX_SMOOTHED_EPOCHS * aidnav_integration::ned::BYTES_PER_SMOOTHED_EPOCH) >> 20
+            ))
+        })?;
+        Ok(SmoothedPositions(
+            states
+                .iter()
+                .map(|(state, covariance)| (filter.antenna_of(state), state.position, *covariance))
+                .collect(),
+        ))
+    }
+}
+
+impl SmoothedPositions {
+    /// Add the smoothed positions to the epochs they belong to.
+    pub(crate) fn apply(&self, epochs: &mut [Epoch]) {
+        for e in epochs {
+            if let Some(&(antenna, imu, covariance)) = e.record_index.and_then(|i| self.0.get(i)) {
+                e.smoothed_antenna = Some(antenna);
+                e.smoothed_imu = Some(imu);
+                e.smoothed_position_covariance = Some(covariance);
+            }
+        }
+    }
+}
+
+/// [`run_filter_rows`]'s forward pass: the epochs without their smoothed
+/// positions and, when the plan smooths, the pending smoothing that adds
+/// them.
+pub(crate) fn run_filter_forward(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    plan: &RunPlan,
+    policy: PolicyName,
+    interval_s: f64,
+) -> Result<(Run, Option<PendingSmoothing>), ProcessError> {
     let (mut filter, start) = new_filter(cfg, inputs, plan, policy)?;
     let (imu, gnss) = (&inputs.imu, &inputs.gnss);
     let mut fixes = plan.prepare(gnss);
@@ -492,32 +551,15 @@ pub fn run_filter_rows(
             e.bridged = *bridged;
         }
     }
-    if smoothing(cfg, plan) {
-        smooth(&filter, &mut epochs)?;
-    }
-    Ok(Run {
+    let run = Run {
         epochs,
         between: collector.rows,
         standstill_updates: collector.standstill_updates,
-    })
-}
-
-/// Add the RTS-smoothed antenna position to every recorded epoch.
-fn smooth(filter: &NedFilter, epochs: &mut [Epoch]) -> Result<(), ProcessError> {
-    let states = filter.smoothed_states_with_covariance()?.ok_or_else(|| {
-        ProcessError::Data(format!(
-            "the log is too long to smooth: more than {MAX_SMOOTHED_EPOCHS} GNSS epochs ({} MB)",
-            (MAX_SMOOTHED_EPOCHS * aidnav_integration::ned::BYTES_PER_SMOOTHED_EPOCH) >> 20
-        ))
-    })?;
-    for e in epochs {
-        if let Some((state, covariance)) = e.record_index.and_then(|i| states.get(i)) {
-            e.smoothed_antenna = Some(filter.antenna_of(state));
-            e.smoothed_imu = Some(state.position);
-            e.smoothed_position_covariance = Some(*covariance);
-        }
-    }
-    Ok(())
+    };
+    Ok((
+        run,
+        smoothing(cfg, plan).then_some(PendingSmoothing { filter }),
+    ))
 }
 
 /// Most GNSS epochs a smoothing run smooths: the smoother keeps
