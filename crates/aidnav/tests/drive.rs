@@ -470,6 +470,37 @@ fn the_tables_written_beside_the_smoother_are_those_written_after_it() {
         .unwrap();
     assert_eq!(seen, (0, None, 0, whole.epochs.len()));
     let after = load().run().unwrap();
+    // The smoothed epochs are those the filter's own pass smooths.
+    let process = load();
+    let plan = RunPlan {
+        smooth: true,
+        monitor: cfg.filter.convergence_monitor,
+        ..RunPlan::default()
+    };
+    let reference: Vec<_> = aidnav::process::run_filter_rows(
+        &cfg,
+        process.inputs(),
+        &plan,
+        cfg.gnss.policy,
+        cfg.output.interval_s,
+    )
+    .unwrap()
+    .epochs
+    .iter()
+    .filter_map(|e| e.smoothed())
+    .collect();
+    let positions = |epochs: &[aidnav::process::Epoch]| {
+        epochs
+            .iter()
+            .map(|e| {
+                format!(
+                    "{:?} {:?} {:?}",
+                    e.antenna, e.imu_position, e.position_covariance
+                )
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(positions(&whole.smoothed), positions(&reference));
     assert!(
         whole.smoothed.len() > 2_000,
         "{} smoothed epochs",

@@ -319,7 +319,14 @@ impl Process {
         };
         let (smoothed, beside) = std::thread::scope(|s| {
             let beside = s.spawn(|| beside(&result));
-            let smoothed = pending.finish();
+            // The smoothed epochs and their score are made here too, from
+            // the forward epochs; only the epochs' smoothed positions are
+            // set after `beside` is done with them.
+            let smoothed = pending.finish().map(|positions| {
+                let smoothed = positions.smoothed_epochs(&result.epochs);
+                let rms = (!smoothed.is_empty()).then(|| tracking_rms(&smoothed, reference));
+                (positions, smoothed, rms)
+            });
             // A panic on the other thread is re-raised here, as it would
             // have been on this one.
             let beside = beside
@@ -327,10 +334,10 @@ impl Process {
                 .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
             (smoothed, beside)
         });
-        smoothed?.apply(&mut result.epochs);
-        result.smoothed = result.epochs.iter().filter_map(|e| e.smoothed()).collect();
-        result.tracking_smoothed_rms_m =
-            (!result.smoothed.is_empty()).then(|| tracking_rms(&result.smoothed, reference));
+        let (positions, smoothed, rms) = smoothed?;
+        positions.apply(&mut result.epochs);
+        result.smoothed = smoothed;
+        result.tracking_smoothed_rms_m = rms;
         Ok((result, beside))
     }
 

@@ -452,12 +452,27 @@ impl PendingSmoothing {
 impl SmoothedPositions {
     /// Add the smoothed positions to the epochs they belong to.
     pub(crate) fn apply(&self, epochs: &mut [Epoch]) {
-        for e in epochs {
-            if let Some(&(antenna, imu, covariance)) = e.record_index.and_then(|i| self.0.get(i)) {
-                e.smoothed_antenna = Some(antenna);
-                e.smoothed_imu = Some(imu);
-                e.smoothed_position_covariance = Some(covariance);
-            }
+        epochs.iter_mut().for_each(|e| self.apply_to(e));
+    }
+
+    /// The smoothed epochs ([`Epoch::smoothed`]) of `epochs` once
+    /// [`apply`](Self::apply)'d, without changing them.
+    pub(crate) fn smoothed_epochs(&self, epochs: &[Epoch]) -> Vec<Epoch> {
+        epochs
+            .iter()
+            .filter_map(|e| {
+                let mut e = *e;
+                self.apply_to(&mut e);
+                e.smoothed()
+            })
+            .collect()
+    }
+
+    fn apply_to(&self, e: &mut Epoch) {
+        if let Some(&(antenna, imu, covariance)) = e.record_index.and_then(|i| self.0.get(i)) {
+            e.smoothed_antenna = Some(antenna);
+            e.smoothed_imu = Some(imu);
+            e.smoothed_position_covariance = Some(covariance);
         }
     }
 }
