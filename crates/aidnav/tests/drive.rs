@@ -452,23 +452,27 @@ fn the_tables_written_beside_the_smoother_are_those_written_after_it() {
     let (config, cfg, _) = drive();
     assert!(cfg.output.smooth, "the example configuration smooths");
     let load = || Process::load(cfg.clone(), config.parent().unwrap()).unwrap();
-    // `beside` sees the forward pass: nothing smoothed yet.
-    let (whole, seen) = load()
-        .run_beside(|forward| {
-            let smoothed_epochs = forward
-                .epochs
-                .iter()
-                .filter(|e| e.smoothed_antenna.is_some() || e.smoothed_imu.is_some())
-                .count();
-            (
-                forward.smoothed.len(),
-                forward.tracking_smoothed_rms_m,
-                smoothed_epochs,
-                forward.epochs.len(),
-            )
-        })
-        .unwrap();
-    assert_eq!(seen, (0, None, 0, whole.epochs.len()));
+    // The forward stage: nothing smoothed yet; the smoothing completes it.
+    let process = load();
+    let (mut whole, smoothing) = process.run_forward().unwrap();
+    let smoothed_epochs = whole
+        .epochs
+        .iter()
+        .filter(|e| e.smoothed_antenna.is_some() || e.smoothed_imu.is_some())
+        .count();
+    assert_eq!(
+        (
+            whole.smoothed.len(),
+            whole.tracking_smoothed_rms_m,
+            smoothed_epochs
+        ),
+        (0, None, 0)
+    );
+    smoothing
+        .expect("the example smooths")
+        .finish(&whole)
+        .unwrap()
+        .apply_to(&mut whole);
     let after = load().run().unwrap();
     // The smoothed epochs are those the filter's own pass smooths.
     let process = load();

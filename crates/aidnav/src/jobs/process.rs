@@ -88,9 +88,8 @@ pub struct ProcessReport {
     /// fitted noise and GNSS σ scale); None: the configured noise.
     pub tuning: Option<crate::process::tune::TuneResult>,
     /// Wall time \[s\]: reading (and tuning, with `auto`), one filter
-    /// pass, scoring. Without scoring the filter pass's time includes the
-    /// part of writing the forward tables that its smoothing did not
-    /// cover ([`ProcessRun::run_writing`]).
+    /// pass, scoring. Without scoring the filter pass's time includes
+    /// writing the tables ([`ProcessRun::run_writing`]).
     pub timing_s: [f64; 3],
     /// Files written.
     pub files: Vec<PathBuf>,
@@ -190,12 +189,13 @@ impl ProcessRun {
     }
 
     /// [`run`](Self::run) without scoring, then [`write`](Self::write),
-    /// the forward tables and charts written while the log is smoothed
-    /// ([`Process::run_beside`](crate::process::Process::run_beside)): the
-    /// same files and report. The run's time (`timing_s[1]`) then includes
-    /// what of the writing the smoothing did not cover. When smoothing
-    /// fails, the forward files stay written, without `summary.json` (as
-    /// a run that fails leaves its outputs).
+    /// the forward tables and charts written on other threads while this
+    /// one smooths the log and writes `smoothed.csv`
+    /// ([`Process::run_forward`](crate::process::Process::run_forward)):
+    /// the same files and report. The run's time (`timing_s[1]`) then
+    /// includes the writing. When smoothing fails, its error is returned
+    /// and the forward files stay written, without `summary.json` (as a
+    /// run that fails leaves its outputs).
     pub fn run_writing(
         process: crate::process::Process,
         read_s: f64,
@@ -206,12 +206,39 @@ impl ProcessRun {
         use std::time::Instant;
         let t_run = Instant::now();
         let navresult = process.config().output.kf_gins_text;
-        let (result, forward) = aidnav_sim::Cancel::catch(|| {
-            process.run_beside(|forward| export::write_forward_files(forward, None, out, navresult))
-        })?
-        .map_err(process_error)?;
+        let (mut result, smoothing) =
+            aidnav_sim::Cancel::catch(|| process.run_forward())?.map_err(process_error)?;
+        // Before any thread writes: the directory, no stale summary.json.
+        aidnav_io::writers::begin_outputs(out)?;
+        let (forward, smoothed) = std::thread::scope(|s| {
+            let forward = s.spawn(|| export::write_forward_files(&result, None, out, navresult));
+            let smoothed = smoothing
+                .map(|smoothing| -> JobResult<_> {
+                    let smoothed = smoothing.finish(&result).map_err(process_error)?;
+                    let table = export::write_smoothed_file(smoothed.epochs(), out);
+                    Ok((smoothed, table))
+                })
+                .transpose();
+            // A panic on the other thread is re-raised here, as it would
+            // have been on this one.
+            let forward = forward
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (forward, smoothed)
+        });
+        // The errors in the order of a run written after it: smoothing's,
+        // then the forward tables', then smoothed.csv's.
+        let (smoothed, table) = match smoothed? {
+            Some((smoothed, table)) => (Some(smoothed), Some(table)),
+            None => (None, None),
+        };
+        let forward = forward?;
+        let table = table.transpose()?.flatten();
+        if let Some(smoothed) = smoothed {
+            smoothed.apply_to(&mut result);
+        }
         let run_s = t_run.elapsed().as_secs_f64();
-        let (files, written) = forward?.and_smoothed(&result, out)?;
+        let (files, written) = forward.with_smoothed(table);
         let run = Self {
             process,
             result,

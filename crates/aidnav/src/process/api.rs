@@ -7,9 +7,12 @@ use std::path::Path;
 
 use aidnav_frames::earth::Geodetic;
 
-use super::config::{PolicyName, ProcessConfig};
+use super::config::{FixQuality, PolicyName, ProcessConfig};
 use super::consistency::{NisConsistency, nis_consistency};
-use super::run::{Epoch, ResetEvent, RunPlan, SolutionRow, reset_events, run_filter_forward};
+use super::run::{
+    Epoch, PendingSmoothing, ResetEvent, RunPlan, SmoothedPositions, SolutionRow, reset_events,
+    run_filter_forward,
+};
 use super::score::{convergence_times, reference_epochs, tracking_rms};
 use super::scoring::{Scores, score_log};
 use super::tune::{TuneResult, tune};
@@ -233,21 +236,22 @@ impl Process {
     /// Filter the whole log with every fix (and smooth, and monitor the
     /// instruments' convergence, as configured).
     pub fn run(&self) -> Result<ProcessResult, ProcessError> {
-        Ok(self.run_beside(|_| ())?.0)
+        let (mut result, smoothing) = self.run_forward()?;
+        if let Some(smoothing) = smoothing {
+            smoothing.finish(&result)?.apply_to(&mut result);
+        }
+        Ok(result)
     }
 
-    /// [`run`](Self::run), calling `beside` on a second thread with the
-    /// forward pass's result while this thread runs the smoother's backward
-    /// pass: the result without the smoothed solution (`smoothed` empty,
+    /// [`run`](Self::run) in two stages: the forward pass's result — the
+    /// whole result but the smoothed solution (`smoothed` empty,
     /// `tracking_smoothed_rms_m` None, the epochs' smoothed positions
-    /// None), everything else final. Returns the whole result and what
-    /// `beside` returned. Without smoothing `beside` gets the whole result,
-    /// on this thread. What `aidnav process` writes the forward tables in
-    /// while the log is smoothed.
-    pub fn run_beside<T: Send>(
-        &self,
-        beside: impl FnOnce(&ProcessResult) -> T + Send,
-    ) -> Result<(ProcessResult, T), ProcessError> {
+    /// None) — and, when the configuration smooths, the [`Smoothing`] that
+    /// completes it ([`Smoothing::finish`], then [`Smoothed::apply_to`]).
+    /// In between the forward result can be read on other threads: what
+    /// `aidnav process` writes the forward tables in while the log is
+    /// smoothed.
+    pub fn run_forward(&self) -> Result<(ProcessResult, Option<Smoothing>), ProcessError> {
         let (cfg, inputs) = (&self.cfg, &self.inputs);
         let plan = RunPlan {
             smooth: cfg.output.smooth,
@@ -277,7 +281,7 @@ impl Process {
         warnings.extend(divergence_warnings(&epochs, t0));
         warnings.extend(rejection_run_warnings(&epochs, t0));
         let selected = super::selection::select_sources(cfg, &epochs);
-        let mut result = ProcessResult {
+        let result = ProcessResult {
             imu_samples: inputs.imu.len(),
             gnss_epochs: inputs.gnss.len(),
             policy: cfg.gnss.policy,
@@ -313,38 +317,71 @@ impl Process {
             smoothed: Vec::new(),
             epochs,
         };
-        let Some(pending) = pending else {
-            let beside = beside(&result);
-            return Ok((result, beside));
-        };
-        let (smoothed, beside) = std::thread::scope(|s| {
-            let beside = s.spawn(|| beside(&result));
-            // The smoothed epochs and their score are made here too, from
-            // the forward epochs; only the epochs' smoothed positions are
-            // set after `beside` is done with them.
-            let smoothed = pending.finish().map(|positions| {
-                let smoothed = positions.smoothed_epochs(&result.epochs);
-                let rms = (!smoothed.is_empty()).then(|| tracking_rms(&smoothed, reference));
-                (positions, smoothed, rms)
-            });
-            // A panic on the other thread is re-raised here, as it would
-            // have been on this one.
-            let beside = beside
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-            (smoothed, beside)
+        let smoothing = pending.map(|pending| Smoothing {
+            pending,
+            reference: reference.clone(),
         });
-        let (positions, smoothed, rms) = smoothed?;
-        positions.apply(&mut result.epochs);
-        result.smoothed = smoothed;
-        result.tracking_smoothed_rms_m = rms;
-        Ok((result, beside))
+        Ok((result, smoothing))
     }
 
     /// Score the log (see [`Scores`]): many filter passes with prepared
     /// inputs (withheld windows, injected outliers and bursts), in parallel.
     pub fn score(&self) -> Result<Scores, ProcessError> {
         score_log(&self.cfg, &self.inputs, &self.cancel)
+    }
+}
+
+/// The smoothing of a forward pass ([`Process::run_forward`]): the
+/// filter's recording of it, waiting for the backward pass.
+pub struct Smoothing {
+    pending: PendingSmoothing,
+    /// The fix qualities the smoothed solution is scored against.
+    reference: Vec<FixQuality>,
+}
+
+impl std::fmt::Debug for Smoothing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Smoothing").finish_non_exhaustive()
+    }
+}
+
+impl Smoothing {
+    /// The backward pass, and the smoothed epochs of `forward` (the
+    /// result [`Process::run_forward`] gave with this smoothing) and
+    /// their score, without changing `forward`. The recording is freed
+    /// before it returns.
+    pub fn finish(self, forward: &ProcessResult) -> Result<Smoothed, ProcessError> {
+        let positions = self.pending.finish()?;
+        let epochs = positions.smoothed_epochs(&forward.epochs);
+        let tracking_rms_m = (!epochs.is_empty()).then(|| tracking_rms(&epochs, &self.reference));
+        Ok(Smoothed {
+            positions,
+            epochs,
+            tracking_rms_m,
+        })
+    }
+}
+
+/// A finished [`Smoothing`]: what completes the forward result.
+#[derive(Debug)]
+pub struct Smoothed {
+    positions: SmoothedPositions,
+    epochs: Vec<Epoch>,
+    tracking_rms_m: Option<Option<f64>>,
+}
+
+impl Smoothed {
+    /// The smoothed epochs: [`ProcessResult::smoothed`] once applied.
+    pub fn epochs(&self) -> &[Epoch] {
+        &self.epochs
+    }
+
+    /// Complete the forward result it was made from: its smoothed epochs,
+    /// their RMS error and the epochs' smoothed positions.
+    pub fn apply_to(self, result: &mut ProcessResult) {
+        self.positions.apply(&mut result.epochs);
+        result.smoothed = self.epochs;
+        result.tracking_smoothed_rms_m = self.tracking_rms_m;
     }
 }
 

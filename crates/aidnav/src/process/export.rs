@@ -32,11 +32,13 @@ pub fn write_files(
     out: &Path,
     navresult: bool,
 ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
-    write_forward_files(result, scores, out, navresult)?.and_smoothed(result, out)
+    let forward = write_forward_files(result, scores, out, navresult)?;
+    let smoothed = write_smoothed_file(&result.smoothed, out)?;
+    Ok(forward.with_smoothed(smoothed))
 }
 
 /// The files of [`write_files`] written by [`write_forward_files`], to be
-/// listed with `smoothed.csv` by [`ForwardFiles::and_smoothed`].
+/// listed with `smoothed.csv` by [`ForwardFiles::with_smoothed`].
 #[derive(Debug)]
 pub struct ForwardFiles {
     /// `solution.csv`, then `navresult.txt` when written.
@@ -52,7 +54,7 @@ pub struct ForwardFiles {
 
 /// Every file of [`write_files`] but `smoothed.csv` — none of them depends
 /// on the smoothed solution, so they can be written while the log is
-/// smoothed ([`Process::run_beside`](super::Process::run_beside)).
+/// smoothed ([`Process::run_forward`](super::Process::run_forward)).
 pub fn write_forward_files(
     result: &ProcessResult,
     scores: Option<&Scores>,
@@ -105,24 +107,36 @@ pub fn write_forward_files(
 }
 
 impl ForwardFiles {
-    /// Write `smoothed.csv` when `result` is smoothed, and list every file
-    /// and warning in [`write_files`]'s order: `solution.csv`,
+    /// Every file and warning, `smoothed.csv`'s ([`write_smoothed_file`])
+    /// with them, in [`write_files`]'s order: `solution.csv`,
     /// `navresult.txt`, `smoothed.csv`, then the others.
-    pub fn and_smoothed(
+    pub fn with_smoothed(
         self,
-        result: &ProcessResult,
-        out: &Path,
-    ) -> Result<(Vec<PathBuf>, Vec<String>), IoError> {
+        smoothed: Option<(PathBuf, Vec<String>)>,
+    ) -> (Vec<PathBuf>, Vec<String>) {
         let (mut files, mut warnings) = (self.navigation, self.navigation_warnings);
-        if !result.smoothed.is_empty() {
-            let path = out.join("smoothed.csv");
-            warnings.extend(write_smoothed(&path, &result.smoothed)?);
+        if let Some((path, table_warnings)) = smoothed {
             files.push(path);
+            warnings.extend(table_warnings);
         }
         files.extend(self.others);
         warnings.extend(self.other_warnings);
-        Ok((files, warnings))
+        (files, warnings)
     }
+}
+
+/// `smoothed.csv` of [`write_files`] in `out` (none for no smoothed
+/// epochs): the file and its warnings.
+pub fn write_smoothed_file(
+    smoothed: &[Epoch],
+    out: &Path,
+) -> Result<Option<(PathBuf, Vec<String>)>, IoError> {
+    if smoothed.is_empty() {
+        return Ok(None);
+    }
+    let path = out.join("smoothed.csv");
+    let warnings = write_smoothed(&path, smoothed)?;
+    Ok(Some((path, warnings)))
 }
 
 /// The navigation tables of [`write_forward_files`], in its order:

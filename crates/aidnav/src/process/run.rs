@@ -428,6 +428,7 @@ pub(crate) struct PendingSmoothing {
 
 /// The RTS-smoothed antenna and IMU positions and the antenna position's
 /// covariance, by the filter's record index (see [`Epoch::record_index`]).
+#[derive(Debug)]
 pub(crate) struct SmoothedPositions(Vec<(Geodetic, Geodetic, Matrix3<f64>)>);
 
 impl PendingSmoothing {
