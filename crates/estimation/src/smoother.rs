@@ -446,19 +446,43 @@ impl<const N: usize> Widened for TimesTranspose<N> {
 /// not a number). nalgebra's `Cholesky::new` operation for operation:
 /// column j first loses `L(j, k) L(j.., k)` for k = 0, 1, …, j − 1 in turn,
 /// then its diagonal becomes the square root d and the rest is divided by d.
+///
+/// The columns go in the four blocks of [`lower_block_starts`], each
+/// column worked on in a local array of constant length from its block's
+/// first row (kept in registers while k runs, where a column of varying
+/// length went through memory at every k); the rows above the diagonal
+/// computed on the way are not stored. Each stored element is the same
+/// sum in the same order.
 #[inline(always)]
 fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
     let m = &mut m[..N * N];
-    for j in 0..N {
-        let (done, rest) = m.split_at_mut(j * N);
-        let cj = &mut rest[j..N];
+    let (s1, s2, s3) = lower_block_starts(N);
+    // Four calls, not a loop: each inlines with its own constant row count.
+    cholesky_columns::<N>(m, (0, 0..s1))
+        && cholesky_columns::<N>(m, (s1, s1..s2))
+        && cholesky_columns::<N>(m, (s2, s2..s3))
+        && cholesky_columns::<N>(m, (s3, s3..N))
+}
+
+/// Columns `cols` of [`cholesky_lower_in_place`], each computed from row
+/// `row0` (at or above its diagonal) on; false at a pivot that is not
+/// positive.
+#[inline(always)]
+fn cholesky_columns<const N: usize>(
+    m: &mut [f64],
+    (row0, cols): (usize, std::ops::Range<usize>),
+) -> bool {
+    for j in cols {
+        let mut acc = [0.0; N];
+        let acc = &mut acc[row0..];
+        acc.copy_from_slice(&m[j * N + row0..(j + 1) * N]);
         for k in 0..j {
-            let f = done[k * N + j];
-            let ck = &done[k * N + j..(k + 1) * N];
-            for (a, b) in cj.iter_mut().zip(ck) {
+            let f = m[k * N + j];
+            for (a, b) in acc.iter_mut().zip(&m[k * N + row0..(k + 1) * N]) {
                 *a -= f * b;
             }
         }
+        let cj = &mut acc[j - row0..];
         let d = cj[0];
         if d.is_nan() || d <= 0.0 {
             return false;
@@ -468,6 +492,7 @@ fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
         for a in &mut cj[1..] {
             *a /= d;
         }
+        m[j * N + j..(j + 1) * N].copy_from_slice(cj);
     }
     true
 }
@@ -475,22 +500,27 @@ fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
 /// `W ← W L⁻ᵀ` (solve `W Lᵀ = Z` in place, L lower triangular with a
 /// non-zero diagonal, column-major; only its lower triangle is read),
 /// column by column: `W_j = (Z_j − Σ_{k<j} L_jk W_k) / L_jj`. Whole columns
-/// at a time, so the inner loops run over contiguous memory.
+/// at a time, so the inner loops run over contiguous memory; each column
+/// in a local array while k runs (in registers: a column of the matrix
+/// itself was stored back at every k, the compiler not knowing that the
+/// columns it reads are others).
 #[inline(always)]
 fn solve_right_lower_transposed<const N: usize>(l: &[f64], w: &mut [f64]) {
+    let (l, w) = (&l[..N * N], &mut w[..N * N]);
     for j in 0..N {
-        let (done, rest) = w.split_at_mut(j * N);
-        let wj = &mut rest[..N];
+        let mut wj = [0.0; N];
+        wj.copy_from_slice(&w[j * N..(j + 1) * N]);
         for k in 0..j {
             let f = l[k * N + j];
-            for (a, b) in wj.iter_mut().zip(&done[k * N..(k + 1) * N]) {
+            for (a, b) in wj.iter_mut().zip(&w[k * N..(k + 1) * N]) {
                 *a -= f * b;
             }
         }
         let d = l[j * N + j];
-        for a in wj.iter_mut() {
+        for a in &mut wj {
             *a /= d;
         }
+        w[j * N..(j + 1) * N].copy_from_slice(&wj);
     }
 }
 
@@ -498,27 +528,28 @@ fn solve_right_lower_transposed<const N: usize>(l: &[f64], w: &mut [f64]) {
 /// non-zero diagonal, column-major; only its lower triangle is read), from
 /// the last column: `C_j = (W_j − Σ_{k>j} L_kj C_k) / L_jj`. With `w`,
 /// column j of C is W's column j before it is solved (C = W L⁻¹ out of
-/// place).
+/// place). Each column in a local array while k runs, as in
+/// [`solve_right_lower_transposed`].
 #[inline(always)]
 fn solve_right_lower<const N: usize>(l: &[f64], w: Option<&[f64]>, c: &mut [f64]) {
+    let (l, c) = (&l[..N * N], &mut c[..N * N]);
     for j in (0..N).rev() {
-        let (head, done) = c.split_at_mut((j + 1) * N);
-        // Of constant length, so that the column stays in registers.
-        let cj = &mut head[j * N..][..N];
-        if let Some(w) = w {
-            cj.copy_from_slice(&w[j * N..(j + 1) * N]);
-        }
+        let mut cj = [0.0; N];
+        cj.copy_from_slice(match w {
+            Some(w) => &w[j * N..(j + 1) * N],
+            None => &c[j * N..(j + 1) * N],
+        });
         for k in j + 1..N {
             let f = l[j * N + k];
-            let ck = &done[(k - j - 1) * N..(k - j) * N];
-            for (a, b) in cj.iter_mut().zip(ck) {
+            for (a, b) in cj.iter_mut().zip(&c[k * N..(k + 1) * N]) {
                 *a -= f * b;
             }
         }
         let d = l[j * N + j];
-        for a in cj.iter_mut() {
+        for a in &mut cj {
             *a /= d;
         }
+        c[j * N..(j + 1) * N].copy_from_slice(&cj);
     }
 }
 
@@ -619,36 +650,32 @@ fn rows_times<const N: usize, const R: usize>(phi: &[f64], b: &[f64], out: &mut 
     }
 }
 
-/// Write a completed map into the store's slot `i` (a new chunk when it
-/// starts one).
-fn store<const N: usize>(chunks: &mut Vec<Box<[f64]>>, i: usize, map: &BackwardMap<N>) {
+/// Append a completed map to the store as its slot `i` (a new chunk when
+/// it starts one). A chunk is reserved whole and filled by appending, so
+/// its memory is written once (not zero-filled first) and never moves.
+fn store<const N: usize>(chunks: &mut Vec<Vec<f64>>, i: usize, map: &BackwardMap<N>) {
     let stride = floats_per_mark(N);
-    let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
-    if chunk == chunks.len() {
-        chunks.push(vec![0.0; MARKS_PER_CHUNK * stride].into_boxed_slice());
+    if i.is_multiple_of(MARKS_PER_CHUNK) {
+        chunks.push(Vec::with_capacity(MARKS_PER_CHUNK * stride));
     }
-    let out = &mut chunks[chunk][slot * stride..(slot + 1) * stride];
-    let (a, rest) = out.split_at_mut(N * N);
-    let (b, rest) = rest.split_at_mut(N);
-    let (d, epoch) = rest.split_at_mut(N * (N + 1) / 2);
+    let out = chunks.last_mut().expect("a chunk was pushed for slot 0");
+    debug_assert_eq!(out.len(), (i % MARKS_PER_CHUNK) * stride);
+    let (a, d) = (map.a.as_slice(), map.d.as_slice());
     let half = N * N / 2;
     // In halves, as `copy_matrix` (glibc's `rep movsb` above 2112 bytes).
-    a[..half].copy_from_slice(&map.a.as_slice()[..half]);
-    a[half..].copy_from_slice(&map.a.as_slice()[half..]);
-    b.copy_from_slice(map.b.as_slice());
-    let mut k = 0;
+    out.extend_from_slice(&a[..half]);
+    out.extend_from_slice(&a[half..]);
+    out.extend_from_slice(map.b.as_slice());
+    // D's lower triangle, column by column.
     for c in 0..N {
-        for r in c..N {
-            d[k] = map.d[(r, c)];
-            k += 1;
-        }
+        out.extend_from_slice(&d[c * N + c..(c + 1) * N]);
     }
     // Exact: an epoch index is far below 2⁵³.
-    epoch[0] = map.mark_epoch as f64;
+    out.push(map.mark_epoch as f64);
 }
 
 /// The stored map of mark `i` into `map`.
-fn load<const N: usize>(chunks: &[Box<[f64]>], i: usize, map: &mut BackwardMap<N>) {
+fn load<const N: usize>(chunks: &[Vec<f64>], i: usize, map: &mut BackwardMap<N>) {
     let stride = floats_per_mark(N);
     let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
     let v = &chunks[chunk][slot * stride..(slot + 1) * stride];
@@ -659,14 +686,13 @@ fn load<const N: usize>(chunks: &[Box<[f64]>], i: usize, map: &mut BackwardMap<N
     map.a.as_mut_slice()[..half].copy_from_slice(&a[..half]);
     map.a.as_mut_slice()[half..].copy_from_slice(&a[half..]);
     map.b.copy_from_slice(b);
+    let d = map.d.as_mut_slice();
     let mut k = 0;
     for c in 0..N {
-        for r in c..N {
-            map.d[(r, c)] = d_packed[k];
-            map.d[(c, r)] = d_packed[k];
-            k += 1;
-        }
+        d[c * N + c..(c + 1) * N].copy_from_slice(&d_packed[k..k + N - c]);
+        k += N - c;
     }
+    mirror_lower_slice(N, d);
     map.identity = false;
     map.mark_epoch = epoch[0] as usize;
 }
@@ -766,7 +792,7 @@ pub struct RtsRecorder<const N: usize> {
     /// the first mark closes).
     map: Option<BackwardMap<N>>,
     /// The stored maps: mark i's leads from mark i + 1 to mark i.
-    chunks: Vec<Box<[f64]>>,
+    chunks: Vec<Vec<f64>>,
     stored: usize,
     marks: usize,
     max_marks: usize,
@@ -817,6 +843,46 @@ impl<const N: usize> RtsRecorder<N> {
         // The tightest structure, once per Φ: a product of two such
         // transitions has the larger number of full rows.
         let full_rows = TrailingDiagonal::of(phi).full_rows();
+        self.predict_with_rows(phi, full_rows, x_predicted, p_predicted);
+    }
+
+    /// [`predict`](Self::predict) for a Φ whose rows from
+    /// `structure.full_rows()` on the caller knows to be diagonal (as the
+    /// model that made Φ declares, or as a previous Φ had it), which saves
+    /// finding Φ's structure again. The structure is checked (the cheap
+    /// test of [`TrailingDiagonal::holds`]); a Φ without it, or a structure
+    /// of every row, is read for its tightest structure as `predict` does.
+    /// The same numbers as `predict`, bit for bit, for finite covariances:
+    /// a structure looser than Φ's tightest only moves exact zero products
+    /// (Φ's zeros times finite covariances) into sums that start from +0,
+    /// which leaves them unchanged.
+    pub fn predict_structured(
+        &mut self,
+        phi: &SMatrix<f64, N, N>,
+        structure: TrailingDiagonal,
+        x_predicted: &SVector<f64, N>,
+        p_predicted: &SMatrix<f64, N, N>,
+    ) {
+        if self.overflow || self.failed.is_some() {
+            return;
+        }
+        let full_rows = if structure.full_rows() < N && structure.holds(phi) {
+            structure.full_rows()
+        } else {
+            TrailingDiagonal::of(phi).full_rows()
+        };
+        self.predict_with_rows(phi, full_rows, x_predicted, p_predicted);
+    }
+
+    /// [`predict`](Self::predict) with Φ's rows from `full_rows` on
+    /// diagonal.
+    fn predict_with_rows(
+        &mut self,
+        phi: &SMatrix<f64, N, N>,
+        full_rows: usize,
+        x_predicted: &SVector<f64, N>,
+        p_predicted: &SMatrix<f64, N, N>,
+    ) {
         if self.close_open_epoch() {
             copy_matrix(&mut self.phi, phi);
             self.phi_full_rows = full_rows;
@@ -1259,6 +1325,76 @@ mod tests {
         assert!(
             compose_reference(&mut reference, (&x, &p), &SMatrix::identity(), (&x, &bad)).is_none()
         );
+    }
+
+    /// A forward pass of `epochs` epochs (Φ with `full_rows` full rows,
+    /// a scalar update of a rotating state in two of three epochs, a mark
+    /// in one of four) fed to a recorder by `predict` and to recorders by
+    /// `predict_structured` with Φ's tightest structure, a looser one, every
+    /// row, and a structure Φ does not have (too tight: found again): the
+    /// smoothed marks bit for bit the same.
+    fn structured_case<const N: usize>(rng: &mut ChaCha8Rng, full_rows: usize, epochs: usize) {
+        let q = SMatrix::<f64, N, N>::from_diagonal_element(1e-3);
+        let (mut x, mut p) = (SVector::<f64, N>::zeros(), covariance::<N>(rng, 0));
+        let structures = [
+            full_rows,
+            (full_rows + 3).min(N),
+            N,
+            full_rows.saturating_sub(1),
+        ];
+        let mut found = RtsRecorder::<N>::new(&x, &p, epochs);
+        let mut given: Vec<_> = structures
+            .iter()
+            .map(|_| RtsRecorder::<N>::new(&x, &p, epochs))
+            .collect();
+        for k in 1..epochs {
+            let phi = transition::<N>(rng, full_rows);
+            x = phi * x;
+            p = phi * p * phi.transpose() + q;
+            p = (p + p.transpose()) * 0.5;
+            found.predict(&phi, &x, &p);
+            for (r, &rows) in given.iter_mut().zip(&structures) {
+                r.predict_structured(&phi, TrailingDiagonal::new(rows), &x, &p);
+            }
+            if k % 3 != 0 {
+                let i = k % N;
+                let x_predicted = x;
+                let gain = p.column(i) / (p[(i, i)] + 0.5);
+                x += gain * (rng.random_range(-1.0..1.0) - x[i]);
+                p -= gain * p.row(i);
+                p = (p + p.transpose()) * 0.5;
+                found.filtered(&x_predicted, &x, &p);
+                for r in &mut given {
+                    r.filtered(&x_predicted, &x, &p);
+                }
+            }
+            if k % 4 == 0 {
+                found.mark();
+                for r in &mut given {
+                    r.mark();
+                }
+            }
+        }
+        let expected = found.smooth().unwrap();
+        assert_eq!(expected.len(), (epochs - 1) / 4);
+        for (r, rows) in given.iter().zip(structures) {
+            let smoothed = r.smooth().unwrap();
+            assert_eq!(smoothed.len(), expected.len());
+            for (a, b) in smoothed.iter().zip(&expected) {
+                assert_eq!(bits(&a.x), bits(&b.x), "x, {N}/{full_rows} given {rows}");
+                assert_eq!(bits(&a.p), bits(&b.p), "P, {N}/{full_rows} given {rows}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_structure_passed_in_gives_the_bits_of_the_structure_found() {
+        let mut rng = ChaCha8Rng::seed_from_u64(46);
+        structured_case::<21>(&mut rng, 9, 60);
+        structured_case::<21>(&mut rng, 1, 30);
+        structured_case::<15>(&mut rng, 9, 30);
+        structured_case::<5>(&mut rng, 2, 30);
+        structured_case::<1>(&mut rng, 0, 30);
     }
 
     #[test]

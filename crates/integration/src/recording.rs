@@ -33,7 +33,7 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
-use aidnav_estimation::{EstimationError, RtsRecorder};
+use aidnav_estimation::{EstimationError, RtsRecorder, TrailingDiagonal};
 use nalgebra::{SMatrix, SVector};
 
 /// Floats of calls a batch holds before it goes to the worker: about 80
@@ -343,22 +343,26 @@ fn write_covariance<const N: usize>(data: &mut Vec<f64>, p: &SMatrix<f64, N, N>)
 }
 
 /// A covariance from what [`write_covariance`] appended at the start of
-/// `data` into `p`; returns the floats read.
+/// `data` into `p`; returns the floats read. A packed one is copied column
+/// by column (contiguous runs) and then mirrored.
 fn read_covariance<const N: usize>(
     data: &[f64],
     p: &mut SMatrix<f64, N, N>,
     packed: bool,
 ) -> usize {
+    let s = &mut p.as_mut_slice()[..N * N];
     if !packed {
-        p.as_mut_slice().copy_from_slice(&data[..N * N]);
+        s.copy_from_slice(&data[..N * N]);
         return N * N;
     }
     let mut at = 0;
     for j in 0..N {
-        for i in j..N {
-            p[(i, j)] = data[at];
-            p[(j, i)] = data[at];
-            at += 1;
+        s[j * N + j..(j + 1) * N].copy_from_slice(&data[at..at + N - j]);
+        at += N - j;
+    }
+    for j in 1..N {
+        for i in 0..j {
+            s[j * N + i] = s[i * N + j];
         }
     }
     at
@@ -404,7 +408,15 @@ fn work<const N: usize>(
                         e.x_predicted.copy_from_slice(&data[at..at + N]);
                         at += N;
                         at += read_covariance(&data[at..], &mut e.p, packed);
-                        recorder.predict(&e.phi, &e.x_predicted, &e.p);
+                        // Φ's structure as the filter found it (the
+                        // recorder checks it cheaply instead of finding it
+                        // again).
+                        recorder.predict_structured(
+                            &e.phi,
+                            TrailingDiagonal::new(rows),
+                            &e.x_predicted,
+                            &e.p,
+                        );
                     }
                     FILTERED => {
                         e.x_predicted.copy_from_slice(&data[at..at + N]);
