@@ -847,14 +847,18 @@ impl<const N: usize> RtsRecorder<N> {
     }
 
     /// [`predict`](Self::predict) for a Φ whose rows from
-    /// `structure.full_rows()` on the caller knows to be diagonal (as the
-    /// model that made Φ declares, or as a previous Φ had it), which saves
-    /// finding Φ's structure again. The structure is checked (the cheap
-    /// test of [`TrailingDiagonal::holds`]); a Φ without it, or a structure
-    /// of every row, is read for its tightest structure as `predict` does.
+    /// `structure.full_rows()` on the caller knows to be zero off the
+    /// diagonal (Φ made in that form, as the smoother's worker thread
+    /// rebuilds it from the rows it was sent), which saves finding Φ's
+    /// structure again at every epoch. The structure is the caller's
+    /// guarantee: it is checked ([`TrailingDiagonal::holds`]) in debug
+    /// builds only, and a Φ without it would be smoothed as if its other
+    /// elements were zero. A structure of every row finds Φ's tightest, as
+    /// `predict` does.
+    ///
     /// The same numbers as `predict`, bit for bit, for finite covariances:
-    /// a structure looser than Φ's tightest only moves exact zero products
-    /// (Φ's zeros times finite covariances) into sums that start from +0,
+    /// a structure looser than Φ's tightest only adds exact zero products
+    /// (Φ's zeros times finite covariances) to sums that start from +0,
     /// which leaves them unchanged.
     pub fn predict_structured(
         &mut self,
@@ -866,7 +870,8 @@ impl<const N: usize> RtsRecorder<N> {
         if self.overflow || self.failed.is_some() {
             return;
         }
-        let full_rows = if structure.full_rows() < N && structure.holds(phi) {
+        debug_assert!(structure.holds(phi), "Φ does not have the structure passed");
+        let full_rows = if structure.full_rows() < N {
             structure.full_rows()
         } else {
             TrailingDiagonal::of(phi).full_rows()
@@ -1330,18 +1335,12 @@ mod tests {
     /// A forward pass of `epochs` epochs (Φ with `full_rows` full rows,
     /// a scalar update of a rotating state in two of three epochs, a mark
     /// in one of four) fed to a recorder by `predict` and to recorders by
-    /// `predict_structured` with Φ's tightest structure, a looser one, every
-    /// row, and a structure Φ does not have (too tight: found again): the
-    /// smoothed marks bit for bit the same.
+    /// `predict_structured` with the structure Φ was made with, looser
+    /// ones and every row: the smoothed marks bit for bit the same.
     fn structured_case<const N: usize>(rng: &mut ChaCha8Rng, full_rows: usize, epochs: usize) {
         let q = SMatrix::<f64, N, N>::from_diagonal_element(1e-3);
         let (mut x, mut p) = (SVector::<f64, N>::zeros(), covariance::<N>(rng, 0));
-        let structures = [
-            full_rows,
-            (full_rows + 3).min(N),
-            N,
-            full_rows.saturating_sub(1),
-        ];
+        let structures = [full_rows, (full_rows + 1).min(N), (full_rows + 5).min(N), N];
         let mut found = RtsRecorder::<N>::new(&x, &p, epochs);
         let mut given: Vec<_> = structures
             .iter()
@@ -1395,6 +1394,20 @@ mod tests {
         structured_case::<15>(&mut rng, 9, 30);
         structured_case::<5>(&mut rng, 2, 30);
         structured_case::<1>(&mut rng, 0, 30);
+    }
+
+    /// A structure Φ does not have is the caller's error, caught in debug
+    /// builds.
+    #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "Φ does not have the structure passed")]
+    fn a_structure_phi_does_not_have_is_caught_in_debug_builds() {
+        let mut rng = ChaCha8Rng::seed_from_u64(47);
+        let phi = transition::<5>(&mut rng, 3);
+        let p = covariance::<5>(&mut rng, 0);
+        let x = SVector::<f64, 5>::zeros();
+        let mut r = RtsRecorder::<5>::new(&x, &p, 4);
+        r.predict_structured(&phi, TrailingDiagonal::new(1), &x, &p);
     }
 
     #[test]

@@ -408,9 +408,8 @@ fn work<const N: usize>(
                         e.x_predicted.copy_from_slice(&data[at..at + N]);
                         at += N;
                         at += read_covariance(&data[at..], &mut e.p, packed);
-                        // Φ's structure as the filter found it (the
-                        // recorder checks it cheaply instead of finding it
-                        // again).
+                        // Φ rebuilt by its structure (zeros written
+                        // outside it): the recorder need not find it again.
                         recorder.predict_structured(
                             &e.phi,
                             TrailingDiagonal::new(rows),
