@@ -19,7 +19,7 @@ use nalgebra::{
 };
 
 use crate::check;
-use crate::dense::{Widened, lower_block_starts, mirror_lower_slice, run_widest};
+use crate::dense::{Widened, mirror_lower_slice, run_widest};
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::structured::{TrailingDiagonal, times_transpose};
 
@@ -439,7 +439,7 @@ impl<const N: usize> Widened for TimesTranspose<N> {
 /// column j first loses `L(j, k) L(j.., k)` for k = 0, 1, …, j − 1 in turn,
 /// then its diagonal becomes the square root d and the rest is divided by d.
 ///
-/// The columns go in the four blocks of [`lower_block_starts`], each
+/// The columns go in the blocks of four of [`add_symmetric_product`], each
 /// column worked on in a local array of constant length from its block's
 /// first row (kept in registers while k runs, where a column of varying
 /// length went through memory at every k); the rows above the diagonal
@@ -448,12 +448,19 @@ impl<const N: usize> Widened for TimesTranspose<N> {
 #[inline(always)]
 fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
     let m = &mut m[..N * N];
-    let (s1, s2, s3) = lower_block_starts(N);
-    // Four calls, not a loop: each inlines with its own constant row count.
-    cholesky_columns::<N>(m, (0, 0..s1))
-        && cholesky_columns::<N>(m, (s1, s1..s2))
-        && cholesky_columns::<N>(m, (s2, s2..s3))
-        && cholesky_columns::<N>(m, (s3, s3..N))
+    // Separate calls, as in `add_symmetric_product`.
+    let block = |b: usize| (b, b..(b + 4).min(N));
+    cholesky_columns::<N>(m, block(0))
+        && (N <= 4 || cholesky_columns::<N>(m, block(4)))
+        && (N <= 8 || cholesky_columns::<N>(m, block(8)))
+        && (N <= 12 || cholesky_columns::<N>(m, block(12)))
+        && (N <= 16 || cholesky_columns::<N>(m, block(16)))
+        && (N <= 20 || cholesky_columns::<N>(m, block(20)))
+        && (N <= 24 || cholesky_columns::<N>(m, block(24)))
+        && (N <= 28 || cholesky_columns::<N>(m, block(28)))
+        && (32..N)
+            .step_by(4)
+            .all(|b| cholesky_columns::<N>(m, block(b)))
 }
 
 /// Columns `cols` of [`cholesky_lower_in_place`], each computed from row
@@ -555,7 +562,7 @@ fn solve_right_lower<const N: usize>(l: &[f64], w: Option<&[f64]>, c: &mut [f64]
 /// way are overwritten by the mirror), so each column stays in registers
 /// while k runs — the same sums, faster than columns of varying length
 /// (blocks of four columns compute fewer elements above the diagonal than
-/// the four blocks of [`lower_block_starts`]: 261 against 279 per k for
+/// the four blocks of `dense::lower_block_starts`: 261 against 279 per k for
 /// 21 states).
 #[inline(always)]
 fn add_symmetric_product<const N: usize, const SUBTRACT: bool>(
@@ -563,8 +570,9 @@ fn add_symmetric_product<const N: usize, const SUBTRACT: bool>(
     x: &[f64],
     y: &[f64],
 ) {
-    // Separate calls, not a loop, up to 32 states: each inlines with its
-    // own constant row count (`N > …` is known at compile time).
+    // Separate calls, not a loop (nor a closure, through which the
+    // compiler kept the columns in memory), up to 32 states: each inlines
+    // with its own constant row count (`N > …` is known at compile time).
     let block = |b: usize| (b, b..(b + 4).min(N));
     add_product_columns::<N, SUBTRACT>(block(0), x, y, s);
     if N > 4 {
@@ -1464,6 +1472,7 @@ mod tests {
             one(covariance::<21>(&mut rng, 0));
             one(covariance::<7>(&mut rng, 0));
             one(covariance::<1>(&mut rng, 0));
+            one(covariance::<38>(&mut rng, 0));
         }
         // A zero, a negative and a NaN pivot.
         one(covariance::<21>(&mut rng, 3));
