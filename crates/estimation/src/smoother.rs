@@ -19,7 +19,7 @@ use nalgebra::{
 };
 
 use crate::check;
-use crate::dense::{Widened, lower_block_starts, mirror_lower_slice, run_widest};
+use crate::dense::{Widened, mirror_lower_slice, run_widest};
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::structured::{TrailingDiagonal, times_transpose};
 
@@ -249,19 +249,11 @@ impl<const N: usize> Widened for GramFrom<N> {
     #[inline(always)]
     fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
         let (out, p, w) = (&mut out[..N * N], &a[..N * N], &b[..N * N]);
-        // P's lower triangle (and the block rows above it) first, column by
-        // column (short copies), then the product subtracted in place.
-        let (s1, s2, s3) = lower_block_starts(N);
+        // P's lower triangle (and the block rows above it, see
+        // `block_row`) first, column by column (short copies), then the
+        // product subtracted in place.
         for c in 0..N {
-            let row0 = if c < s1 {
-                0
-            } else if c < s2 {
-                s1
-            } else if c < s3 {
-                s2
-            } else {
-                s3
-            };
+            let row0 = block_row(c);
             out[c * N + row0..(c + 1) * N].copy_from_slice(&p[c * N + row0..(c + 1) * N]);
         }
         add_symmetric_product::<N, true>(out, w, w);
@@ -446,19 +438,50 @@ impl<const N: usize> Widened for TimesTranspose<N> {
 /// not a number). nalgebra's `Cholesky::new` operation for operation:
 /// column j first loses `L(j, k) L(j.., k)` for k = 0, 1, …, j − 1 in turn,
 /// then its diagonal becomes the square root d and the rest is divided by d.
+///
+/// The columns go in the blocks of four of [`add_symmetric_product`], each
+/// column worked on in a local array of constant length from its block's
+/// first row (kept in registers while k runs, where a column of varying
+/// length went through memory at every k); the rows above the diagonal
+/// computed on the way are not stored. Each stored element is the same
+/// sum in the same order.
 #[inline(always)]
 fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
     let m = &mut m[..N * N];
-    for j in 0..N {
-        let (done, rest) = m.split_at_mut(j * N);
-        let cj = &mut rest[j..N];
+    // Separate calls, as in `add_symmetric_product`.
+    let block = |b: usize| (b, b..(b + 4).min(N));
+    cholesky_columns::<N>(m, block(0))
+        && (N <= 4 || cholesky_columns::<N>(m, block(4)))
+        && (N <= 8 || cholesky_columns::<N>(m, block(8)))
+        && (N <= 12 || cholesky_columns::<N>(m, block(12)))
+        && (N <= 16 || cholesky_columns::<N>(m, block(16)))
+        && (N <= 20 || cholesky_columns::<N>(m, block(20)))
+        && (N <= 24 || cholesky_columns::<N>(m, block(24)))
+        && (N <= 28 || cholesky_columns::<N>(m, block(28)))
+        && (32..N)
+            .step_by(4)
+            .all(|b| cholesky_columns::<N>(m, block(b)))
+}
+
+/// Columns `cols` of [`cholesky_lower_in_place`], each computed from row
+/// `row0` (at or above its diagonal) on; false at a pivot that is not
+/// positive.
+#[inline(always)]
+fn cholesky_columns<const N: usize>(
+    m: &mut [f64],
+    (row0, cols): (usize, std::ops::Range<usize>),
+) -> bool {
+    for j in cols {
+        let mut acc = [0.0; N];
+        let acc = &mut acc[row0..];
+        acc.copy_from_slice(&m[j * N + row0..(j + 1) * N]);
         for k in 0..j {
-            let f = done[k * N + j];
-            let ck = &done[k * N + j..(k + 1) * N];
-            for (a, b) in cj.iter_mut().zip(ck) {
+            let f = m[k * N + j];
+            for (a, b) in acc.iter_mut().zip(&m[k * N + row0..(k + 1) * N]) {
                 *a -= f * b;
             }
         }
+        let cj = &mut acc[j - row0..];
         let d = cj[0];
         if d.is_nan() || d <= 0.0 {
             return false;
@@ -468,6 +491,7 @@ fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
         for a in &mut cj[1..] {
             *a /= d;
         }
+        m[j * N + j..(j + 1) * N].copy_from_slice(cj);
     }
     true
 }
@@ -475,22 +499,27 @@ fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
 /// `W ← W L⁻ᵀ` (solve `W Lᵀ = Z` in place, L lower triangular with a
 /// non-zero diagonal, column-major; only its lower triangle is read),
 /// column by column: `W_j = (Z_j − Σ_{k<j} L_jk W_k) / L_jj`. Whole columns
-/// at a time, so the inner loops run over contiguous memory.
+/// at a time, so the inner loops run over contiguous memory; each column
+/// in a local array while k runs (in registers: a column of the matrix
+/// itself was stored back at every k, the compiler not knowing that the
+/// columns it reads are others).
 #[inline(always)]
 fn solve_right_lower_transposed<const N: usize>(l: &[f64], w: &mut [f64]) {
+    let (l, w) = (&l[..N * N], &mut w[..N * N]);
     for j in 0..N {
-        let (done, rest) = w.split_at_mut(j * N);
-        let wj = &mut rest[..N];
+        let mut wj = [0.0; N];
+        wj.copy_from_slice(&w[j * N..(j + 1) * N]);
         for k in 0..j {
             let f = l[k * N + j];
-            for (a, b) in wj.iter_mut().zip(&done[k * N..(k + 1) * N]) {
+            for (a, b) in wj.iter_mut().zip(&w[k * N..(k + 1) * N]) {
                 *a -= f * b;
             }
         }
         let d = l[j * N + j];
-        for a in wj.iter_mut() {
+        for a in &mut wj {
             *a /= d;
         }
+        w[j * N..(j + 1) * N].copy_from_slice(&wj);
     }
 }
 
@@ -498,27 +527,28 @@ fn solve_right_lower_transposed<const N: usize>(l: &[f64], w: &mut [f64]) {
 /// non-zero diagonal, column-major; only its lower triangle is read), from
 /// the last column: `C_j = (W_j − Σ_{k>j} L_kj C_k) / L_jj`. With `w`,
 /// column j of C is W's column j before it is solved (C = W L⁻¹ out of
-/// place).
+/// place). Each column in a local array while k runs, as in
+/// [`solve_right_lower_transposed`].
 #[inline(always)]
 fn solve_right_lower<const N: usize>(l: &[f64], w: Option<&[f64]>, c: &mut [f64]) {
+    let (l, c) = (&l[..N * N], &mut c[..N * N]);
     for j in (0..N).rev() {
-        let (head, done) = c.split_at_mut((j + 1) * N);
-        // Of constant length, so that the column stays in registers.
-        let cj = &mut head[j * N..][..N];
-        if let Some(w) = w {
-            cj.copy_from_slice(&w[j * N..(j + 1) * N]);
-        }
+        let mut cj = [0.0; N];
+        cj.copy_from_slice(match w {
+            Some(w) => &w[j * N..(j + 1) * N],
+            None => &c[j * N..(j + 1) * N],
+        });
         for k in j + 1..N {
             let f = l[j * N + k];
-            let ck = &done[(k - j - 1) * N..(k - j) * N];
-            for (a, b) in cj.iter_mut().zip(ck) {
+            for (a, b) in cj.iter_mut().zip(&c[k * N..(k + 1) * N]) {
                 *a -= f * b;
             }
         }
         let d = l[j * N + j];
-        for a in cj.iter_mut() {
+        for a in &mut cj {
             *a /= d;
         }
+        c[j * N..(j + 1) * N].copy_from_slice(&cj);
     }
 }
 
@@ -527,24 +557,56 @@ fn solve_right_lower<const N: usize>(l: &[f64], w: Option<&[f64]>, c: &mut [f64]
 /// triangle is computed, the upper one mirrored from it, so S leaves
 /// exactly symmetric. Each lower element gains `Y(c, k) X(r, k)` (loses
 /// it: the same as gaining `Y(c, k) (−X(r, k))`) in increasing k; the
-/// columns go in four blocks whose rows start at a constant even row at or
-/// above their first column (the elements above the diagonal computed on
-/// the way are overwritten by the mirror), so each column stays in
-/// registers while k runs — the same sums, faster than columns of varying
-/// length.
+/// columns go in blocks of four whose rows start at the block's first
+/// column ([`block_row`]; the elements above the diagonal computed on the
+/// way are overwritten by the mirror), so each column stays in registers
+/// while k runs — the same sums, faster than columns of varying length
+/// (blocks of four columns compute fewer elements above the diagonal than
+/// the four blocks of `dense::lower_block_starts`: 261 against 279 per k for
+/// 21 states).
 #[inline(always)]
 fn add_symmetric_product<const N: usize, const SUBTRACT: bool>(
     s: &mut [f64],
     x: &[f64],
     y: &[f64],
 ) {
-    let (s1, s2, s3) = lower_block_starts(N);
-    // Four calls, not a loop: each inlines with its own constant row count.
-    add_product_columns::<N, SUBTRACT>((0, 0..s1), x, y, s);
-    add_product_columns::<N, SUBTRACT>((s1, s1..s2), x, y, s);
-    add_product_columns::<N, SUBTRACT>((s2, s2..s3), x, y, s);
-    add_product_columns::<N, SUBTRACT>((s3, s3..N), x, y, s);
+    // Separate calls, not a loop (nor a closure, through which the
+    // compiler kept the columns in memory), up to 32 states: each inlines
+    // with its own constant row count (`N > …` is known at compile time).
+    let block = |b: usize| (b, b..(b + 4).min(N));
+    add_product_columns::<N, SUBTRACT>(block(0), x, y, s);
+    if N > 4 {
+        add_product_columns::<N, SUBTRACT>(block(4), x, y, s);
+    }
+    if N > 8 {
+        add_product_columns::<N, SUBTRACT>(block(8), x, y, s);
+    }
+    if N > 12 {
+        add_product_columns::<N, SUBTRACT>(block(12), x, y, s);
+    }
+    if N > 16 {
+        add_product_columns::<N, SUBTRACT>(block(16), x, y, s);
+    }
+    if N > 20 {
+        add_product_columns::<N, SUBTRACT>(block(20), x, y, s);
+    }
+    if N > 24 {
+        add_product_columns::<N, SUBTRACT>(block(24), x, y, s);
+    }
+    if N > 28 {
+        add_product_columns::<N, SUBTRACT>(block(28), x, y, s);
+    }
+    for b in (32..N).step_by(4) {
+        add_product_columns::<N, SUBTRACT>(block(b), x, y, s);
+    }
     mirror_lower_slice(N, s);
+}
+
+/// The first row [`add_symmetric_product`] computes in column `c`: its
+/// block's first column (c rounded down to a multiple of four).
+#[inline(always)]
+const fn block_row(c: usize) -> usize {
+    c & !3
 }
 
 /// Columns `cols`, rows `row0..N`, of `S += X Yᵀ` (`S −= X Yᵀ` when
@@ -619,36 +681,32 @@ fn rows_times<const N: usize, const R: usize>(phi: &[f64], b: &[f64], out: &mut 
     }
 }
 
-/// Write a completed map into the store's slot `i` (a new chunk when it
-/// starts one).
-fn store<const N: usize>(chunks: &mut Vec<Box<[f64]>>, i: usize, map: &BackwardMap<N>) {
+/// Append a completed map to the store as its slot `i` (a new chunk when
+/// it starts one). A chunk is reserved whole and filled by appending, so
+/// its memory is written once (not zero-filled first) and never moves.
+fn store<const N: usize>(chunks: &mut Vec<Vec<f64>>, i: usize, map: &BackwardMap<N>) {
     let stride = floats_per_mark(N);
-    let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
-    if chunk == chunks.len() {
-        chunks.push(vec![0.0; MARKS_PER_CHUNK * stride].into_boxed_slice());
+    if i.is_multiple_of(MARKS_PER_CHUNK) {
+        chunks.push(Vec::with_capacity(MARKS_PER_CHUNK * stride));
     }
-    let out = &mut chunks[chunk][slot * stride..(slot + 1) * stride];
-    let (a, rest) = out.split_at_mut(N * N);
-    let (b, rest) = rest.split_at_mut(N);
-    let (d, epoch) = rest.split_at_mut(N * (N + 1) / 2);
+    let out = chunks.last_mut().expect("a chunk was pushed for slot 0");
+    debug_assert_eq!(out.len(), (i % MARKS_PER_CHUNK) * stride);
+    let (a, d) = (map.a.as_slice(), map.d.as_slice());
     let half = N * N / 2;
     // In halves, as `copy_matrix` (glibc's `rep movsb` above 2112 bytes).
-    a[..half].copy_from_slice(&map.a.as_slice()[..half]);
-    a[half..].copy_from_slice(&map.a.as_slice()[half..]);
-    b.copy_from_slice(map.b.as_slice());
-    let mut k = 0;
+    out.extend_from_slice(&a[..half]);
+    out.extend_from_slice(&a[half..]);
+    out.extend_from_slice(map.b.as_slice());
+    // D's lower triangle, column by column.
     for c in 0..N {
-        for r in c..N {
-            d[k] = map.d[(r, c)];
-            k += 1;
-        }
+        out.extend_from_slice(&d[c * N + c..(c + 1) * N]);
     }
     // Exact: an epoch index is far below 2⁵³.
-    epoch[0] = map.mark_epoch as f64;
+    out.push(map.mark_epoch as f64);
 }
 
 /// The stored map of mark `i` into `map`.
-fn load<const N: usize>(chunks: &[Box<[f64]>], i: usize, map: &mut BackwardMap<N>) {
+fn load<const N: usize>(chunks: &[Vec<f64>], i: usize, map: &mut BackwardMap<N>) {
     let stride = floats_per_mark(N);
     let (chunk, slot) = (i / MARKS_PER_CHUNK, i % MARKS_PER_CHUNK);
     let v = &chunks[chunk][slot * stride..(slot + 1) * stride];
@@ -659,14 +717,13 @@ fn load<const N: usize>(chunks: &[Box<[f64]>], i: usize, map: &mut BackwardMap<N
     map.a.as_mut_slice()[..half].copy_from_slice(&a[..half]);
     map.a.as_mut_slice()[half..].copy_from_slice(&a[half..]);
     map.b.copy_from_slice(b);
+    let d = map.d.as_mut_slice();
     let mut k = 0;
     for c in 0..N {
-        for r in c..N {
-            map.d[(r, c)] = d_packed[k];
-            map.d[(c, r)] = d_packed[k];
-            k += 1;
-        }
+        d[c * N + c..(c + 1) * N].copy_from_slice(&d_packed[k..k + N - c]);
+        k += N - c;
     }
+    mirror_lower_slice(N, d);
     map.identity = false;
     map.mark_epoch = epoch[0] as usize;
 }
@@ -766,7 +823,7 @@ pub struct RtsRecorder<const N: usize> {
     /// the first mark closes).
     map: Option<BackwardMap<N>>,
     /// The stored maps: mark i's leads from mark i + 1 to mark i.
-    chunks: Vec<Box<[f64]>>,
+    chunks: Vec<Vec<f64>>,
     stored: usize,
     marks: usize,
     max_marks: usize,
@@ -817,6 +874,51 @@ impl<const N: usize> RtsRecorder<N> {
         // The tightest structure, once per Φ: a product of two such
         // transitions has the larger number of full rows.
         let full_rows = TrailingDiagonal::of(phi).full_rows();
+        self.predict_with_rows(phi, full_rows, x_predicted, p_predicted);
+    }
+
+    /// [`predict`](Self::predict) for a Φ whose rows from
+    /// `structure.full_rows()` on the caller knows to be zero off the
+    /// diagonal (Φ made in that form, as the smoother's worker thread
+    /// rebuilds it from the rows it was sent), which saves finding Φ's
+    /// structure again at every epoch. The structure is the caller's
+    /// guarantee: it is checked ([`TrailingDiagonal::holds`]) in debug
+    /// builds only, and a Φ without it would be smoothed as if its other
+    /// elements were zero. A structure of every row finds Φ's tightest, as
+    /// `predict` does.
+    ///
+    /// The same numbers as `predict`, bit for bit, for finite covariances:
+    /// a structure looser than Φ's tightest only adds exact zero products
+    /// (Φ's zeros times finite covariances) to sums that start from +0,
+    /// which leaves them unchanged.
+    pub fn predict_structured(
+        &mut self,
+        phi: &SMatrix<f64, N, N>,
+        structure: TrailingDiagonal,
+        x_predicted: &SVector<f64, N>,
+        p_predicted: &SMatrix<f64, N, N>,
+    ) {
+        if self.overflow || self.failed.is_some() {
+            return;
+        }
+        debug_assert!(structure.holds(phi), "Φ does not have the structure passed");
+        let full_rows = if structure.full_rows() < N {
+            structure.full_rows()
+        } else {
+            TrailingDiagonal::of(phi).full_rows()
+        };
+        self.predict_with_rows(phi, full_rows, x_predicted, p_predicted);
+    }
+
+    /// [`predict`](Self::predict) with Φ's rows from `full_rows` on
+    /// diagonal.
+    fn predict_with_rows(
+        &mut self,
+        phi: &SMatrix<f64, N, N>,
+        full_rows: usize,
+        x_predicted: &SVector<f64, N>,
+        p_predicted: &SMatrix<f64, N, N>,
+    ) {
         if self.close_open_epoch() {
             copy_matrix(&mut self.phi, phi);
             self.phi_full_rows = full_rows;
@@ -1261,6 +1363,84 @@ mod tests {
         );
     }
 
+    /// A forward pass of `epochs` epochs (Φ with `full_rows` full rows,
+    /// a scalar update of a rotating state in two of three epochs, a mark
+    /// in one of four) fed to a recorder by `predict` and to recorders by
+    /// `predict_structured` with the structure Φ was made with, looser
+    /// ones and every row: the smoothed marks bit for bit the same.
+    fn structured_case<const N: usize>(rng: &mut ChaCha8Rng, full_rows: usize, epochs: usize) {
+        let q = SMatrix::<f64, N, N>::from_diagonal_element(1e-3);
+        let (mut x, mut p) = (SVector::<f64, N>::zeros(), covariance::<N>(rng, 0));
+        let structures = [full_rows, (full_rows + 1).min(N), (full_rows + 5).min(N), N];
+        let mut found = RtsRecorder::<N>::new(&x, &p, epochs);
+        let mut given: Vec<_> = structures
+            .iter()
+            .map(|_| RtsRecorder::<N>::new(&x, &p, epochs))
+            .collect();
+        for k in 1..epochs {
+            let phi = transition::<N>(rng, full_rows);
+            x = phi * x;
+            p = phi * p * phi.transpose() + q;
+            p = (p + p.transpose()) * 0.5;
+            found.predict(&phi, &x, &p);
+            for (r, &rows) in given.iter_mut().zip(&structures) {
+                r.predict_structured(&phi, TrailingDiagonal::new(rows), &x, &p);
+            }
+            if k % 3 != 0 {
+                let i = k % N;
+                let x_predicted = x;
+                let gain = p.column(i) / (p[(i, i)] + 0.5);
+                x += gain * (rng.random_range(-1.0..1.0) - x[i]);
+                p -= gain * p.row(i);
+                p = (p + p.transpose()) * 0.5;
+                found.filtered(&x_predicted, &x, &p);
+                for r in &mut given {
+                    r.filtered(&x_predicted, &x, &p);
+                }
+            }
+            if k % 4 == 0 {
+                found.mark();
+                for r in &mut given {
+                    r.mark();
+                }
+            }
+        }
+        let expected = found.smooth().unwrap();
+        assert_eq!(expected.len(), (epochs - 1) / 4);
+        for (r, rows) in given.iter().zip(structures) {
+            let smoothed = r.smooth().unwrap();
+            assert_eq!(smoothed.len(), expected.len());
+            for (a, b) in smoothed.iter().zip(&expected) {
+                assert_eq!(bits(&a.x), bits(&b.x), "x, {N}/{full_rows} given {rows}");
+                assert_eq!(bits(&a.p), bits(&b.p), "P, {N}/{full_rows} given {rows}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_structure_passed_in_gives_the_bits_of_the_structure_found() {
+        let mut rng = ChaCha8Rng::seed_from_u64(46);
+        structured_case::<21>(&mut rng, 9, 60);
+        structured_case::<21>(&mut rng, 1, 30);
+        structured_case::<15>(&mut rng, 9, 30);
+        structured_case::<5>(&mut rng, 2, 30);
+        structured_case::<1>(&mut rng, 0, 30);
+    }
+
+    /// A structure Φ does not have is the caller's error, caught in debug
+    /// builds.
+    #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "Φ does not have the structure passed")]
+    fn a_structure_phi_does_not_have_is_caught_in_debug_builds() {
+        let mut rng = ChaCha8Rng::seed_from_u64(47);
+        let phi = transition::<5>(&mut rng, 3);
+        let p = covariance::<5>(&mut rng, 0);
+        let x = SVector::<f64, 5>::zeros();
+        let mut r = RtsRecorder::<5>::new(&x, &p, 4);
+        r.predict_structured(&phi, TrailingDiagonal::new(1), &x, &p);
+    }
+
     #[test]
     fn the_fused_step_equals_the_separate_step_and_composition_bit_for_bit() {
         let mut rng = ChaCha8Rng::seed_from_u64(43);
@@ -1292,6 +1472,7 @@ mod tests {
             one(covariance::<21>(&mut rng, 0));
             one(covariance::<7>(&mut rng, 0));
             one(covariance::<1>(&mut rng, 0));
+            one(covariance::<38>(&mut rng, 0));
         }
         // A zero, a negative and a NaN pivot.
         one(covariance::<21>(&mut rng, 3));
@@ -1358,7 +1539,9 @@ mod tests {
         check::<1>(&mut rng);
         check::<3>(&mut rng);
         check::<5>(&mut rng);
+        check::<8>(&mut rng);
         check::<15>(&mut rng);
         check::<21>(&mut rng);
+        check::<38>(&mut rng);
     }
 }

@@ -28,12 +28,18 @@
 //! - An update's call replaces the one before it when nothing came
 //!   between (the recorder keeps only the latest filtered estimate of an
 //!   epoch).
+//! - A prediction's P⁻ is sent only when the recorder can read it: when
+//!   the epoch is updated or marked (it may become a node), or ends the
+//!   record (the backward pass starts from it). It is kept aside until the
+//!   next call says which; an epoch followed directly by the next
+//!   prediction (no update, no mark: not a node, its P⁻ never read) sends
+//!   Φ and x⁻ alone.
 
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
-use aidnav_estimation::{EstimationError, RtsRecorder};
+use aidnav_estimation::{EstimationError, RtsRecorder, TrailingDiagonal};
 use nalgebra::{SMatrix, SVector};
 
 /// Floats of calls a batch holds before it goes to the worker: about 80
@@ -53,6 +59,9 @@ const IN_FLIGHT: usize = 16;
 const PREDICT: usize = 0;
 const FILTERED: usize = 1;
 const MARK: usize = 2;
+/// A prediction whose P⁻ the recorder will not read (see the module's
+/// documentation).
+const PREDICT_WITHOUT_COVARIANCE: usize = 3;
 
 /// A call's tag: its kind, whether its covariance is a lower triangle and,
 /// for a prediction, Φ's full rows (N: Φ whole). Small integers, exact in
@@ -76,11 +85,16 @@ struct Batch {
 
 /// The batch being written and the buffers of batches the worker is done
 /// with.
-struct Pending {
+struct Pending<const N: usize> {
     data: Vec<f64>,
     /// Start of the last call when it is an update's (one that a next
     /// update replaces).
     last_filtered: Option<usize>,
+    /// Start of the last call when it is a prediction whose P⁻
+    /// (`p_open`) is not written yet.
+    open_prediction: Option<usize>,
+    /// The open prediction's P⁻.
+    p_open: Box<SMatrix<f64, N, N>>,
     free: Vec<Vec<f64>>,
     /// Buffers handed out (queued, at the worker, or back but not yet
     /// taken from `returns`), the one being written included.
@@ -94,7 +108,7 @@ pub(crate) struct Worker<const N: usize> {
     returns: Receiver<Vec<f64>>,
     /// Calls not yet sent (behind a lock only so that the backward pass,
     /// which takes `&self`, can send them).
-    batch: Mutex<Pending>,
+    batch: Mutex<Pending<N>>,
     thread: Option<JoinHandle<()>>,
     recorder: Arc<Mutex<RtsRecorder<N>>>,
     x_predicted: SVector<f64, N>,
@@ -137,6 +151,8 @@ impl<const N: usize> Recording<N> {
                 batch: Mutex::new(Pending {
                     data: Vec::with_capacity(buffer_floats(N)),
                     last_filtered: None,
+                    open_prediction: None,
+                    p_open: Box::new(SMatrix::zeros()),
                     free: Vec::new(),
                     buffers: 1,
                 }),
@@ -176,14 +192,19 @@ impl<const N: usize> Recording<N> {
                 w.x_predicted = *x_predicted;
                 w.open_mark = None;
                 let rows = w.structure_of(phi);
-                w.send_with(|pending| {
+                w.send_with(false, |pending| {
                     let data = &mut pending.data;
                     let start = data.len();
-                    data.push(0.0);
+                    data.push(tag(PREDICT_WITHOUT_COVARIANCE, false, rows));
                     write_phi(data, phi, rows);
                     data.extend_from_slice(x_predicted.as_slice());
-                    let packed = write_covariance(data, p_predicted);
-                    data[start] = tag(PREDICT, packed, rows);
+                    // In halves, as `copy_matrix` (glibc's `rep movsb`
+                    // above 2112 bytes).
+                    let (p, half) = (p_predicted.as_slice(), N * N / 2);
+                    let open = pending.p_open.as_mut_slice();
+                    open[..half].copy_from_slice(&p[..half]);
+                    open[half..].copy_from_slice(&p[half..]);
+                    pending.open_prediction = Some(start);
                     pending.last_filtered = None;
                 });
             }
@@ -201,7 +222,7 @@ impl<const N: usize> Recording<N> {
             Self::Inline(r) => r.filtered(x_predicted, x, p),
             Self::Background(w) => {
                 w.x_predicted = *x_predicted;
-                w.send_with(|pending| {
+                w.send_with(true, |pending| {
                     let data = &mut pending.data;
                     // The recorder's `filtered` overwrites all that the
                     // previous one set: the later call alone does the same.
@@ -228,7 +249,7 @@ impl<const N: usize> Recording<N> {
                 if let Some(m) = w.open_mark {
                     return Some(m);
                 }
-                w.send_with(|pending| {
+                w.send_with(true, |pending| {
                     pending.data.push(tag(MARK, false, 0));
                     pending.last_filtered = None;
                 });
@@ -343,22 +364,26 @@ fn write_covariance<const N: usize>(data: &mut Vec<f64>, p: &SMatrix<f64, N, N>)
 }
 
 /// A covariance from what [`write_covariance`] appended at the start of
-/// `data` into `p`; returns the floats read.
+/// `data` into `p`; returns the floats read. A packed one is copied column
+/// by column (contiguous runs) and then mirrored.
 fn read_covariance<const N: usize>(
     data: &[f64],
     p: &mut SMatrix<f64, N, N>,
     packed: bool,
 ) -> usize {
+    let s = &mut p.as_mut_slice()[..N * N];
     if !packed {
-        p.as_mut_slice().copy_from_slice(&data[..N * N]);
+        s.copy_from_slice(&data[..N * N]);
         return N * N;
     }
     let mut at = 0;
     for j in 0..N {
-        for i in j..N {
-            p[(i, j)] = data[at];
-            p[(j, i)] = data[at];
-            at += 1;
+        s[j * N + j..(j + 1) * N].copy_from_slice(&data[at..at + N - j]);
+        at += N - j;
+    }
+    for j in 1..N {
+        for i in 0..j {
+            s[j * N + i] = s[i * N + j];
         }
     }
     at
@@ -399,12 +424,25 @@ fn work<const N: usize>(
                 let (kind, packed, rows) = untag(data[at]);
                 at += 1;
                 match kind {
-                    PREDICT => {
+                    PREDICT | PREDICT_WITHOUT_COVARIANCE => {
                         at += read_phi(&data[at..], &mut e.phi, rows);
                         e.x_predicted.copy_from_slice(&data[at..at + N]);
                         at += N;
-                        at += read_covariance(&data[at..], &mut e.p, packed);
-                        recorder.predict(&e.phi, &e.x_predicted, &e.p);
+                        if kind == PREDICT {
+                            at += read_covariance(&data[at..], &mut e.p, packed);
+                        } else if cfg!(debug_assertions) {
+                            // Never read by the recorder (the next call is
+                            // a prediction): NaN would show in the tests.
+                            e.p.fill(f64::NAN);
+                        }
+                        // Φ rebuilt by its structure (zeros written
+                        // outside it): the recorder need not find it again.
+                        recorder.predict_structured(
+                            &e.phi,
+                            TrailingDiagonal::new(rows),
+                            &e.x_predicted,
+                            &e.p,
+                        );
                     }
                     FILTERED => {
                         e.x_predicted.copy_from_slice(&data[at..at + N]);
@@ -426,6 +464,16 @@ fn work<const N: usize>(
         // The filter holds at most `IN_FLIGHT` buffers out, so this never
         // waits; an error is the filter gone.
         let _ = returns.try_send(data);
+    }
+}
+
+/// Write the open prediction's P⁻ after it (its tag made a
+/// [`PREDICT`]'s); nothing when no prediction is open.
+fn close_prediction<const N: usize>(pending: &mut Pending<N>) {
+    if let Some(start) = pending.open_prediction.take() {
+        let (_, _, rows) = untag(pending.data[start]);
+        let packed = write_covariance(&mut pending.data, &pending.p_open);
+        pending.data[start] = tag(PREDICT, packed, rows);
     }
 }
 
@@ -467,21 +515,27 @@ impl<const N: usize> Worker<N> {
         rows
     }
 
-    /// Append a call by `write` (which also keeps `last_filtered`); send
-    /// the batch when full.
-    fn send_with(&self, write: impl FnOnce(&mut Pending)) {
+    /// Append a call by `write` (which also keeps `last_filtered` and
+    /// `open_prediction`), after closing the open prediction (with its P⁻
+    /// when `reads_covariance`: the call is not the next prediction) and
+    /// sending the batch when full (never with a prediction open).
+    fn send_with(&self, reads_covariance: bool, write: impl FnOnce(&mut Pending<N>)) {
         let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
-        write(&mut pending);
+        if reads_covariance {
+            close_prediction(&mut pending);
+        }
+        pending.open_prediction = None;
         if pending.data.len() >= BATCH_FLOATS {
             self.send_batch(&mut pending, None);
         }
+        write(&mut pending);
     }
 
     /// Send the calls written so far (and `flush` to answer after them);
     /// the next calls go into a buffer the worker is done with, or a new
     /// one while fewer than `IN_FLIGHT` are out, or else the next one the
     /// worker gives back.
-    fn send_batch(&self, pending: &mut Pending, flush: Option<SyncSender<()>>) {
+    fn send_batch(&self, pending: &mut Pending<N>, flush: Option<SyncSender<()>>) {
         while let Ok(buffer) = self.returns.try_recv() {
             pending.free.push(buffer);
         }
@@ -510,6 +564,8 @@ impl<const N: usize> Worker<N> {
         let (done, wait) = sync_channel(1);
         {
             let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+            // The open epoch ends the record so far: its P⁻ is read.
+            close_prediction(&mut pending);
             self.send_batch(&mut pending, Some(done));
         }
         if wait.recv().is_err() {
