@@ -31,7 +31,7 @@
 //! 6 measurements runs about 1.3× faster. The one `unsafe` call of the
 //! crate is that dispatch, after run-time detection.
 
-use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, allocator::Allocator};
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, allocator::Allocator};
 
 /// Largest run-time dimension handled by the kernels; larger `Dyn` products
 /// go to nalgebra (packed, cache-blocked `matrixmultiply`).
@@ -845,6 +845,44 @@ pub(crate) fn mirror_lower_slice(n: usize, s: &mut [f64]) {
             s[j * n + i] = s[i * n + j];
         }
     }
+}
+
+/// Append the lower triangle of the N × N `m`, column by column (column j
+/// from its diagonal down): N (N + 1) / 2 values, which
+/// [`read_lower_triangle`] turns back into the symmetric matrix.
+///
+/// ```
+/// use aidnav_estimation::{push_lower_triangle, read_lower_triangle};
+/// use nalgebra::Matrix2;
+/// let p = Matrix2::new(4.0, 1.0, 1.0, 9.0);
+/// let mut packed = Vec::new();
+/// push_lower_triangle(&p, &mut packed);
+/// assert_eq!(packed, [4.0, 1.0, 9.0]);
+/// let mut back = Matrix2::zeros();
+/// assert_eq!(read_lower_triangle(&packed, &mut back), 3);
+/// assert_eq!(back, p);
+/// ```
+#[inline]
+pub fn push_lower_triangle<const N: usize>(m: &SMatrix<f64, N, N>, out: &mut Vec<f64>) {
+    for (j, column) in m.as_slice().chunks_exact(N).enumerate() {
+        out.extend_from_slice(&column[j..]);
+    }
+}
+
+/// The symmetric N × N matrix whose lower triangle
+/// [`push_lower_triangle`] wrote at the start of `packed`, into `m`: each
+/// column copied from its diagonal down, then the upper triangle mirrored
+/// from the lower. Returns the values read, N (N + 1) / 2.
+#[inline]
+pub fn read_lower_triangle<const N: usize>(packed: &[f64], m: &mut SMatrix<f64, N, N>) -> usize {
+    let s = m.as_mut_slice();
+    let mut at = 0;
+    for j in 0..N {
+        s[j * N + j..(j + 1) * N].copy_from_slice(&packed[at..at + N - j]);
+        at += N - j;
+    }
+    mirror_lower_slice(N, s);
+    at
 }
 
 #[cfg(test)]

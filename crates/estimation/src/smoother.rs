@@ -19,7 +19,9 @@ use nalgebra::{
 };
 
 use crate::check;
-use crate::dense::{Widened, mirror_lower_slice, run_widest};
+use crate::dense::{
+    Widened, mirror_lower_slice, push_lower_triangle, read_lower_triangle, run_widest,
+};
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::structured::{TrailingDiagonal, times_transpose};
 
@@ -691,16 +693,13 @@ fn store<const N: usize>(chunks: &mut Vec<Vec<f64>>, i: usize, map: &BackwardMap
     }
     let out = chunks.last_mut().expect("a chunk was pushed for slot 0");
     debug_assert_eq!(out.len(), (i % MARKS_PER_CHUNK) * stride);
-    let (a, d) = (map.a.as_slice(), map.d.as_slice());
+    let a = map.a.as_slice();
     let half = N * N / 2;
     // In halves, as `copy_matrix` (glibc's `rep movsb` above 2112 bytes).
     out.extend_from_slice(&a[..half]);
     out.extend_from_slice(&a[half..]);
     out.extend_from_slice(map.b.as_slice());
-    // D's lower triangle, column by column.
-    for c in 0..N {
-        out.extend_from_slice(&d[c * N + c..(c + 1) * N]);
-    }
+    push_lower_triangle(&map.d, out);
     // Exact: an epoch index is far below 2⁵³.
     out.push(map.mark_epoch as f64);
 }
@@ -717,13 +716,7 @@ fn load<const N: usize>(chunks: &[Vec<f64>], i: usize, map: &mut BackwardMap<N>)
     map.a.as_mut_slice()[..half].copy_from_slice(&a[..half]);
     map.a.as_mut_slice()[half..].copy_from_slice(&a[half..]);
     map.b.copy_from_slice(b);
-    let d = map.d.as_mut_slice();
-    let mut k = 0;
-    for c in 0..N {
-        d[c * N + c..(c + 1) * N].copy_from_slice(&d_packed[k..k + N - c]);
-        k += N - c;
-    }
-    mirror_lower_slice(N, d);
+    read_lower_triangle(d_packed, &mut map.d);
     map.identity = false;
     map.mark_epoch = epoch[0] as usize;
 }

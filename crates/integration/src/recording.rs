@@ -39,7 +39,9 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::JoinHandle;
 
-use aidnav_estimation::{EstimationError, RtsRecorder, TrailingDiagonal};
+use aidnav_estimation::{
+    EstimationError, RtsRecorder, TrailingDiagonal, push_lower_triangle, read_lower_triangle,
+};
 use nalgebra::{SMatrix, SVector};
 
 /// Floats of calls a batch holds before it goes to the worker: about 80
@@ -357,36 +359,23 @@ fn write_covariance<const N: usize>(data: &mut Vec<f64>, p: &SMatrix<f64, N, N>)
         data.extend_from_slice(s);
         return false;
     }
-    for (j, column) in s.chunks_exact(N).enumerate() {
-        data.extend_from_slice(&column[j..]);
-    }
+    push_lower_triangle(p, data);
     true
 }
 
 /// A covariance from what [`write_covariance`] appended at the start of
-/// `data` into `p`; returns the floats read. A packed one is copied column
-/// by column (contiguous runs) and then mirrored.
+/// `data` into `p`; returns the floats read. A packed one is read by
+/// [`read_lower_triangle`].
 fn read_covariance<const N: usize>(
     data: &[f64],
     p: &mut SMatrix<f64, N, N>,
     packed: bool,
 ) -> usize {
-    let s = &mut p.as_mut_slice()[..N * N];
     if !packed {
-        s.copy_from_slice(&data[..N * N]);
+        p.as_mut_slice().copy_from_slice(&data[..N * N]);
         return N * N;
     }
-    let mut at = 0;
-    for j in 0..N {
-        s[j * N + j..(j + 1) * N].copy_from_slice(&data[at..at + N - j]);
-        at += N - j;
-    }
-    for j in 1..N {
-        for i in 0..j {
-            s[j * N + i] = s[i * N + j];
-        }
-    }
-    at
+    read_lower_triangle(data, p)
 }
 
 /// The recorder, whatever a panicking holder left (the worker holds it
