@@ -453,7 +453,7 @@ impl PendingSmoothing {
 impl SmoothedPositions {
     /// Add the smoothed positions to the epochs they belong to.
     pub(crate) fn apply(&self, epochs: &mut [Epoch]) {
-        epochs.iter_mut().for_each(|e| self.apply_to(e));
+        epochs.iter_mut().for_each(|e| self.set_positions(e));
     }
 
     /// The smoothed epochs ([`Epoch::smoothed`]) of `epochs` once
@@ -463,13 +463,14 @@ impl SmoothedPositions {
             .iter()
             .filter_map(|e| {
                 let mut e = *e;
-                self.apply_to(&mut e);
+                self.set_positions(&mut e);
                 e.smoothed()
             })
             .collect()
     }
 
-    fn apply_to(&self, e: &mut Epoch) {
+    /// Set `e`'s smoothed positions when it has them.
+    fn set_positions(&self, e: &mut Epoch) {
         if let Some(&(antenna, imu, covariance)) = e.record_index.and_then(|i| self.0.get(i)) {
             e.smoothed_antenna = Some(antenna);
             e.smoothed_imu = Some(imu);
