@@ -292,7 +292,7 @@ impl ProcessRun {
     pub fn write(&self, out: &Path, config_name: &str) -> JobResult<ProcessReport> {
         use crate::process::export;
         let cfg = self.process.config();
-        aidnav_io::writers::begin_outputs(out)?;
+        // write_files creates `out` and removes a stale summary.json first.
         let (files, written) = export::write_files(
             &self.result,
             self.scores.as_ref(),
