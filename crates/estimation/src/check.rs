@@ -155,19 +155,46 @@ pub(crate) fn process_noise<N: Dim>(q: &OMatrix<f64, N, N>, n: usize) -> Result<
 where
     DefaultAllocator: Allocator<N, N>,
 {
+    Ok(match process_noise_unless_exact(q, n)? {
+        Some(symmetrized) => symmetrized,
+        None => {
+            finite(q, Step::Predict, Matrix::Q)?;
+            q.clone()
+        }
+    })
+}
+
+/// [`process_noise`] without the copy of an exactly symmetric Q (the
+/// common case), which the caller adds as it is: `Ok(None)` then, after
+/// the shape check only. Its finiteness is left to the caller, who checks
+/// it ([`finite`], `Matrix::Q`) when the propagated P is not finite, before
+/// reporting P: every element of a non-finite Q reaches P (an exactly
+/// symmetric Q holds no NaN off its diagonal, and ±∞ or NaN plus anything
+/// is not finite), so the same error comes out as from checking Q first.
+/// Any other Q is checked and symmetrised as by [`process_noise`]
+/// (`Ok(Some((Q + Qᵀ)/2))`).
+pub(crate) fn process_noise_unless_exact<N: Dim>(
+    q: &OMatrix<f64, N, N>,
+    n: usize,
+) -> Result<Option<OMatrix<f64, N, N>>>
+where
+    DefaultAllocator: Allocator<N, N>,
+{
     let step = Step::Predict;
     shape(q, (n, n), step, Matrix::Q)?;
-    finite(q, step, Matrix::Q)?;
     // The common case, an exactly symmetric Q, tested on the contiguous
     // storage first (what `symmetric` finds first, without its indexing).
     let (nd, _) = q.shape_generic();
-    let exactly_symmetric =
-        exactly_symmetric(q.as_slice(), nd.value()) || symmetric(q, step, Matrix::Q)?;
+    if exactly_symmetric(q.as_slice(), nd.value()) {
+        return Ok(None);
+    }
+    finite(q, step, Matrix::Q)?;
+    let exact = symmetric(q, step, Matrix::Q)?;
     let mut base = q.clone();
-    if !exactly_symmetric {
+    if !exact {
         symmetrize(&mut base);
     }
-    Ok(base)
+    Ok(Some(base))
 }
 
 #[cfg(test)]
