@@ -30,10 +30,12 @@
 //!   epoch).
 //! - A prediction's P⁻ is sent only when the recorder can read it: when
 //!   the epoch is updated or marked (it may become a node), or ends the
-//!   record (the backward pass starts from it). It is kept aside until the
-//!   next call says which; an epoch followed directly by the next
-//!   prediction (no update, no mark: not a node, its P⁻ never read) sends
-//!   Φ and x⁻ alone.
+//!   record (the backward pass starts from it). The filter's own P is P⁻
+//!   until an update changes it, so it is not copied aside: the caller
+//!   hands it over again ([`Recording::predicted_covariance`]) before
+//!   anything changes or reads it (an update, a mark, the backward pass),
+//!   and an epoch followed directly by the next prediction (no update, no
+//!   mark: not a node, its P⁻ never read) sends Φ and x⁻ alone.
 
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -92,10 +94,12 @@ struct Pending<const N: usize> {
     /// Start of the last call when it is an update's (one that a next
     /// update replaces).
     last_filtered: Option<usize>,
-    /// Start of the last call when it is a prediction whose P⁻
-    /// (`p_open`) is not written yet.
+    /// Start of the last call when it is a prediction whose P⁻ is not
+    /// written yet (waiting for [`Recording::predicted_covariance`]).
     open_prediction: Option<usize>,
-    /// The open prediction's P⁻.
+    /// The open prediction's P⁻ as `predict` was given it, in debug builds:
+    /// what [`Recording::predicted_covariance`] must hand over again.
+    #[cfg(debug_assertions)]
     p_open: Box<SMatrix<f64, N, N>>,
     free: Vec<Vec<f64>>,
     /// Buffers handed out (queued, at the worker, or back but not yet
@@ -126,9 +130,45 @@ pub(crate) struct Worker<const N: usize> {
 /// started, from a worker thread (see the module's documentation). Same
 /// methods, same results.
 pub(crate) enum Recording<const N: usize> {
-    Inline(Box<RtsRecorder<N>>),
+    Inline(Box<Inline<N>>),
     Background(Box<Worker<N>>),
 }
+
+/// A recorder fed inline; in a copy of a worker's recording taken while a
+/// prediction waited for its P⁻, that prediction (Φ, x⁻), made when
+/// [`Recording::predicted_covariance`] or the next prediction comes.
+#[derive(Debug, Clone)]
+pub(crate) struct Inline<const N: usize> {
+    recorder: RtsRecorder<N>,
+    waiting: Option<Box<(SMatrix<f64, N, N>, SVector<f64, N>)>>,
+}
+
+impl<const N: usize> Inline<N> {
+    /// A recorder with no prediction waiting.
+    fn of(recorder: RtsRecorder<N>) -> Self {
+        Self {
+            recorder,
+            waiting: None,
+        }
+    }
+
+    /// The waiting prediction made, with `p_predicted` as its P⁻.
+    fn make_waiting(&mut self, p_predicted: &SMatrix<f64, N, N>) {
+        if let Some(w) = self.waiting.take() {
+            self.recorder.predict(&w.0, &w.1, p_predicted);
+        }
+    }
+
+    /// The recorder, for a call that reads the open prediction's P⁻.
+    fn reading(&mut self) -> &mut RtsRecorder<N> {
+        assert!(self.waiting.is_none(), "{UNSUPPLIED}");
+        &mut self.recorder
+    }
+}
+
+/// The panic of a call that reads a prediction's P⁻ before the caller
+/// handed it over (a bug of the caller).
+const UNSUPPLIED: &str = "a prediction's P⁻ was not handed over (Recording::predicted_covariance) before a call that reads it";
 
 /// Floats of a batch buffer: a full batch and the largest call (a
 /// prediction with Φ and P⁻ whole), so that a call never reallocates.
@@ -154,6 +194,7 @@ impl<const N: usize> Recording<N> {
                     data: Vec::with_capacity(buffer_floats(N)),
                     last_filtered: None,
                     open_prediction: None,
+                    #[cfg(debug_assertions)]
                     p_open: Box::new(SMatrix::zeros()),
                     free: Vec::new(),
                     buffers: 1,
@@ -172,12 +213,15 @@ impl<const N: usize> Recording<N> {
                     |r| lock(&r).clone(),
                     |m| m.into_inner().unwrap_or_else(PoisonError::into_inner),
                 );
-                Self::Inline(Box::new(recorder))
+                Self::Inline(Box::new(Inline::of(recorder)))
             }
         }
     }
 
-    /// [`RtsRecorder::predict`].
+    /// [`RtsRecorder::predict`]. A worker's recording sends P⁻ only when
+    /// [`predicted_covariance`](Self::predicted_covariance) hands it over again, which
+    /// the caller must do before it changes its P or makes any other call
+    /// but the next prediction.
     pub(crate) fn predict(
         &mut self,
         phi: &SMatrix<f64, N, N>,
@@ -185,7 +229,12 @@ impl<const N: usize> Recording<N> {
         p_predicted: &SMatrix<f64, N, N>,
     ) {
         match self {
-            Self::Inline(r) => r.predict(phi, x_predicted, p_predicted),
+            Self::Inline(r) => {
+                // A waiting prediction followed by this one: its P⁻ is
+                // never read (any P will do).
+                r.make_waiting(p_predicted);
+                r.recorder.predict(phi, x_predicted, p_predicted);
+            }
             Self::Background(w) => {
                 // The recorder ignores every prediction after an overflow.
                 if w.overflow {
@@ -200,16 +249,26 @@ impl<const N: usize> Recording<N> {
                     data.push(tag(PREDICT_WITHOUT_COVARIANCE, false, rows));
                     write_phi(data, phi, rows);
                     data.extend_from_slice(x_predicted.as_slice());
-                    // In halves, as `copy_matrix` (glibc's `rep movsb`
-                    // above 2112 bytes).
-                    let (p, half) = (p_predicted.as_slice(), N * N / 2);
-                    let open = pending.p_open.as_mut_slice();
-                    open[..half].copy_from_slice(&p[..half]);
-                    open[half..].copy_from_slice(&p[half..]);
+                    #[cfg(debug_assertions)]
+                    pending.p_open.copy_from(p_predicted);
+                    #[cfg(not(debug_assertions))]
+                    let _ = p_predicted;
                     pending.open_prediction = Some(start);
                     pending.last_filtered = None;
                 });
             }
+        }
+    }
+
+    /// The open prediction's P⁻ handed over again (the caller's P, unchanged
+    /// since [`predict`](Self::predict)): written now when a prediction
+    /// waits for it, else nothing. Due before the caller changes its P
+    /// (an update) or makes a call that reads P⁻ ([`filtered`](Self::filtered),
+    /// [`mark`](Self::mark)); those panic when it was not.
+    pub(crate) fn predicted_covariance(&mut self, p_predicted: &SMatrix<f64, N, N>) {
+        match self {
+            Self::Inline(r) => r.make_waiting(p_predicted),
+            Self::Background(w) => w.supply(p_predicted),
         }
     }
 
@@ -221,7 +280,7 @@ impl<const N: usize> Recording<N> {
         p: &SMatrix<f64, N, N>,
     ) {
         match self {
-            Self::Inline(r) => r.filtered(x_predicted, x, p),
+            Self::Inline(r) => r.reading().filtered(x_predicted, x, p),
             Self::Background(w) => {
                 w.x_predicted = *x_predicted;
                 w.send_with(true, |pending| {
@@ -246,7 +305,7 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::mark`].
     pub(crate) fn mark(&mut self) -> Option<usize> {
         match self {
-            Self::Inline(r) => r.mark(),
+            Self::Inline(r) => r.reading().mark(),
             Self::Background(w) => {
                 if let Some(m) = w.open_mark {
                     return Some(m);
@@ -269,7 +328,7 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::open_mark`].
     pub(crate) fn open_mark(&self) -> Option<usize> {
         match self {
-            Self::Inline(r) => r.open_mark(),
+            Self::Inline(r) => r.recorder.open_mark(),
             Self::Background(w) => w.open_mark,
         }
     }
@@ -277,7 +336,7 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::overflowed`].
     pub(crate) fn overflowed(&self) -> bool {
         match self {
-            Self::Inline(r) => r.overflowed(),
+            Self::Inline(r) => r.recorder.overflowed(),
             Self::Background(w) => w.overflow,
         }
     }
@@ -285,19 +344,28 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::x_predicted`].
     pub(crate) fn x_predicted(&self) -> SVector<f64, N> {
         match self {
-            Self::Inline(r) => *r.x_predicted(),
+            Self::Inline(r) => *r.recorder.x_predicted(),
             Self::Background(w) => w.x_predicted,
         }
     }
 
-    /// [`RtsRecorder::smooth_with`], once the worker has done every call.
+    /// [`RtsRecorder::smooth_with`], once the worker has done every call;
+    /// `p` is the caller's P, P⁻ of an open prediction (the backward pass
+    /// starts from it).
     pub(crate) fn smooth_with(
         &self,
+        p: &SMatrix<f64, N, N>,
         visit: impl FnMut(usize, &SVector<f64, N>, &SMatrix<f64, N, N>) -> Result<(), EstimationError>,
     ) -> Result<(), EstimationError> {
         match self {
-            Self::Inline(r) => r.smooth_with(visit),
+            Self::Inline(r) if r.waiting.is_some() => {
+                let mut made = r.as_ref().clone();
+                made.make_waiting(p);
+                made.recorder.smooth_with(visit)
+            }
+            Self::Inline(r) => r.recorder.smooth_with(visit),
             Self::Background(w) => {
+                w.supply(p);
                 w.flush();
                 lock(&w.recorder).smooth_with(visit)
             }
@@ -458,10 +526,19 @@ fn work<const N: usize>(
 
 /// Write the open prediction's P⁻ after it (its tag made a
 /// [`PREDICT`]'s); nothing when no prediction is open.
-fn close_prediction<const N: usize>(pending: &mut Pending<N>) {
+fn close_prediction<const N: usize>(pending: &mut Pending<N>, p_predicted: &SMatrix<f64, N, N>) {
     if let Some(start) = pending.open_prediction.take() {
+        #[cfg(debug_assertions)]
+        {
+            let bits = |m: &SMatrix<f64, N, N>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(p_predicted),
+                bits(&pending.p_open),
+                "the P⁻ handed over is not the prediction's"
+            );
+        }
         let (_, _, rows) = untag(pending.data[start]);
-        let packed = write_covariance(&mut pending.data, &pending.p_open);
+        let packed = write_covariance(&mut pending.data, p_predicted);
         pending.data[start] = tag(PREDICT, packed, rows);
     }
 }
@@ -504,14 +581,21 @@ impl<const N: usize> Worker<N> {
         rows
     }
 
+    /// [`Recording::predicted_covariance`].
+    fn supply(&self, p_predicted: &SMatrix<f64, N, N>) {
+        let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+        close_prediction(&mut pending, p_predicted);
+    }
+
     /// Append a call by `write` (which also keeps `last_filtered` and
-    /// `open_prediction`), after closing the open prediction (with its P⁻
-    /// when `reads_covariance`: the call is not the next prediction) and
-    /// sending the batch when full (never with a prediction open).
+    /// `open_prediction`), after the open prediction (whose P⁻ a call that
+    /// `reads_covariance`, not the next prediction, needs handed over
+    /// first) and sending the batch when full (never with a prediction
+    /// open).
     fn send_with(&self, reads_covariance: bool, write: impl FnOnce(&mut Pending<N>)) {
         let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
         if reads_covariance {
-            close_prediction(&mut pending);
+            assert!(pending.open_prediction.is_none(), "{UNSUPPLIED}");
         }
         pending.open_prediction = None;
         if pending.data.len() >= BATCH_FLOATS {
@@ -548,17 +632,49 @@ impl<const N: usize> Worker<N> {
         }
     }
 
-    /// Wait until the worker has done every call queued so far.
+    /// Wait until the worker has done every call queued so far (the open
+    /// epoch ends the record so far: its P⁻ is read, so it must have been
+    /// handed over).
     fn flush(&self) {
         let (done, wait) = sync_channel(1);
         {
             let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
-            // The open epoch ends the record so far: its P⁻ is read.
-            close_prediction(&mut pending);
+            assert!(pending.open_prediction.is_none(), "{UNSUPPLIED}");
             self.send_batch(&mut pending, Some(done));
         }
         if wait.recv().is_err() {
             self.worker_died();
+        }
+    }
+
+    /// An inline copy of the recorder after every call so far: a prediction
+    /// waiting for its P⁻ is kept out of the calls the worker does first
+    /// and handed to the copy as waiting too (it goes on waiting here).
+    fn copy(&self) -> Inline<N> {
+        let (done, wait) = sync_channel(1);
+        let waiting = {
+            let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+            let open = pending
+                .open_prediction
+                .take()
+                .map(|start| pending.data.split_off(start));
+            self.send_batch(&mut pending, Some(done));
+            open.map(|call| {
+                let (_, _, rows) = untag(call[0]);
+                let mut phi = SMatrix::zeros();
+                let at = 1 + read_phi(&call[1..], &mut phi, rows);
+                let x = SVector::from_column_slice(&call[at..at + N]);
+                pending.open_prediction = Some(pending.data.len());
+                pending.data.extend_from_slice(&call);
+                Box::new((phi, x))
+            })
+        };
+        if wait.recv().is_err() {
+            self.worker_died();
+        }
+        Inline {
+            recorder: lock(&self.recorder).clone(),
+            waiting,
         }
     }
 
@@ -585,10 +701,7 @@ impl<const N: usize> Clone for Recording<N> {
     fn clone(&self) -> Self {
         match self {
             Self::Inline(r) => Self::Inline(r.clone()),
-            Self::Background(w) => {
-                w.flush();
-                Self::Inline(Box::new(lock(&w.recorder).clone()))
-            }
+            Self::Background(w) => Self::Inline(Box::new(w.copy())),
         }
     }
 }
@@ -708,12 +821,14 @@ mod tests {
             let (mut x, mut p) = (Vector4::new(0.0, 1.0, 0.0, 0.0), Matrix4::identity());
             let (mut marks, mut predicted) = (Vec::new(), Vec::new());
             let mut copy = None;
+            // P⁻ handed over before P changes and before a mark.
             let update = |rec: &mut Recording<4>,
                           x: &mut Vector4<f64>,
                           p: &mut Matrix4<f64>,
                           state: usize,
                           z: f64,
                           symmetric: bool| {
+                rec.predicted_covariance(p);
                 let s = p[(state, state)] + 0.01;
                 let gain = p.column(state) / s;
                 let x_predicted = rec.x_predicted() - *x;
@@ -739,6 +854,7 @@ mod tests {
                     update(rec, &mut x, &mut p, 0, z, k % 7 != 0);
                 }
                 if k % 4 == 0 {
+                    rec.predicted_covariance(&p);
                     marks.push(rec.mark());
                     marks.push(rec.mark());
                     assert_eq!(rec.open_mark(), *marks.last().unwrap());
@@ -749,31 +865,34 @@ mod tests {
                 }
                 predicted.push(rec.x_predicted());
                 if k == copy_at {
-                    copy = Some(rec.clone());
+                    copy = Some((rec.clone(), p));
                 }
             }
-            (marks, predicted, copy, rec.overflowed())
+            (marks, predicted, copy, rec.overflowed(), p)
         };
-        let smoothed = |rec: &Recording<4>| {
+        let smoothed = |(rec, p): (&Recording<4>, &Matrix4<f64>)| {
             let mut out = Vec::new();
-            rec.smooth_with(|m, x, p| {
+            rec.smooth_with(p, |m, x, p| {
                 out.push((m, *x, *p));
                 Ok(())
             })
             .map(|()| out)
         };
-        for max_marks in [EPOCHS, 20] {
+        // Copies taken after an epoch's updates and while a prediction
+        // waits for its P⁻ (no update, no mark at 5001).
+        for (max_marks, copy_at) in [(EPOCHS, 5_000), (EPOCHS, 5_001), (20, 5_000)] {
             let (x0, p0) = (Vector4::new(0.0, 1.0, 0.0, 0.0), Matrix4::identity());
             let mut background = Recording::new(&x0, &p0, max_marks);
             assert!(matches!(background, Recording::Background(_)));
-            let mut inline = Recording::Inline(Box::new(RtsRecorder::new(&x0, &p0, max_marks)));
-            let (marks_b, predicted_b, copy_b, over_b) = run(&mut background, 5_000);
-            let (marks_i, predicted_i, copy_i, over_i) = run(&mut inline, 5_000);
+            let mut inline =
+                Recording::Inline(Box::new(Inline::of(RtsRecorder::new(&x0, &p0, max_marks))));
+            let (marks_b, predicted_b, copy_b, over_b, p_b) = run(&mut background, copy_at);
+            let (marks_i, predicted_i, copy_i, over_i, p_i) = run(&mut inline, copy_at);
             assert_eq!(marks_b, marks_i);
             assert_eq!(predicted_b, predicted_i);
             assert_eq!(over_b, over_i);
             assert_eq!(over_b, max_marks == 20);
-            let (sb, si) = (smoothed(&background), smoothed(&inline));
+            let (sb, si) = (smoothed((&background, &p_b)), smoothed((&inline, &p_i)));
             if over_b {
                 // Past the limit there is nothing to smooth (the caller
                 // checks `overflowed`); both agree on that.
@@ -788,9 +907,9 @@ mod tests {
             assert_eq!(sb, si);
             // A visit that fails stops the pass there, with its error, and
             // the recording goes on answering (the pass again, whole).
-            let stopped = |rec: &Recording<4>| {
+            let stopped = |rec: &Recording<4>, p: &Matrix4<f64>| {
                 let mut visited = 0;
-                let result = rec.smooth_with(|m, _, _| {
+                let result = rec.smooth_with(p, |m, _, _| {
                     visited += 1;
                     if m == 1000 {
                         return Err(EstimationError::Singular {
@@ -802,13 +921,26 @@ mod tests {
                 });
                 (visited, result)
             };
-            let (visited, result) = stopped(&background);
-            assert_eq!((visited, &result), (sb.len() - 1000, &stopped(&inline).1));
+            let (visited, result) = stopped(&background, &p_b);
+            assert_eq!(
+                (visited, &result),
+                (sb.len() - 1000, &stopped(&inline, &p_i).1)
+            );
             assert!(result.is_err());
-            assert_eq!(smoothed(&background).unwrap(), si);
-            let (cb, ci) = (copy_b.unwrap(), copy_i.unwrap());
+            assert_eq!(smoothed((&background, &p_b)).unwrap(), si);
+            let ((cb, pb), (ci, pi)) = (copy_b.unwrap(), copy_i.unwrap());
             assert!(matches!(cb, Recording::Inline(_)));
-            assert_eq!(smoothed(&cb).unwrap(), smoothed(&ci).unwrap());
+            assert_eq!(smoothed((&cb, &pb)).unwrap(), smoothed((&ci, &pi)).unwrap());
+            // The copy goes on as the recording would: a waiting prediction
+            // is made when the next one comes.
+            let (mut cb, mut ci) = (cb, ci);
+            for rec in [&mut cb, &mut ci] {
+                let phi = transition_at(3);
+                rec.predict(&phi, &Vector4::zeros(), &pb);
+                rec.predicted_covariance(&pb);
+                rec.mark();
+            }
+            assert_eq!(smoothed((&cb, &pb)).unwrap(), smoothed((&ci, &pb)).unwrap());
         }
     }
 }
