@@ -25,6 +25,9 @@
 //!   every other element is +0.0 (the structure of the last Φ is tried
 //!   first: a transition keeps it from epoch to epoch); the worker writes
 //!   the zeros. Any other Φ goes whole.
+//! - A state vector that is +0.0 everywhere (the closed-loop filter's x⁻
+//!   at a prediction and x after its feedback, always) as a flag in the
+//!   call's tag; the worker writes the zeros.
 //! - An update's call replaces the one before it when nothing came
 //!   between (the recorder keeps only the latest filtered estimate of an
 //!   epoch).
@@ -67,17 +70,40 @@ const MARK: usize = 2;
 /// documentation).
 const PREDICT_WITHOUT_COVARIANCE: usize = 3;
 
-/// A call's tag: its kind, whether its covariance is a lower triangle and,
-/// for a prediction, Φ's full rows (N: Φ whole). Small integers, exact in
-/// an f64.
-fn tag(kind: usize, packed: bool, phi_rows: usize) -> f64 {
-    (kind + 4 * usize::from(packed) + 8 * phi_rows) as f64
+/// A call's tag: its kind, whether its covariance is a lower triangle,
+/// whether its state vector (a prediction's x⁻, an update's x) is +0.0
+/// everywhere and left out and, for a prediction, Φ's full rows (N: Φ
+/// whole). Small integers, exact in an f64.
+fn tag(kind: usize, packed: bool, zero_state: bool, phi_rows: usize) -> f64 {
+    (kind + 4 * usize::from(packed) + 8 * usize::from(zero_state) + 16 * phi_rows) as f64
 }
 
 /// `tag`'s fields back.
-fn untag(t: f64) -> (usize, bool, usize) {
+fn untag(t: f64) -> (usize, bool, bool, usize) {
     let t = t as usize;
-    (t % 4, (t / 4) % 2 == 1, t / 8)
+    (t % 4, (t / 4) % 2 == 1, (t / 8) % 2 == 1, t / 16)
+}
+
+/// Append a state vector unless it is +0.0 everywhere (bit for bit: a −0.0
+/// is sent); returns whether it was left out.
+fn write_state<const N: usize>(data: &mut Vec<f64>, x: &SVector<f64, N>) -> bool {
+    // Branch-free: the bits OR-ed.
+    if x.iter().fold(0_u64, |a, v| a | v.to_bits()) == 0 {
+        return true;
+    }
+    data.extend_from_slice(x.as_slice());
+    false
+}
+
+/// A state vector from what [`write_state`] appended at the start of
+/// `data` (nothing when `zero`) into `x`; returns the floats read.
+fn read_state<const N: usize>(data: &[f64], x: &mut SVector<f64, N>, zero: bool) -> usize {
+    if zero {
+        x.fill(0.0);
+        return 0;
+    }
+    x.copy_from_slice(&data[..N]);
+    N
 }
 
 /// Calls for the worker, written one after another; `flush` is answered
@@ -246,9 +272,10 @@ impl<const N: usize> Recording<N> {
                 w.send_with(false, |pending| {
                     let data = &mut pending.data;
                     let start = data.len();
-                    data.push(tag(PREDICT_WITHOUT_COVARIANCE, false, rows));
+                    data.push(0.0);
                     write_phi(data, phi, rows);
-                    data.extend_from_slice(x_predicted.as_slice());
+                    let zero = write_state(data, x_predicted);
+                    data[start] = tag(PREDICT_WITHOUT_COVARIANCE, false, zero, rows);
                     #[cfg(debug_assertions)]
                     pending.p_open.copy_from(p_predicted);
                     #[cfg(not(debug_assertions))]
@@ -293,9 +320,9 @@ impl<const N: usize> Recording<N> {
                     let start = data.len();
                     data.push(0.0);
                     data.extend_from_slice(x_predicted.as_slice());
-                    data.extend_from_slice(x.as_slice());
+                    let zero = write_state(data, x);
                     let packed = write_covariance(data, p);
-                    data[start] = tag(FILTERED, packed, 0);
+                    data[start] = tag(FILTERED, packed, zero, 0);
                     pending.last_filtered = Some(start);
                 });
             }
@@ -311,7 +338,7 @@ impl<const N: usize> Recording<N> {
                     return Some(m);
                 }
                 w.send_with(true, |pending| {
-                    pending.data.push(tag(MARK, false, 0));
+                    pending.data.push(tag(MARK, false, false, 0));
                     pending.last_filtered = None;
                 });
                 if w.marks >= w.max_marks {
@@ -478,13 +505,12 @@ fn work<const N: usize>(
             let mut recorder = lock(recorder);
             let mut at = 0;
             while at < data.len() {
-                let (kind, packed, rows) = untag(data[at]);
+                let (kind, packed, zero, rows) = untag(data[at]);
                 at += 1;
                 match kind {
                     PREDICT | PREDICT_WITHOUT_COVARIANCE => {
                         at += read_phi(&data[at..], &mut e.phi, rows);
-                        e.x_predicted.copy_from_slice(&data[at..at + N]);
-                        at += N;
+                        at += read_state(&data[at..], &mut e.x_predicted, zero);
                         if kind == PREDICT {
                             at += read_covariance(&data[at..], &mut e.p, packed);
                         } else if cfg!(debug_assertions) {
@@ -503,8 +529,8 @@ fn work<const N: usize>(
                     }
                     FILTERED => {
                         e.x_predicted.copy_from_slice(&data[at..at + N]);
-                        e.x.copy_from_slice(&data[at + N..at + 2 * N]);
-                        at += 2 * N;
+                        at += N;
+                        at += read_state(&data[at..], &mut e.x, zero);
                         at += read_covariance(&data[at..], &mut e.p, packed);
                         recorder.filtered(&e.x_predicted, &e.x, &e.p);
                     }
@@ -537,9 +563,9 @@ fn close_prediction<const N: usize>(pending: &mut Pending<N>, p_predicted: &SMat
                 "the P⁻ handed over is not the prediction's"
             );
         }
-        let (_, _, rows) = untag(pending.data[start]);
+        let (_, _, zero, rows) = untag(pending.data[start]);
         let packed = write_covariance(&mut pending.data, p_predicted);
-        pending.data[start] = tag(PREDICT, packed, rows);
+        pending.data[start] = tag(PREDICT, packed, zero, rows);
     }
 }
 
@@ -660,10 +686,11 @@ impl<const N: usize> Worker<N> {
                 .map(|start| pending.data.split_off(start));
             self.send_batch(&mut pending, Some(done));
             open.map(|call| {
-                let (_, _, rows) = untag(call[0]);
+                let (_, _, zero, rows) = untag(call[0]);
                 let mut phi = SMatrix::zeros();
                 let at = 1 + read_phi(&call[1..], &mut phi, rows);
-                let x = SVector::from_column_slice(&call[at..at + N]);
+                let mut x = SVector::zeros();
+                read_state(&call[at..], &mut x, zero);
                 pending.open_prediction = Some(pending.data.len());
                 pending.data.extend_from_slice(&call);
                 Box::new((phi, x))
@@ -847,7 +874,14 @@ mod tests {
                 if k % 5 == 0 {
                     p = skewed(p);
                 }
-                rec.predict(&phi, &x, &p);
+                // Now and then a state +0.0 everywhere (left out) or with
+                // a −0.0 (sent).
+                let x_sent = match k % 17 {
+                    0 => Vector4::zeros(),
+                    8 => Vector4::new(0.0, -0.0, 0.0, 0.0),
+                    _ => x,
+                };
+                rec.predict(&phi, &x_sent, &p);
                 let t = k as f64 * 0.1;
                 if k % 3 != 0 {
                     let z = t + (k as f64 * 0.7).sin() * 0.05;
