@@ -139,7 +139,10 @@ pub(crate) struct Worker<const N: usize> {
     /// Buffers of batches the worker has done.
     returns: Receiver<Vec<f64>>,
     /// Calls not yet sent (behind a lock only so that the backward pass,
-    /// which takes `&self`, can send them).
+    /// which takes `&self`, can send them; the calls of the forward pass
+    /// take `&mut self` and reach them without locking: a lock's atomic
+    /// operations wait for every store before them, the call's writes to
+    /// the batch included).
     batch: Mutex<Pending<N>>,
     thread: Option<JoinHandle<()>>,
     recorder: Arc<Mutex<RtsRecorder<N>>>,
@@ -295,7 +298,7 @@ impl<const N: usize> Recording<N> {
     pub(crate) fn predicted_covariance(&mut self, p_predicted: &SMatrix<f64, N, N>) {
         match self {
             Self::Inline(r) => r.make_waiting(p_predicted),
-            Self::Background(w) => w.supply(p_predicted),
+            Self::Background(w) => close_prediction(w.pending(), p_predicted),
         }
     }
 
@@ -607,7 +610,12 @@ impl<const N: usize> Worker<N> {
         rows
     }
 
-    /// [`Recording::predicted_covariance`].
+    /// The calls not yet sent, without locking (see `batch`).
+    fn pending(&mut self) -> &mut Pending<N> {
+        self.batch.get_mut().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// [`Recording::predicted_covariance`] for the backward pass (`&self`).
     fn supply(&self, p_predicted: &SMatrix<f64, N, N>) {
         let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
         close_prediction(&mut pending, p_predicted);
@@ -618,44 +626,27 @@ impl<const N: usize> Worker<N> {
     /// `reads_covariance`, not the next prediction, needs handed over
     /// first) and sending the batch when full (never with a prediction
     /// open).
-    fn send_with(&self, reads_covariance: bool, write: impl FnOnce(&mut Pending<N>)) {
-        let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+    fn send_with(&mut self, reads_covariance: bool, write: impl FnOnce(&mut Pending<N>)) {
+        let Self {
+            batch,
+            calls,
+            returns,
+            ..
+        } = self;
+        let pending = batch.get_mut().unwrap_or_else(PoisonError::into_inner);
         if reads_covariance {
             assert!(pending.open_prediction.is_none(), "{UNSUPPLIED}");
         }
         pending.open_prediction = None;
         if pending.data.len() >= BATCH_FLOATS {
-            self.send_batch(&mut pending, None);
+            send_batch(calls, returns, pending, None);
         }
-        write(&mut pending);
+        write(pending);
     }
 
-    /// Send the calls written so far (and `flush` to answer after them);
-    /// the next calls go into a buffer the worker is done with, or a new
-    /// one while fewer than `IN_FLIGHT` are out, or else the next one the
-    /// worker gives back.
+    /// [`send_batch`] of this worker's channels.
     fn send_batch(&self, pending: &mut Pending<N>, flush: Option<SyncSender<()>>) {
-        while let Ok(buffer) = self.returns.try_recv() {
-            pending.free.push(buffer);
-        }
-        let next = match pending.free.pop() {
-            Some(buffer) => buffer,
-            None if pending.buffers < IN_FLIGHT => {
-                pending.buffers += 1;
-                Vec::with_capacity(buffer_floats(N))
-            }
-            None => match self.returns.recv() {
-                Ok(buffer) => buffer,
-                Err(_) => self.worker_died(),
-            },
-        };
-        let data = std::mem::replace(&mut pending.data, next);
-        pending.last_filtered = None;
-        if let Some(calls) = &self.calls
-            && calls.send(Batch { data, flush }).is_err()
-        {
-            self.worker_died();
-        }
+        send_batch(&self.calls, &self.returns, pending, flush);
     }
 
     /// Wait until the worker has done every call queued so far (the open
@@ -705,11 +696,49 @@ impl<const N: usize> Worker<N> {
         }
     }
 
-    /// The worker only stops early by a panic in the recorder (a bug):
-    /// resurface it here rather than smooth an incomplete record.
+    /// See [`worker_died`].
     fn worker_died(&self) -> ! {
-        panic!("the smoother's worker thread stopped (a panic in RtsRecorder)")
+        worker_died()
     }
+}
+
+/// Send the calls written so far (and `flush` to answer after them) on
+/// `calls`; the next calls go into a buffer the worker is done with (back
+/// on `returns`), or a new one while fewer than `IN_FLIGHT` are out, or
+/// else the next one the worker gives back.
+fn send_batch<const N: usize>(
+    calls: &Option<SyncSender<Batch>>,
+    returns: &Receiver<Vec<f64>>,
+    pending: &mut Pending<N>,
+    flush: Option<SyncSender<()>>,
+) {
+    while let Ok(buffer) = returns.try_recv() {
+        pending.free.push(buffer);
+    }
+    let next = match pending.free.pop() {
+        Some(buffer) => buffer,
+        None if pending.buffers < IN_FLIGHT => {
+            pending.buffers += 1;
+            Vec::with_capacity(buffer_floats(N))
+        }
+        None => match returns.recv() {
+            Ok(buffer) => buffer,
+            Err(_) => worker_died(),
+        },
+    };
+    let data = std::mem::replace(&mut pending.data, next);
+    pending.last_filtered = None;
+    if let Some(calls) = calls
+        && calls.send(Batch { data, flush }).is_err()
+    {
+        worker_died();
+    }
+}
+
+/// The worker only stops early by a panic in the recorder (a bug):
+/// resurface it here rather than smooth an incomplete record.
+fn worker_died() -> ! {
+    panic!("the smoother's worker thread stopped (a panic in RtsRecorder)")
 }
 
 impl<const N: usize> Drop for Worker<N> {
