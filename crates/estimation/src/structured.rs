@@ -578,6 +578,7 @@ mod tests {
     /// overflows with a finite Q.
     #[test]
     fn a_bad_q_or_an_overflow_gives_the_dense_time_updates_error() {
+        use crate::error::EstimationError;
         let mut rng = StdRng::seed_from_u64(31);
         let phi = structured_phi::<21>(&mut rng, 9);
         let q = spd::<21>(&mut rng) * 0.01;
@@ -602,10 +603,30 @@ mod tests {
         let mut huge_q = q;
         huge_q[(3, 3)] = f64::INFINITY;
         cases.push((huge, huge_q));
+        let non_finite = |matrix| EstimationError::NonFinite {
+            step: Step::Predict,
+            matrix,
+        };
         for (k, (phi, q)) in cases.iter().enumerate() {
             let dense = kf.clone().predict(phi, q).unwrap_err();
             let structured = kf.clone().predict_structured(phi, q, s).unwrap_err();
             assert_eq!(structured, dense, "case {k}");
+            // What checking Q first reports.
+            let expected = if !q.iter().all(|v| v.is_finite()) {
+                Some(non_finite(Matrix::Q))
+            } else if phi[(0, 0)] == 1e200 {
+                Some(non_finite(Matrix::P))
+            } else {
+                None
+            };
+            if let Some(e) = expected {
+                assert_eq!(structured, e, "case {k}");
+            } else {
+                assert!(
+                    matches!(structured, EstimationError::NotSymmetric { .. }),
+                    "case {k}: {structured:?}"
+                );
+            }
         }
     }
 
