@@ -118,13 +118,27 @@ pub(crate) fn symmetric<D: Dim, S: RawStorage<f64, D, D>>(
     }
 }
 
-/// Whether the square n × n matrix stored column-major in `m` equals its
-/// transpose exactly (a branch-free comparison of each pair once). Inlined,
-/// so that a compile-time n unrolls the loops and drops the bounds checks
-/// (an iterator that skips to the diagonal cost 14 instructions a pair).
+/// Whether every element of the square n × n matrix stored column-major in
+/// `m` has its mirror's bits or equals it (`==`: ±0): exactly symmetric,
+/// a NaN counted equal to a NaN of the same bits (the callers check
+/// finiteness on every path). The bits first, as one branch-free OR of
+/// XORs (three instructions a pair, against about seven for the `==`
+/// comparison, which only a matrix with a +0/−0 pair or an asymmetry
+/// reaches). Inlined, so that a compile-time n unrolls the loops and drops
+/// the bounds checks (an iterator that skips to the diagonal cost 14
+/// instructions a pair).
 #[inline(always)]
 fn exactly_symmetric(m: &[f64], n: usize) -> bool {
     let m = &m[..n * n];
+    let mut differ = 0_u64;
+    for j in 0..n {
+        for i in j + 1..n {
+            differ |= m[j * n + i].to_bits() ^ m[i * n + j].to_bits();
+        }
+    }
+    if differ == 0 {
+        return true;
+    }
     let mut exact = true;
     for j in 0..n {
         for i in j + 1..n {
@@ -155,24 +169,79 @@ pub(crate) fn process_noise<N: Dim>(q: &OMatrix<f64, N, N>, n: usize) -> Result<
 where
     DefaultAllocator: Allocator<N, N>,
 {
+    Ok(match process_noise_unless_exact(q, n)? {
+        Some(symmetrized) => symmetrized,
+        None => {
+            finite(q, Step::Predict, Matrix::Q)?;
+            q.clone()
+        }
+    })
+}
+
+/// [`process_noise`] without the copy of an exactly symmetric Q (the
+/// common case), which the caller adds as it is: `Ok(None)` then, after
+/// the shape check only. Its finiteness is left to the caller, who checks
+/// it ([`finite`], `Matrix::Q`) when the propagated P is not finite, before
+/// reporting P: every element of a non-finite Q reaches P (a value off the
+/// diagonal of an exactly symmetric Q is also its mirror, and ±∞ or NaN
+/// plus anything is not finite), so the same error comes out as from
+/// checking Q first.
+/// Any other Q is checked and symmetrised as by [`process_noise`]
+/// (`Ok(Some((Q + Qᵀ)/2))`).
+pub(crate) fn process_noise_unless_exact<N: Dim>(
+    q: &OMatrix<f64, N, N>,
+    n: usize,
+) -> Result<Option<OMatrix<f64, N, N>>>
+where
+    DefaultAllocator: Allocator<N, N>,
+{
     let step = Step::Predict;
     shape(q, (n, n), step, Matrix::Q)?;
-    finite(q, step, Matrix::Q)?;
     // The common case, an exactly symmetric Q, tested on the contiguous
     // storage first (what `symmetric` finds first, without its indexing).
     let (nd, _) = q.shape_generic();
-    let exactly_symmetric =
-        exactly_symmetric(q.as_slice(), nd.value()) || symmetric(q, step, Matrix::Q)?;
+    if exactly_symmetric(q.as_slice(), nd.value()) {
+        return Ok(None);
+    }
+    finite(q, step, Matrix::Q)?;
+    let exact = symmetric(q, step, Matrix::Q)?;
     let mut base = q.clone();
-    if !exactly_symmetric {
+    if !exact {
         symmetrize(&mut base);
     }
-    Ok(base)
+    Ok(Some(base))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bitwise test first, then `==`: the same answer as the pairwise
+    /// comparison, but for a NaN pair of equal bits (counted symmetric;
+    /// every caller checks finiteness).
+    #[test]
+    fn exact_symmetry_is_the_pairwise_comparison_or_equal_bits() {
+        let n = 5;
+        let base: Vec<f64> = (0..n * n)
+            .map(|k| {
+                let (i, j) = (k % n, k / n);
+                (i.min(j) * 7 + i.max(j)) as f64 * 0.25 - 1.0
+            })
+            .collect();
+        let compare = |m: &[f64]| (0..n).all(|j| (j + 1..n).all(|i| m[j * n + i] == m[i * n + j]));
+        assert!(exactly_symmetric(&base, n));
+        let mut signed = base.clone();
+        (signed[n + 3], signed[3 * n + 1]) = (0.0, -0.0);
+        assert!(compare(&signed) && exactly_symmetric(&signed, n));
+        let mut skewed = base.clone();
+        skewed[2 * n + 4] = f64::from_bits(skewed[2 * n + 4].to_bits() + 1);
+        assert!(!compare(&skewed) && !exactly_symmetric(&skewed, n));
+        let mut nan = base.clone();
+        (nan[1], nan[n]) = (f64::NAN, f64::NAN);
+        assert!(exactly_symmetric(&nan, n));
+        nan[n] = -f64::NAN;
+        assert!(!exactly_symmetric(&nan, n));
+    }
 
     #[test]
     fn all_finite_finds_every_non_finite_value_wherever_it_is() {

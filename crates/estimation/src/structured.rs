@@ -179,9 +179,13 @@ where
         if r >= n || !structure.holds(phi) {
             return self.predict_covariance(phi, q);
         }
-        // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2.
-        let mut p = check::process_noise(q, n)?;
+        // Φ P Φᵀ is symmetric: its lower triangle only, on (Q + Qᵀ)/2 —
+        // an exactly symmetric Q read where it is (no copy, its finiteness
+        // told by P's: see `check::process_noise_unless_exact`).
+        let symmetrized = check::process_noise_unless_exact(q, n)?;
+        let q_added = symmetrized.as_ref().unwrap_or(q);
         let (nd, _) = self.p.shape_generic();
+        // (Φ P)ᵀ, then P: every element of the result is written.
         let mut scratch = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
         let mut phi_p = OMatrix::<f64, N, N>::zeros_generic(nd, nd);
         // Both products through `run_widest` (AVX2 where the CPU has it:
@@ -194,14 +198,24 @@ where
             phi.as_slice(),
         );
         dense::run_widest(
-            StructuredCongruence { n: nd, r },
-            p.as_mut_slice(),
+            StructuredCongruence {
+                n: nd,
+                r,
+                q: q_added.as_slice(),
+            },
+            scratch.as_mut_slice(),
             &mut [],
             phi_p.as_slice(),
             phi.as_slice(),
         );
-        check::finite(&p, Step::Predict, Matrix::P)?;
-        self.p = p;
+        if let Err(not_finite) = check::finite(&scratch, Step::Predict, Matrix::P) {
+            // A non-finite Q is what made P so: reported as before.
+            if symmetrized.is_none() {
+                check::finite(q, Step::Predict, Matrix::Q)?;
+            }
+            return Err(not_finite);
+        }
+        self.p = scratch;
         Ok(())
     }
 }
@@ -228,20 +242,22 @@ impl<D: Dim> dense::Widened for StructuredProduct<D> {
     }
 }
 
-/// `out += W Φᵀ`, lower triangle, then mirrored ([`add_times_transpose_lower`]),
-/// on column-major slices: `out` (Q on entry), `a` = W = Φ P, `b` = Φ.
-struct StructuredCongruence<D: Dim> {
+/// `out = Q + W Φᵀ`, lower triangle, then mirrored
+/// ([`add_times_transpose_lower_onto`]), on column-major slices: `out`
+/// (anything on entry), `q` = Q, `a` = W = Φ P, `b` = Φ.
+struct StructuredCongruence<'q, D: Dim> {
     n: D,
     r: usize,
+    q: &'q [f64],
 }
 
-impl<D: Dim> dense::Widened for StructuredCongruence<D> {
+impl<D: Dim> dense::Widened for StructuredCongruence<'_, D> {
     #[inline(always)]
     fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
         let n = self.n.value();
         let nn = n * n;
-        let (out, phi_p, phi) = (&mut out[..nn], &a[..nn], &b[..nn]);
-        add_times_transpose_lower(n, self.r, phi_p, phi, out);
+        let (out, q, phi_p, phi) = (&mut out[..nn], &self.q[..nn], &a[..nn], &b[..nn]);
+        add_times_transpose_lower_onto(n, self.r, q, phi_p, phi, out);
         dense::mirror_lower_slice(n, out);
     }
 }
@@ -286,19 +302,20 @@ fn transpose(n: usize, a: &[f64], out: &mut [f64]) {
     }
 }
 
-/// Columns `cols` of `out += W Φᵀ`, rows `row0..n`: each accumulates
-/// `W(·, k) Φ(j, k)` in increasing k (the column in registers for fixed
-/// sizes).
+/// Columns `cols` of `out = Q + W Φᵀ`, rows `row0..n`: each starts at Q's
+/// and accumulates `W(·, k) Φ(j, k)` in increasing k (the column in
+/// registers for fixed sizes).
 #[inline(always)]
 fn full_columns(
     n: usize,
     (row0, cols): (usize, std::ops::Range<usize>),
-    w: &[f64],
+    (q, w): (&[f64], &[f64]),
     phi: &[f64],
     out: &mut [f64],
 ) {
     for j in cols {
         let oc = &mut out[j * n + row0..(j + 1) * n];
+        oc.copy_from_slice(&q[j * n + row0..(j + 1) * n]);
         for k in 0..n {
             let f = phi[k * n + j];
             let wc = &w[k * n + row0..(k + 1) * n];
@@ -309,25 +326,34 @@ fn full_columns(
     }
 }
 
-/// The lower triangle of `out += W Φᵀ` (column-major n × n; elements above
-/// the diagonal are left unspecified: follow with a mirror) for W = Φ P and
-/// a Φ whose rows from r on are diagonal. Columns j < r: `W(·, k) Φ(j, k)`
-/// in increasing k, as the dense kernel, in its column blocks; column
-/// j ≥ r: `W(·, j) Φ(j, j)`, its only nonzero term.
+/// The lower triangle of `out = Q + W Φᵀ` (column-major n × n; elements
+/// above the diagonal are left unspecified: follow with a mirror) for
+/// W = Φ P and a Φ whose rows from r on are diagonal, each element starting
+/// at Q's (what `out += W Φᵀ` on a copy of Q adds, without the copy).
+/// Columns j < r: `W(·, k) Φ(j, k)` in increasing k, as the dense kernel,
+/// in its column blocks; column j ≥ r: `W(·, j) Φ(j, j)`, its only nonzero
+/// term.
 #[inline(always)]
-fn add_times_transpose_lower(n: usize, r: usize, w: &[f64], phi: &[f64], out: &mut [f64]) {
+fn add_times_transpose_lower_onto(
+    n: usize,
+    r: usize,
+    q: &[f64],
+    w: &[f64],
+    phi: &[f64],
+    out: &mut [f64],
+) {
     let (s1, s2, s3) = dense::lower_block_starts(n);
     // Four calls, not a loop: each inlines with its own constant row count.
-    full_columns(n, (0, 0..s1.min(r)), w, phi, out);
-    full_columns(n, (s1, s1..s2.min(r)), w, phi, out);
-    full_columns(n, (s2, s2..s3.min(r)), w, phi, out);
-    full_columns(n, (s3, s3..r), w, phi, out);
+    full_columns(n, (0, 0..s1.min(r)), (q, w), phi, out);
+    full_columns(n, (s1, s1..s2.min(r)), (q, w), phi, out);
+    full_columns(n, (s2, s2..s3.min(r)), (q, w), phi, out);
+    full_columns(n, (s3, s3..r), (q, w), phi, out);
     for j in r..n {
         let f = phi[j * n + j];
         let oc = &mut out[j * n + j..(j + 1) * n];
-        let wc = &w[j * n + j..(j + 1) * n];
-        for (o, &x) in oc.iter_mut().zip(wc) {
-            *o += x * f;
+        let (qc, wc) = (&q[j * n + j..(j + 1) * n], &w[j * n + j..(j + 1) * n]);
+        for ((o, &e), &x) in oc.iter_mut().zip(qc).zip(wc) {
+            *o = e + x * f;
         }
     }
 }
@@ -481,7 +507,21 @@ mod tests {
         let mut phi_p = SMatrix::<f64, N, N>::zeros();
         times_transpose(N, r, p.as_slice(), phi.as_slice(), scratch.as_mut_slice());
         transpose(N, scratch.as_slice(), phi_p.as_mut_slice());
-        add_times_transpose_lower(N, r, phi_p.as_slice(), phi.as_slice(), out.as_mut_slice());
+        // `out += W Φᵀ` on Q's copy, lower triangle: each element in
+        // increasing k; a trailing column's only term Φ(j, j).
+        let (w, f) = (phi_p.as_slice(), phi.as_slice());
+        let o = out.as_mut_slice();
+        for j in 0..N {
+            for i in j..N {
+                if j < r {
+                    for k in 0..N {
+                        o[j * N + i] += w[k * N + i] * f[k * N + j];
+                    }
+                } else {
+                    o[j * N + i] += w[j * N + i] * f[j * N + j];
+                }
+            }
+        }
         dense::mirror_lower(&mut out);
         out
     }
@@ -526,6 +566,65 @@ mod tests {
                     bits(kf.covariance()),
                     bits(&expected),
                     "{full_rows} rows, round {round}"
+                );
+            }
+        }
+    }
+
+    /// Q's finiteness is checked after P's when Q is exactly symmetric:
+    /// the same error as the dense time update (which checks Q first) for a
+    /// non-finite Q wherever the bad value is (±∞ or NaN on the diagonal, a
+    /// ±∞ pair or a NaN off it), for an asymmetric Q and for a P that
+    /// overflows with a finite Q.
+    #[test]
+    fn a_bad_q_or_an_overflow_gives_the_dense_time_updates_error() {
+        use crate::error::EstimationError;
+        let mut rng = StdRng::seed_from_u64(31);
+        let phi = structured_phi::<21>(&mut rng, 9);
+        let q = spd::<21>(&mut rng) * 0.01;
+        let kf = KalmanFilter::new(SVector::<f64, 21>::zeros(), spd::<21>(&mut rng)).unwrap();
+        let s = TrailingDiagonal::new(9);
+        let mut cases = Vec::new();
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            for (i, j) in [(0, 0), (20, 20), (4, 13), (12, 1), (19, 20)] {
+                let mut q_bad = q;
+                q_bad[(i, j)] = bad;
+                cases.push((phi, q_bad));
+                q_bad[(j, i)] = bad;
+                cases.push((phi, q_bad));
+            }
+        }
+        let mut asymmetric = q;
+        asymmetric[(1, 0)] += 1.0;
+        cases.push((phi, asymmetric));
+        let mut huge = phi;
+        huge[(0, 0)] = 1e200;
+        cases.push((huge, q));
+        let mut huge_q = q;
+        huge_q[(3, 3)] = f64::INFINITY;
+        cases.push((huge, huge_q));
+        let non_finite = |matrix| EstimationError::NonFinite {
+            step: Step::Predict,
+            matrix,
+        };
+        for (k, (phi, q)) in cases.iter().enumerate() {
+            let dense = kf.clone().predict(phi, q).unwrap_err();
+            let structured = kf.clone().predict_structured(phi, q, s).unwrap_err();
+            assert_eq!(structured, dense, "case {k}");
+            // What checking Q first reports.
+            let expected = if !q.iter().all(|v| v.is_finite()) {
+                Some(non_finite(Matrix::Q))
+            } else if phi[(0, 0)] == 1e200 {
+                Some(non_finite(Matrix::P))
+            } else {
+                None
+            };
+            if let Some(e) = expected {
+                assert_eq!(structured, e, "case {k}");
+            } else {
+                assert!(
+                    matches!(structured, EstimationError::NotSymmetric { .. }),
+                    "case {k}: {structured:?}"
                 );
             }
         }

@@ -454,6 +454,24 @@ impl NedFilter {
         Ok(())
     }
 
+    /// Propagate the covariance over the accumulated interval before an
+    /// update, and hand the recording the prediction's P⁻ before the update
+    /// changes P (it is not copied aside at every prediction).
+    fn flush_covariance_for_update(&mut self) -> Result<(), EstimationError> {
+        self.flush_covariance()?;
+        self.hand_over_predicted_covariance();
+        Ok(())
+    }
+
+    /// The recording's open prediction, if any, gets its P⁻: P as the last
+    /// covariance propagation left it (every change of P since would have
+    /// come through [`flush_covariance_for_update`](Self::flush_covariance_for_update)).
+    fn hand_over_predicted_covariance(&mut self) {
+        if let Some(r) = self.record.as_mut() {
+            r.rts.predicted_covariance(self.kf.covariance());
+        }
+    }
+
     /// Propagate the covariance over the accumulated interval.
     fn flush_covariance(&mut self) -> Result<(), EstimationError> {
         if self.pending_dt <= 0.0 {
@@ -542,6 +560,7 @@ impl NedFilter {
     /// (the same index when asked again in the same epoch). None when not
     /// recording or past the recording's limit.
     pub fn mark_for_smoothing(&mut self) -> Option<usize> {
+        self.hand_over_predicted_covariance();
         let r = self.record.as_mut()?;
         let new = r.rts.open_mark().is_none();
         let mark = r.rts.mark()?;
@@ -574,7 +593,7 @@ impl NedFilter {
         };
         let mut out = r.states.clone();
         let mut covariances = vec![Matrix3::zeros(); out.len()];
-        r.rts.smooth_with(|mark, x, p| {
+        r.rts.smooth_with(self.kf.covariance(), |mark, x, p| {
             let state = corrected(&out[mark], x);
             let c = state.attitude.matrix();
             let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
@@ -713,7 +732,7 @@ impl NedFilter {
         let z = fix.ned_to(&antenna).raw();
         let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
         let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
-        self.flush_covariance()?;
+        self.flush_covariance_for_update()?;
         if let Some(a) = self.adaptive.as_mut() {
             let innovation = self.kf.innovation(&z, &h, &r)?;
             let q = a.process_noise(&innovation.residual, &innovation.s);
@@ -831,7 +850,7 @@ impl NedFilter {
         sigma_ned: &Vector3<f64>,
     ) -> Result<(), EstimationError> {
         let (z, h, r) = self.velocity_measurement(velocity_ned, sigma_ned);
-        self.flush_covariance()?;
+        self.flush_covariance_for_update()?;
         self.reset_stream(Stream::Velocity, &z, &h, &r)?;
         self.feedback()
     }
@@ -869,7 +888,7 @@ impl NedFilter {
         policy: &mut P,
     ) -> Result<GnssUpdate, EstimationError> {
         let (z, h, r) = self.velocity_measurement(velocity_ned, sigma_ned);
-        self.flush_covariance()?;
+        self.flush_covariance_for_update()?;
         let rec = self.update_stream(Stream::Velocity, &z, &h, &r, policy)?;
         self.add_information(&h, &r, rec.outcome)?;
         self.feedback()?;
@@ -879,7 +898,7 @@ impl NedFilter {
     /// Non-holonomic constraint: zero lateral and vertical body velocity
     /// with σ `sigma_mps` (a land vehicle on its wheels).
     pub fn update_non_holonomic(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
-        self.flush_covariance()?;
+        self.flush_covariance_for_update()?;
         let s = *self.ins.state();
         let c = s.attitude.matrix();
         let body = c.transpose() * s.velocity;
@@ -897,7 +916,7 @@ impl NedFilter {
     /// Zero-velocity update at a standstill: the IMU's velocity is zero,
     /// σ `sigma_mps` per axis.
     pub fn update_zero_velocity(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
-        self.flush_covariance()?;
+        self.flush_covariance_for_update()?;
         let z = self.ins.state().velocity.raw();
         let mut h = SMatrix::<f64, 3, STATES>::zeros();
         h.fixed_view_mut::<3, 3>(0, VELOCITY)
@@ -918,7 +937,7 @@ impl NedFilter {
         mean_raw_rate: &Vector3<f64>,
         sigma_rad_s: &Vector3<f64>,
     ) -> Result<(), EstimationError> {
-        self.flush_covariance()?;
+        self.flush_covariance_for_update()?;
         let s = *self.ins.state();
         let one = Vector3::repeat(1.0);
         let corrected = (mean_raw_rate - self.instruments.gyro_bias)

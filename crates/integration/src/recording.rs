@@ -25,15 +25,20 @@
 //!   every other element is +0.0 (the structure of the last Φ is tried
 //!   first: a transition keeps it from epoch to epoch); the worker writes
 //!   the zeros. Any other Φ goes whole.
+//! - A state vector that is +0.0 everywhere (the closed-loop filter's x⁻
+//!   at a prediction and x after its feedback, always) as a flag in the
+//!   call's tag; the worker writes the zeros.
 //! - An update's call replaces the one before it when nothing came
 //!   between (the recorder keeps only the latest filtered estimate of an
 //!   epoch).
 //! - A prediction's P⁻ is sent only when the recorder can read it: when
 //!   the epoch is updated or marked (it may become a node), or ends the
-//!   record (the backward pass starts from it). It is kept aside until the
-//!   next call says which; an epoch followed directly by the next
-//!   prediction (no update, no mark: not a node, its P⁻ never read) sends
-//!   Φ and x⁻ alone.
+//!   record (the backward pass starts from it). The filter's own P is P⁻
+//!   until an update changes it, so it is not copied aside: the caller
+//!   hands it over again ([`Recording::predicted_covariance`]) before
+//!   anything changes or reads it (an update, a mark, the backward pass),
+//!   and an epoch followed directly by the next prediction (no update, no
+//!   mark: not a node, its P⁻ never read) sends Φ and x⁻ alone.
 
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -65,17 +70,40 @@ const MARK: usize = 2;
 /// documentation).
 const PREDICT_WITHOUT_COVARIANCE: usize = 3;
 
-/// A call's tag: its kind, whether its covariance is a lower triangle and,
-/// for a prediction, Φ's full rows (N: Φ whole). Small integers, exact in
-/// an f64.
-fn tag(kind: usize, packed: bool, phi_rows: usize) -> f64 {
-    (kind + 4 * usize::from(packed) + 8 * phi_rows) as f64
+/// A call's tag: its kind, whether its covariance is a lower triangle,
+/// whether its state vector (a prediction's x⁻, an update's x) is +0.0
+/// everywhere and left out and, for a prediction, Φ's full rows (N: Φ
+/// whole). Small integers, exact in an f64.
+fn tag(kind: usize, packed: bool, zero_state: bool, phi_rows: usize) -> f64 {
+    (kind + 4 * usize::from(packed) + 8 * usize::from(zero_state) + 16 * phi_rows) as f64
 }
 
 /// `tag`'s fields back.
-fn untag(t: f64) -> (usize, bool, usize) {
+fn untag(t: f64) -> (usize, bool, bool, usize) {
     let t = t as usize;
-    (t % 4, (t / 4) % 2 == 1, t / 8)
+    (t % 4, (t / 4) % 2 == 1, (t / 8) % 2 == 1, t / 16)
+}
+
+/// Append a state vector unless it is +0.0 everywhere (bit for bit: a −0.0
+/// is sent); returns whether it was left out.
+fn write_state<const N: usize>(data: &mut Vec<f64>, x: &SVector<f64, N>) -> bool {
+    // Branch-free: the bits OR-ed.
+    if x.iter().fold(0_u64, |a, v| a | v.to_bits()) == 0 {
+        return true;
+    }
+    data.extend_from_slice(x.as_slice());
+    false
+}
+
+/// A state vector from what [`write_state`] appended at the start of
+/// `data` (nothing when `zero`) into `x`; returns the floats read.
+fn read_state<const N: usize>(data: &[f64], x: &mut SVector<f64, N>, zero: bool) -> usize {
+    if zero {
+        x.fill(0.0);
+        return 0;
+    }
+    x.copy_from_slice(&data[..N]);
+    N
 }
 
 /// Calls for the worker, written one after another; `flush` is answered
@@ -92,10 +120,12 @@ struct Pending<const N: usize> {
     /// Start of the last call when it is an update's (one that a next
     /// update replaces).
     last_filtered: Option<usize>,
-    /// Start of the last call when it is a prediction whose P⁻
-    /// (`p_open`) is not written yet.
+    /// Start of the last call when it is a prediction whose P⁻ is not
+    /// written yet (waiting for [`Recording::predicted_covariance`]).
     open_prediction: Option<usize>,
-    /// The open prediction's P⁻.
+    /// The open prediction's P⁻ as `predict` was given it, in debug builds:
+    /// what [`Recording::predicted_covariance`] must hand over again.
+    #[cfg(debug_assertions)]
     p_open: Box<SMatrix<f64, N, N>>,
     free: Vec<Vec<f64>>,
     /// Buffers handed out (queued, at the worker, or back but not yet
@@ -109,7 +139,10 @@ pub(crate) struct Worker<const N: usize> {
     /// Buffers of batches the worker has done.
     returns: Receiver<Vec<f64>>,
     /// Calls not yet sent (behind a lock only so that the backward pass,
-    /// which takes `&self`, can send them).
+    /// which takes `&self`, can send them; the calls of the forward pass
+    /// take `&mut self` and reach them without locking: a lock's atomic
+    /// operations wait for every store before them, the call's writes to
+    /// the batch included).
     batch: Mutex<Pending<N>>,
     thread: Option<JoinHandle<()>>,
     recorder: Arc<Mutex<RtsRecorder<N>>>,
@@ -126,9 +159,45 @@ pub(crate) struct Worker<const N: usize> {
 /// started, from a worker thread (see the module's documentation). Same
 /// methods, same results.
 pub(crate) enum Recording<const N: usize> {
-    Inline(Box<RtsRecorder<N>>),
+    Inline(Box<Inline<N>>),
     Background(Box<Worker<N>>),
 }
+
+/// A recorder fed inline; in a copy of a worker's recording taken while a
+/// prediction waited for its P⁻, that prediction (Φ, x⁻), made when
+/// [`Recording::predicted_covariance`] or the next prediction comes.
+#[derive(Debug, Clone)]
+pub(crate) struct Inline<const N: usize> {
+    recorder: RtsRecorder<N>,
+    waiting: Option<Box<(SMatrix<f64, N, N>, SVector<f64, N>)>>,
+}
+
+impl<const N: usize> Inline<N> {
+    /// A recorder with no prediction waiting.
+    fn of(recorder: RtsRecorder<N>) -> Self {
+        Self {
+            recorder,
+            waiting: None,
+        }
+    }
+
+    /// The waiting prediction made, with `p_predicted` as its P⁻.
+    fn make_waiting(&mut self, p_predicted: &SMatrix<f64, N, N>) {
+        if let Some(w) = self.waiting.take() {
+            self.recorder.predict(&w.0, &w.1, p_predicted);
+        }
+    }
+
+    /// The recorder, for a call that reads the open prediction's P⁻.
+    fn reading(&mut self) -> &mut RtsRecorder<N> {
+        assert!(self.waiting.is_none(), "{UNSUPPLIED}");
+        &mut self.recorder
+    }
+}
+
+/// The panic of a call that reads a prediction's P⁻ before the caller
+/// handed it over (a bug of the caller).
+const UNSUPPLIED: &str = "a prediction's P⁻ was not handed over (Recording::predicted_covariance) before a call that reads it";
 
 /// Floats of a batch buffer: a full batch and the largest call (a
 /// prediction with Φ and P⁻ whole), so that a call never reallocates.
@@ -154,6 +223,7 @@ impl<const N: usize> Recording<N> {
                     data: Vec::with_capacity(buffer_floats(N)),
                     last_filtered: None,
                     open_prediction: None,
+                    #[cfg(debug_assertions)]
                     p_open: Box::new(SMatrix::zeros()),
                     free: Vec::new(),
                     buffers: 1,
@@ -172,12 +242,15 @@ impl<const N: usize> Recording<N> {
                     |r| lock(&r).clone(),
                     |m| m.into_inner().unwrap_or_else(PoisonError::into_inner),
                 );
-                Self::Inline(Box::new(recorder))
+                Self::Inline(Box::new(Inline::of(recorder)))
             }
         }
     }
 
-    /// [`RtsRecorder::predict`].
+    /// [`RtsRecorder::predict`]. A worker's recording sends P⁻ only when
+    /// [`predicted_covariance`](Self::predicted_covariance) hands it over again, which
+    /// the caller must do before it changes its P or makes any other call
+    /// but the next prediction.
     pub(crate) fn predict(
         &mut self,
         phi: &SMatrix<f64, N, N>,
@@ -185,7 +258,12 @@ impl<const N: usize> Recording<N> {
         p_predicted: &SMatrix<f64, N, N>,
     ) {
         match self {
-            Self::Inline(r) => r.predict(phi, x_predicted, p_predicted),
+            Self::Inline(r) => {
+                // A waiting prediction followed by this one: its P⁻ is
+                // never read (any P will do).
+                r.make_waiting(p_predicted);
+                r.recorder.predict(phi, x_predicted, p_predicted);
+            }
             Self::Background(w) => {
                 // The recorder ignores every prediction after an overflow.
                 if w.overflow {
@@ -197,19 +275,30 @@ impl<const N: usize> Recording<N> {
                 w.send_with(false, |pending| {
                     let data = &mut pending.data;
                     let start = data.len();
-                    data.push(tag(PREDICT_WITHOUT_COVARIANCE, false, rows));
+                    data.push(0.0);
                     write_phi(data, phi, rows);
-                    data.extend_from_slice(x_predicted.as_slice());
-                    // In halves, as `copy_matrix` (glibc's `rep movsb`
-                    // above 2112 bytes).
-                    let (p, half) = (p_predicted.as_slice(), N * N / 2);
-                    let open = pending.p_open.as_mut_slice();
-                    open[..half].copy_from_slice(&p[..half]);
-                    open[half..].copy_from_slice(&p[half..]);
+                    let zero = write_state(data, x_predicted);
+                    data[start] = tag(PREDICT_WITHOUT_COVARIANCE, false, zero, rows);
+                    #[cfg(debug_assertions)]
+                    pending.p_open.copy_from(p_predicted);
+                    #[cfg(not(debug_assertions))]
+                    let _ = p_predicted;
                     pending.open_prediction = Some(start);
                     pending.last_filtered = None;
                 });
             }
+        }
+    }
+
+    /// The open prediction's P⁻ handed over again (the caller's P, unchanged
+    /// since [`predict`](Self::predict)): written now when a prediction
+    /// waits for it, else nothing. Due before the caller changes its P
+    /// (an update) or makes a call that reads P⁻ ([`filtered`](Self::filtered),
+    /// [`mark`](Self::mark)); those panic when it was not.
+    pub(crate) fn predicted_covariance(&mut self, p_predicted: &SMatrix<f64, N, N>) {
+        match self {
+            Self::Inline(r) => r.make_waiting(p_predicted),
+            Self::Background(w) => close_prediction(w.pending(), p_predicted),
         }
     }
 
@@ -221,7 +310,7 @@ impl<const N: usize> Recording<N> {
         p: &SMatrix<f64, N, N>,
     ) {
         match self {
-            Self::Inline(r) => r.filtered(x_predicted, x, p),
+            Self::Inline(r) => r.reading().filtered(x_predicted, x, p),
             Self::Background(w) => {
                 w.x_predicted = *x_predicted;
                 w.send_with(true, |pending| {
@@ -234,9 +323,9 @@ impl<const N: usize> Recording<N> {
                     let start = data.len();
                     data.push(0.0);
                     data.extend_from_slice(x_predicted.as_slice());
-                    data.extend_from_slice(x.as_slice());
+                    let zero = write_state(data, x);
                     let packed = write_covariance(data, p);
-                    data[start] = tag(FILTERED, packed, 0);
+                    data[start] = tag(FILTERED, packed, zero, 0);
                     pending.last_filtered = Some(start);
                 });
             }
@@ -246,13 +335,13 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::mark`].
     pub(crate) fn mark(&mut self) -> Option<usize> {
         match self {
-            Self::Inline(r) => r.mark(),
+            Self::Inline(r) => r.reading().mark(),
             Self::Background(w) => {
                 if let Some(m) = w.open_mark {
                     return Some(m);
                 }
                 w.send_with(true, |pending| {
-                    pending.data.push(tag(MARK, false, 0));
+                    pending.data.push(tag(MARK, false, false, 0));
                     pending.last_filtered = None;
                 });
                 if w.marks >= w.max_marks {
@@ -269,7 +358,7 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::open_mark`].
     pub(crate) fn open_mark(&self) -> Option<usize> {
         match self {
-            Self::Inline(r) => r.open_mark(),
+            Self::Inline(r) => r.recorder.open_mark(),
             Self::Background(w) => w.open_mark,
         }
     }
@@ -277,7 +366,7 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::overflowed`].
     pub(crate) fn overflowed(&self) -> bool {
         match self {
-            Self::Inline(r) => r.overflowed(),
+            Self::Inline(r) => r.recorder.overflowed(),
             Self::Background(w) => w.overflow,
         }
     }
@@ -285,19 +374,28 @@ impl<const N: usize> Recording<N> {
     /// [`RtsRecorder::x_predicted`].
     pub(crate) fn x_predicted(&self) -> SVector<f64, N> {
         match self {
-            Self::Inline(r) => *r.x_predicted(),
+            Self::Inline(r) => *r.recorder.x_predicted(),
             Self::Background(w) => w.x_predicted,
         }
     }
 
-    /// [`RtsRecorder::smooth_with`], once the worker has done every call.
+    /// [`RtsRecorder::smooth_with`], once the worker has done every call;
+    /// `p` is the caller's P, P⁻ of an open prediction (the backward pass
+    /// starts from it).
     pub(crate) fn smooth_with(
         &self,
+        p: &SMatrix<f64, N, N>,
         visit: impl FnMut(usize, &SVector<f64, N>, &SMatrix<f64, N, N>) -> Result<(), EstimationError>,
     ) -> Result<(), EstimationError> {
         match self {
-            Self::Inline(r) => r.smooth_with(visit),
+            Self::Inline(r) if r.waiting.is_some() => {
+                let mut made = r.as_ref().clone();
+                made.make_waiting(p);
+                made.recorder.smooth_with(visit)
+            }
+            Self::Inline(r) => r.recorder.smooth_with(visit),
             Self::Background(w) => {
+                w.supply(p);
                 w.flush();
                 lock(&w.recorder).smooth_with(visit)
             }
@@ -410,13 +508,12 @@ fn work<const N: usize>(
             let mut recorder = lock(recorder);
             let mut at = 0;
             while at < data.len() {
-                let (kind, packed, rows) = untag(data[at]);
+                let (kind, packed, zero, rows) = untag(data[at]);
                 at += 1;
                 match kind {
                     PREDICT | PREDICT_WITHOUT_COVARIANCE => {
                         at += read_phi(&data[at..], &mut e.phi, rows);
-                        e.x_predicted.copy_from_slice(&data[at..at + N]);
-                        at += N;
+                        at += read_state(&data[at..], &mut e.x_predicted, zero);
                         if kind == PREDICT {
                             at += read_covariance(&data[at..], &mut e.p, packed);
                         } else if cfg!(debug_assertions) {
@@ -435,8 +532,8 @@ fn work<const N: usize>(
                     }
                     FILTERED => {
                         e.x_predicted.copy_from_slice(&data[at..at + N]);
-                        e.x.copy_from_slice(&data[at + N..at + 2 * N]);
-                        at += 2 * N;
+                        at += N;
+                        at += read_state(&data[at..], &mut e.x, zero);
                         at += read_covariance(&data[at..], &mut e.p, packed);
                         recorder.filtered(&e.x_predicted, &e.x, &e.p);
                     }
@@ -458,11 +555,20 @@ fn work<const N: usize>(
 
 /// Write the open prediction's P⁻ after it (its tag made a
 /// [`PREDICT`]'s); nothing when no prediction is open.
-fn close_prediction<const N: usize>(pending: &mut Pending<N>) {
+fn close_prediction<const N: usize>(pending: &mut Pending<N>, p_predicted: &SMatrix<f64, N, N>) {
     if let Some(start) = pending.open_prediction.take() {
-        let (_, _, rows) = untag(pending.data[start]);
-        let packed = write_covariance(&mut pending.data, &pending.p_open);
-        pending.data[start] = tag(PREDICT, packed, rows);
+        #[cfg(debug_assertions)]
+        {
+            let bits = |m: &SMatrix<f64, N, N>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(p_predicted),
+                bits(&pending.p_open),
+                "the P⁻ handed over is not the prediction's"
+            );
+        }
+        let (_, _, zero, rows) = untag(pending.data[start]);
+        let packed = write_covariance(&mut pending.data, p_predicted);
+        pending.data[start] = tag(PREDICT, packed, zero, rows);
     }
 }
 
@@ -504,57 +610,53 @@ impl<const N: usize> Worker<N> {
         rows
     }
 
-    /// Append a call by `write` (which also keeps `last_filtered` and
-    /// `open_prediction`), after closing the open prediction (with its P⁻
-    /// when `reads_covariance`: the call is not the next prediction) and
-    /// sending the batch when full (never with a prediction open).
-    fn send_with(&self, reads_covariance: bool, write: impl FnOnce(&mut Pending<N>)) {
+    /// The calls not yet sent, without locking (see `batch`).
+    fn pending(&mut self) -> &mut Pending<N> {
+        self.batch.get_mut().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// [`Recording::predicted_covariance`] for the backward pass (`&self`).
+    fn supply(&self, p_predicted: &SMatrix<f64, N, N>) {
         let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+        close_prediction(&mut pending, p_predicted);
+    }
+
+    /// Append a call by `write` (which also keeps `last_filtered` and
+    /// `open_prediction`), after the open prediction (whose P⁻ a call that
+    /// `reads_covariance`, not the next prediction, needs handed over
+    /// first) and sending the batch when full (never with a prediction
+    /// open).
+    fn send_with(&mut self, reads_covariance: bool, write: impl FnOnce(&mut Pending<N>)) {
+        let Self {
+            batch,
+            calls,
+            returns,
+            ..
+        } = self;
+        let pending = batch.get_mut().unwrap_or_else(PoisonError::into_inner);
         if reads_covariance {
-            close_prediction(&mut pending);
+            assert!(pending.open_prediction.is_none(), "{UNSUPPLIED}");
         }
         pending.open_prediction = None;
         if pending.data.len() >= BATCH_FLOATS {
-            self.send_batch(&mut pending, None);
+            send_batch(calls, returns, pending, None);
         }
-        write(&mut pending);
+        write(pending);
     }
 
-    /// Send the calls written so far (and `flush` to answer after them);
-    /// the next calls go into a buffer the worker is done with, or a new
-    /// one while fewer than `IN_FLIGHT` are out, or else the next one the
-    /// worker gives back.
+    /// [`send_batch`] of this worker's channels.
     fn send_batch(&self, pending: &mut Pending<N>, flush: Option<SyncSender<()>>) {
-        while let Ok(buffer) = self.returns.try_recv() {
-            pending.free.push(buffer);
-        }
-        let next = match pending.free.pop() {
-            Some(buffer) => buffer,
-            None if pending.buffers < IN_FLIGHT => {
-                pending.buffers += 1;
-                Vec::with_capacity(buffer_floats(N))
-            }
-            None => match self.returns.recv() {
-                Ok(buffer) => buffer,
-                Err(_) => self.worker_died(),
-            },
-        };
-        let data = std::mem::replace(&mut pending.data, next);
-        pending.last_filtered = None;
-        if let Some(calls) = &self.calls
-            && calls.send(Batch { data, flush }).is_err()
-        {
-            self.worker_died();
-        }
+        send_batch(&self.calls, &self.returns, pending, flush);
     }
 
-    /// Wait until the worker has done every call queued so far.
+    /// Wait until the worker has done every call queued so far (the open
+    /// epoch ends the record so far: its P⁻ is read, so it must have been
+    /// handed over).
     fn flush(&self) {
         let (done, wait) = sync_channel(1);
         {
             let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
-            // The open epoch ends the record so far: its P⁻ is read.
-            close_prediction(&mut pending);
+            assert!(pending.open_prediction.is_none(), "{UNSUPPLIED}");
             self.send_batch(&mut pending, Some(done));
         }
         if wait.recv().is_err() {
@@ -562,11 +664,81 @@ impl<const N: usize> Worker<N> {
         }
     }
 
-    /// The worker only stops early by a panic in the recorder (a bug):
-    /// resurface it here rather than smooth an incomplete record.
-    fn worker_died(&self) -> ! {
-        panic!("the smoother's worker thread stopped (a panic in RtsRecorder)")
+    /// An inline copy of the recorder after every call so far: a prediction
+    /// waiting for its P⁻ is kept out of the calls the worker does first
+    /// and handed to the copy as waiting too (it goes on waiting here).
+    fn copy(&self) -> Inline<N> {
+        let (done, wait) = sync_channel(1);
+        let waiting = {
+            let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
+            let open = pending
+                .open_prediction
+                .take()
+                .map(|start| pending.data.split_off(start));
+            self.send_batch(&mut pending, Some(done));
+            open.map(|call| {
+                let (_, _, zero, rows) = untag(call[0]);
+                let mut phi = SMatrix::zeros();
+                let at = 1 + read_phi(&call[1..], &mut phi, rows);
+                let mut x = SVector::zeros();
+                read_state(&call[at..], &mut x, zero);
+                pending.open_prediction = Some(pending.data.len());
+                pending.data.extend_from_slice(&call);
+                Box::new((phi, x))
+            })
+        };
+        if wait.recv().is_err() {
+            self.worker_died();
+        }
+        Inline {
+            recorder: lock(&self.recorder).clone(),
+            waiting,
+        }
     }
+
+    /// See [`worker_died`].
+    fn worker_died(&self) -> ! {
+        worker_died()
+    }
+}
+
+/// Send the calls written so far (and `flush` to answer after them) on
+/// `calls`; the next calls go into a buffer the worker is done with (back
+/// on `returns`), or a new one while fewer than `IN_FLIGHT` are out, or
+/// else the next one the worker gives back.
+fn send_batch<const N: usize>(
+    calls: &Option<SyncSender<Batch>>,
+    returns: &Receiver<Vec<f64>>,
+    pending: &mut Pending<N>,
+    flush: Option<SyncSender<()>>,
+) {
+    while let Ok(buffer) = returns.try_recv() {
+        pending.free.push(buffer);
+    }
+    let next = match pending.free.pop() {
+        Some(buffer) => buffer,
+        None if pending.buffers < IN_FLIGHT => {
+            pending.buffers += 1;
+            Vec::with_capacity(buffer_floats(N))
+        }
+        None => match returns.recv() {
+            Ok(buffer) => buffer,
+            Err(_) => worker_died(),
+        },
+    };
+    let data = std::mem::replace(&mut pending.data, next);
+    pending.last_filtered = None;
+    if let Some(calls) = calls
+        && calls.send(Batch { data, flush }).is_err()
+    {
+        worker_died();
+    }
+}
+
+/// The worker only stops early by a panic in the recorder (a bug):
+/// resurface it here rather than smooth an incomplete record.
+fn worker_died() -> ! {
+    panic!("the smoother's worker thread stopped (a panic in RtsRecorder)")
 }
 
 impl<const N: usize> Drop for Worker<N> {
@@ -585,10 +757,7 @@ impl<const N: usize> Clone for Recording<N> {
     fn clone(&self) -> Self {
         match self {
             Self::Inline(r) => Self::Inline(r.clone()),
-            Self::Background(w) => {
-                w.flush();
-                Self::Inline(Box::new(lock(&w.recorder).clone()))
-            }
+            Self::Background(w) => Self::Inline(Box::new(w.copy())),
         }
     }
 }
@@ -708,12 +877,14 @@ mod tests {
             let (mut x, mut p) = (Vector4::new(0.0, 1.0, 0.0, 0.0), Matrix4::identity());
             let (mut marks, mut predicted) = (Vec::new(), Vec::new());
             let mut copy = None;
+            // P⁻ handed over before P changes and before a mark.
             let update = |rec: &mut Recording<4>,
                           x: &mut Vector4<f64>,
                           p: &mut Matrix4<f64>,
                           state: usize,
                           z: f64,
                           symmetric: bool| {
+                rec.predicted_covariance(p);
                 let s = p[(state, state)] + 0.01;
                 let gain = p.column(state) / s;
                 let x_predicted = rec.x_predicted() - *x;
@@ -732,13 +903,21 @@ mod tests {
                 if k % 5 == 0 {
                     p = skewed(p);
                 }
-                rec.predict(&phi, &x, &p);
+                // Now and then a state +0.0 everywhere (left out) or with
+                // a −0.0 (sent).
+                let x_sent = match k % 17 {
+                    0 => Vector4::zeros(),
+                    8 => Vector4::new(0.0, -0.0, 0.0, 0.0),
+                    _ => x,
+                };
+                rec.predict(&phi, &x_sent, &p);
                 let t = k as f64 * 0.1;
                 if k % 3 != 0 {
                     let z = t + (k as f64 * 0.7).sin() * 0.05;
                     update(rec, &mut x, &mut p, 0, z, k % 7 != 0);
                 }
                 if k % 4 == 0 {
+                    rec.predicted_covariance(&p);
                     marks.push(rec.mark());
                     marks.push(rec.mark());
                     assert_eq!(rec.open_mark(), *marks.last().unwrap());
@@ -749,31 +928,34 @@ mod tests {
                 }
                 predicted.push(rec.x_predicted());
                 if k == copy_at {
-                    copy = Some(rec.clone());
+                    copy = Some((rec.clone(), p));
                 }
             }
-            (marks, predicted, copy, rec.overflowed())
+            (marks, predicted, copy, rec.overflowed(), p)
         };
-        let smoothed = |rec: &Recording<4>| {
+        let smoothed = |(rec, p): (&Recording<4>, &Matrix4<f64>)| {
             let mut out = Vec::new();
-            rec.smooth_with(|m, x, p| {
+            rec.smooth_with(p, |m, x, p| {
                 out.push((m, *x, *p));
                 Ok(())
             })
             .map(|()| out)
         };
-        for max_marks in [EPOCHS, 20] {
+        // Copies taken after an epoch's updates and while a prediction
+        // waits for its P⁻ (no update, no mark at 5001).
+        for (max_marks, copy_at) in [(EPOCHS, 5_000), (EPOCHS, 5_001), (20, 5_000)] {
             let (x0, p0) = (Vector4::new(0.0, 1.0, 0.0, 0.0), Matrix4::identity());
             let mut background = Recording::new(&x0, &p0, max_marks);
             assert!(matches!(background, Recording::Background(_)));
-            let mut inline = Recording::Inline(Box::new(RtsRecorder::new(&x0, &p0, max_marks)));
-            let (marks_b, predicted_b, copy_b, over_b) = run(&mut background, 5_000);
-            let (marks_i, predicted_i, copy_i, over_i) = run(&mut inline, 5_000);
+            let mut inline =
+                Recording::Inline(Box::new(Inline::of(RtsRecorder::new(&x0, &p0, max_marks))));
+            let (marks_b, predicted_b, copy_b, over_b, p_b) = run(&mut background, copy_at);
+            let (marks_i, predicted_i, copy_i, over_i, p_i) = run(&mut inline, copy_at);
             assert_eq!(marks_b, marks_i);
             assert_eq!(predicted_b, predicted_i);
             assert_eq!(over_b, over_i);
             assert_eq!(over_b, max_marks == 20);
-            let (sb, si) = (smoothed(&background), smoothed(&inline));
+            let (sb, si) = (smoothed((&background, &p_b)), smoothed((&inline, &p_i)));
             if over_b {
                 // Past the limit there is nothing to smooth (the caller
                 // checks `overflowed`); both agree on that.
@@ -788,9 +970,9 @@ mod tests {
             assert_eq!(sb, si);
             // A visit that fails stops the pass there, with its error, and
             // the recording goes on answering (the pass again, whole).
-            let stopped = |rec: &Recording<4>| {
+            let stopped = |rec: &Recording<4>, p: &Matrix4<f64>| {
                 let mut visited = 0;
-                let result = rec.smooth_with(|m, _, _| {
+                let result = rec.smooth_with(p, |m, _, _| {
                     visited += 1;
                     if m == 1000 {
                         return Err(EstimationError::Singular {
@@ -802,13 +984,26 @@ mod tests {
                 });
                 (visited, result)
             };
-            let (visited, result) = stopped(&background);
-            assert_eq!((visited, &result), (sb.len() - 1000, &stopped(&inline).1));
+            let (visited, result) = stopped(&background, &p_b);
+            assert_eq!(
+                (visited, &result),
+                (sb.len() - 1000, &stopped(&inline, &p_i).1)
+            );
             assert!(result.is_err());
-            assert_eq!(smoothed(&background).unwrap(), si);
-            let (cb, ci) = (copy_b.unwrap(), copy_i.unwrap());
+            assert_eq!(smoothed((&background, &p_b)).unwrap(), si);
+            let ((cb, pb), (ci, pi)) = (copy_b.unwrap(), copy_i.unwrap());
             assert!(matches!(cb, Recording::Inline(_)));
-            assert_eq!(smoothed(&cb).unwrap(), smoothed(&ci).unwrap());
+            assert_eq!(smoothed((&cb, &pb)).unwrap(), smoothed((&ci, &pi)).unwrap());
+            // The copy goes on as the recording would: a waiting prediction
+            // is made when the next one comes.
+            let (mut cb, mut ci) = (cb, ci);
+            for rec in [&mut cb, &mut ci] {
+                let phi = transition_at(3);
+                rec.predict(&phi, &Vector4::zeros(), &pb);
+                rec.predicted_covariance(&pb);
+                rec.mark();
+            }
+            assert_eq!(smoothed((&cb, &pb)).unwrap(), smoothed((&ci, &pb)).unwrap());
         }
     }
 }

@@ -338,7 +338,6 @@ fn discrete_of_pattern_into(
     phi: &mut Matrix21,
     q: &mut Matrix21,
 ) {
-    const N: usize = STATES;
     // Φ and F Q_c with the widest vectors the CPU has (the same operations
     // on each element in the same order, so the same bits).
     let mut fq = Matrix21::zeros();
@@ -349,14 +348,51 @@ fn discrete_of_pattern_into(
         fdt.as_slice(),
         qc.as_slice(),
     );
-    let (c, g) = (qc.as_slice(), fq.as_slice());
     // Each element by the formula (symmetric in i and j, Q_c exactly
     // symmetric, so the upper triangle equals the lower to the bit).
-    let half_dt = 0.5 * dt;
-    let e = q.as_mut_slice();
-    for j in 0..N {
-        for i in 0..N {
-            e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
+    aidnav_estimation::run_widest(
+        NoiseFormula { dt },
+        q.as_mut_slice(),
+        &mut [],
+        qc.as_slice(),
+        fq.as_slice(),
+    );
+}
+
+/// Q = Q_c Δt + (F Q_c + (F Q_c)ᵀ) Δt/2 element by element, on column-major
+/// slices: `out` = Q, `a` = Q_c, `b` = F Q_c as [`PatternProducts`] leaves
+/// it. Its rows from [`COUPLED`] on are +0.0 off the diagonal (only the
+/// coupled rows and the diagonal are written), so in a column j from
+/// [`COUPLED`] on the transposed term (F Q_c)(j, i) is that +0.0 for
+/// every i but j: added as the constant, the column is read down
+/// (contiguous, it vectorises) instead of across, with the same
+/// operations on the same values. The coupled columns read (F Q_c)ᵀ across.
+struct NoiseFormula {
+    dt: f64,
+}
+
+impl aidnav_estimation::Widened for NoiseFormula {
+    #[inline(always)]
+    fn run(self, q: &mut [f64], _: &mut [f64], qc: &[f64], fq: &[f64]) {
+        const N: usize = STATES;
+        let (e, c, g) = (&mut q[..N * N], &qc[..N * N], &fq[..N * N]);
+        let (dt, half_dt) = (self.dt, 0.5 * self.dt);
+        for j in 0..COUPLED {
+            for i in 0..N {
+                e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
+            }
+        }
+        for j in COUPLED..N {
+            let column = j * N..(j + 1) * N;
+            for ((o, &cv), &gv) in e[column.clone()]
+                .iter_mut()
+                .zip(&c[column.clone()])
+                .zip(&g[column])
+            {
+                *o = cv * dt + half_dt * (gv + 0.0);
+            }
+            let d = j * (N + 1);
+            e[d] = c[d] * dt + half_dt * (g[d] + g[d]);
         }
     }
 }
@@ -779,6 +815,71 @@ mod tests {
             let bits = |a: &Matrix21| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&phi), bits(&phi_ref));
             assert_eq!(bits(&q), bits(&q_ref));
+        }
+    }
+
+    /// [`NoiseFormula`] (the columns from [`COUPLED`] on read down, the
+    /// transposed term the +0.0 it is there) equals the formula read
+    /// across at every element, to the bit, on the F Q_c that
+    /// [`pattern_products`] leaves for random F of the pattern (exact zeros
+    /// and −0 inside it) and Q_c, and Δt of both signs.
+    #[test]
+    fn the_noise_formula_read_down_equals_the_formula_read_across_bitwise() {
+        use rand::{RngExt, SeedableRng};
+        const N: usize = STATES;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
+        for case in 0..200 {
+            let m = NedErrorModel::default();
+            let c = random_attitude(&mut rng);
+            let mut f = m.continuous(
+                &c,
+                &random_vector(&mut rng, 12.0),
+                &random_vector(&mut rng, 1.0),
+                &random_vector(&mut rng, 7.3e-5),
+                &random_vector(&mut rng, 1e-5),
+                0.6,
+            );
+            for (i, row) in F_ROW_COLUMNS.iter().enumerate() {
+                for &j in row.iter() {
+                    match rng.random_range(0..8) {
+                        0 => f[(i, j)] = 0.0,
+                        1 => f[(i, j)] = -0.0,
+                        _ => {}
+                    }
+                }
+            }
+            let dt = if case % 3 == 0 {
+                -0.05
+            } else {
+                rng.random_range(1e-3..0.2)
+            };
+            let fdt = f.map(|v| v * dt);
+            let qc = m.spectral_density(&c);
+            let (mut phi, mut fq) = (Matrix21::zeros(), Matrix21::zeros());
+            pattern_products(
+                phi.as_mut_slice(),
+                fq.as_mut_slice(),
+                fdt.as_slice(),
+                qc.as_slice(),
+            );
+            let (cs, g) = (qc.as_slice(), fq.as_slice());
+            let mut across = Matrix21::zeros();
+            let e = across.as_mut_slice();
+            for j in 0..N {
+                for i in 0..N {
+                    e[j * N + i] = cs[j * N + i] * dt + 0.5 * dt * (g[j * N + i] + g[i * N + j]);
+                }
+            }
+            let mut down = Matrix21::from_element(f64::NAN);
+            aidnav_estimation::Widened::run(
+                NoiseFormula { dt },
+                down.as_mut_slice(),
+                &mut [],
+                cs,
+                g,
+            );
+            let bits = |a: &Matrix21| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&down), bits(&across), "case {case}");
         }
     }
 
