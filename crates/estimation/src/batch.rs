@@ -391,6 +391,12 @@ where
     steady_allowed: bool,
     /// Epochs computed in the steady state.
     steady_epochs: usize,
+    /// P⁻ of the full step with its constants checked once: the
+    /// prediction writes it here and the update P⁺ from it into the
+    /// filter, so that neither copies P.
+    p_predicted: OMatrix<f64, N, N>,
+    /// Scratch for Φ P in the prediction.
+    phi_p: OMatrix<f64, N, N>,
 }
 
 impl<N: Dim> BatchModel<'_, N>
@@ -551,15 +557,29 @@ where
     let hc = OMatrix::<f64, M, N>::from_fn_generic(md, nd, |i, j| model.h[(present[i], j)]);
     let rc =
         OMatrix::<f64, M, M>::from_fn_generic(md, md, |i, j| model.r[(present[i], present[j])]);
-    if predict {
-        model.predict(kf)?;
+    // With the constants checked once, P⁻ is kept aside (model.p_predicted)
+    // between the prediction and the update.
+    let aside = predict && model.q_symmetric.is_some();
+    match &model.q_symmetric {
+        Some(q) if aside => {
+            kf.predict_prechecked_aside(model.phi, q, &mut model.p_predicted, &mut model.phi_p)?
+        }
+        _ if predict => model.predict(kf)?,
+        _ => {}
     }
     let x_predicted = kf.state().clone();
-    let predicted = model
-        .keep
-        .forward
-        .then(|| Box::new((x_predicted.clone(), kf.covariance().clone())));
+    let predicted = model.keep.forward.then(|| {
+        let p_predicted = if aside {
+            &model.p_predicted
+        } else {
+            kf.covariance()
+        };
+        Box::new((x_predicted.clone(), p_predicted.clone()))
+    });
     let rec = match (&model.q_symmetric, policy) {
+        (Some(_), policy) if aside => {
+            kf.update_prechecked_from(&model.p_predicted, &z, &hc, &rc, policy)
+        }
         (Some(_), policy) => kf.update_prechecked(&z, &hc, &rc, policy),
         (None, None) => kf.update_with(&z, &hc, &rc, &mut AcceptAll),
         (None, Some(p)) => kf.update_with(&z, &hc, &rc, p),
@@ -709,6 +729,9 @@ where
         recent: Recent::new(),
         steady_allowed: true,
         steady_epochs: 0,
+        // Any values: both are written before they are read.
+        p_predicted: kf.covariance().clone(),
+        phi_p: kf.covariance().clone(),
     };
     // The steady state of each update size (one set of components each).
     let mut steady1 = None;
@@ -1361,6 +1384,16 @@ mod tests {
         bad_z[3 * 7 + 1] = f64::INFINITY;
         let e = run(&phi, &q, &h, &bad_z).unwrap_err();
         assert!(e.starts_with("epoch 7:"), "{e}");
+        // The filter the error leaves is the step-by-step one's at the
+        // same point, bit for bit: x⁻ and P⁻ of epoch 7 (the batch's
+        // update writes P⁺ from its P⁻ kept aside, and puts P⁻ back).
+        let mut failed = prior.clone();
+        filter_batch_plain(&mut failed, &phi, &q, &h, &r, &bad_z, true, keep).unwrap_err();
+        let mut one = prior.clone();
+        filter_batch_plain(&mut one, &phi, &q, &h, &r, &bad_z[..3 * 7], true, keep).unwrap();
+        one.predict(&phi, &q).unwrap();
+        assert!(same_bits(failed.state(), one.state()));
+        assert!(same_bits(failed.covariance(), one.covariance()));
         let mut bad_phi = phi.clone();
         bad_phi[(2, 3)] = f64::NAN;
         let e = run(&bad_phi, &q, &h, &z).unwrap_err();

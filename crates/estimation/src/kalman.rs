@@ -304,13 +304,16 @@ where
         check::finite(h, step, Matrix::H)?;
         check::finite(r, step, Matrix::R)?;
         check::symmetric(r, step, Matrix::R)?;
-        self.innovate_prechecked(z, h, r)
+        self.innovate_prechecked(&self.p, z, h, r)
     }
 
     /// [`innovate`](Self::innovate) for an H and R the caller checked
-    /// (shapes, finite, R symmetric) and a finite z: the arithmetic alone.
+    /// (shapes, finite, R symmetric) and a finite z: the arithmetic alone,
+    /// on the covariance `p` (the filter's own, or the batch's P⁻ kept
+    /// aside by [`predict_prechecked_aside`](Self::predict_prechecked_aside)).
     fn innovate_prechecked<M: Dim>(
         &self,
+        p: &OMatrix<f64, N, N>,
         z: &OVector<f64, M>,
         h: &OMatrix<f64, M, N>,
         r: &OMatrix<f64, M, M>,
@@ -327,13 +330,13 @@ where
         if dense::use_kernel::<M, N, N>(m, n, n) {
             // Only H's nonzero elements enter P Hᵀ and H P Hᵀ (a navigation
             // filter's H selects a few states); the rest are exact zeros.
-            dense::symmetric_times_h_transpose(&mut cross, &self.p, h);
+            dense::symmetric_times_h_transpose(&mut cross, p, h);
             dense::h_times_cross(&mut hph, h, &cross);
         } else {
             let mut listed = [0; dense::MAX_LISTED];
             let columns = dense::nonzero_columns(h, &mut listed);
             let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
-            dense::h_times_symmetric(&mut hp, h, &self.p, columns);
+            dense::h_times_symmetric(&mut hp, h, p, columns);
             dense::times_h_transpose(&mut hph, &hp, h, columns);
             cross = hp.transpose();
         }
@@ -381,7 +384,7 @@ where
     {
         let innov = self.innovate(z, h, r)?;
         let decision = policy.decide(&innov.view(r));
-        self.apply_decision(innov, decision, r)
+        self.apply_decision(None, innov, decision, r)
     }
 
     /// [`update_with`](Self::update_with) with the policy's decision already
@@ -399,12 +402,15 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         let innov = self.innovate(z, h, r)?;
-        self.apply_decision(innov, decision, r)
+        self.apply_decision(None, innov, decision, r)
     }
 
-    /// The update a decision asks for, on the innovation it was taken on.
+    /// The update a decision asks for, on the innovation it was taken on;
+    /// P⁺ from `prior` (P⁻) when given, else from the filter's own P (see
+    /// [`apply`](Self::apply)).
     fn apply_decision<M: Dim>(
         &mut self,
+        prior: Option<&OMatrix<f64, N, N>>,
         innov: Innovated<N, M>,
         decision: Decision<M>,
         r: &OMatrix<f64, M, M>,
@@ -419,14 +425,14 @@ where
             Decision::Reject => (Outcome::Rejected, OMatrix::zeros_generic(nrows, ncols)),
             Decision::Accept => {
                 let gain = Self::gain(&innov.chol, &innov.cross);
-                self.apply(&gain, &innov.residual, &innov.cross, &innov.s, step)?;
+                self.apply(prior, &gain, &innov.residual, &innov.cross, &innov.s, step)?;
                 (Outcome::Accepted, gain)
             }
             Decision::ReplaceResidual(limited) => {
                 check::shape(&limited, (m, 1), step, Matrix::Innovation)?;
                 check::finite(&limited, step, Matrix::Innovation)?;
                 let gain = Self::gain(&innov.chol, &innov.cross);
-                self.apply(&gain, &limited, &innov.cross, &innov.s, step)?;
+                self.apply(prior, &gain, &limited, &innov.cross, &innov.s, step)?;
                 (Outcome::Limited, gain)
             }
             Decision::InflateR(factor) => {
@@ -443,12 +449,12 @@ where
                         matrix: Matrix::S,
                     })?;
                 let gain = Self::gain(&chol, &innov.cross);
-                self.apply(&gain, &innov.residual, &innov.cross, &s_used, step)?;
+                self.apply(prior, &gain, &innov.residual, &innov.cross, &s_used, step)?;
                 (Outcome::Reweighted, gain)
             }
             Decision::GainCovariance(c) => {
                 let gain = Self::gain_from(c, &innov.cross, m, step)?;
-                self.apply(&gain, &innov.residual, &innov.cross, &innov.s, step)?;
+                self.apply(prior, &gain, &innov.residual, &innov.cross, &innov.s, step)?;
                 (Outcome::AdaptiveGain, gain)
             }
             Decision::LimitWithGainCovariance {
@@ -458,7 +464,7 @@ where
                 check::shape(&residual, (m, 1), step, Matrix::Innovation)?;
                 check::finite(&residual, step, Matrix::Innovation)?;
                 let gain = Self::gain_from(covariance, &innov.cross, m, step)?;
-                self.apply(&gain, &residual, &innov.cross, &innov.s, step)?;
+                self.apply(prior, &gain, &residual, &innov.cross, &innov.s, step)?;
                 (Outcome::Limited, gain)
             }
         };
@@ -519,8 +525,16 @@ where
     /// triangle of V Kᵀ + K Vᵀ, n²m multiply-adds instead of the 3n²m of
     /// `A = P − K U`, `A + (K R − A Hᵀ) Kᵀ`, with P exactly symmetric by
     /// construction. The sequential update expands it the same way.
+    ///
+    /// With `prior` (P⁻ kept aside by the batch) P⁺ is written straight
+    /// into the filter's covariance from it, no copy of P made; on an error
+    /// the caller puts P⁻ back (see
+    /// [`update_prechecked_from`](Self::update_prechecked_from)). Without,
+    /// P⁺ is computed on a copy of the filter's P and the filter's P is
+    /// left as it was on an error.
     fn apply<M: Dim>(
         &mut self,
+        prior: Option<&OMatrix<f64, N, N>>,
         gain: &OMatrix<f64, N, M>,
         residual: &OVector<f64, M>,
         cross: &OMatrix<f64, N, M>,
@@ -532,23 +546,52 @@ where
     {
         check::finite(gain, step, Matrix::K)?;
         self.x += gain * residual;
-        let mut p = self.p.clone();
-        match self.covariance_update {
-            CovarianceUpdate::Joseph => {
-                // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
-                let mut v = cross.clone();
-                dense::joseph_rank_2k(&mut p, &mut v, gain, s_used, (0.5, -1.0));
-            }
-            CovarianceUpdate::Standard => {
-                // (I − K H) P = P − K (H P)
-                dense::gemm(&mut p, -1.0, gain, &cross.transpose(), 1.0);
-                check::symmetrize(&mut p);
-            }
+        let form = self.covariance_update;
+        if let Some(prior) = prior {
+            Self::update_covariance(form, &mut self.p, Some(prior), gain, cross, s_used);
+            check::finite(&self.x, step, Matrix::X)?;
+            return check::finite(&self.p, step, Matrix::P);
         }
+        let mut p = self.p.clone();
+        Self::update_covariance(form, &mut p, None, gain, cross, s_used);
         check::finite(&self.x, step, Matrix::X)?;
         check::finite(&p, step, Matrix::P)?;
         self.p = p;
         Ok(())
+    }
+
+    /// P⁺ by `form` into `p`, from `prior` when given, else from p's own
+    /// values (see [`apply`](Self::apply)).
+    fn update_covariance<M: Dim>(
+        form: CovarianceUpdate,
+        p: &mut OMatrix<f64, N, N>,
+        prior: Option<&OMatrix<f64, N, N>>,
+        gain: &OMatrix<f64, N, M>,
+        cross: &OMatrix<f64, N, M>,
+        s_used: &OMatrix<f64, M, M>,
+    ) where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        match form {
+            CovarianceUpdate::Joseph => {
+                // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
+                let mut v = cross.clone();
+                match prior {
+                    Some(prior) => {
+                        dense::joseph_rank_2k_onto(p, prior, &mut v, gain, s_used, (0.5, -1.0))
+                    }
+                    None => dense::joseph_rank_2k(p, &mut v, gain, s_used, (0.5, -1.0)),
+                }
+            }
+            CovarianceUpdate::Standard => {
+                if let Some(prior) = prior {
+                    p.copy_from(prior);
+                }
+                // (I − K H) P = P − K (H P)
+                dense::gemm(p, -1.0, gain, &cross.transpose(), 1.0);
+                check::symmetrize(p);
+            }
+        }
     }
 
     /// Sequential (scalar-by-scalar) update for a diagonal R: each component is
@@ -741,11 +784,65 @@ where
     {
         let step = Step::Update;
         check::finite(z, step, Matrix::Z)?;
-        let innov = self.innovate_prechecked(z, h, r)?;
+        let innov = self.innovate_prechecked(&self.p, z, h, r)?;
         let decision = match policy {
             None => Decision::Accept,
             Some(p) => p.decide(&innov.view(r)),
         };
-        self.apply_decision(innov, decision, r)
+        self.apply_decision(None, innov, decision, r)
+    }
+
+    /// [`predict_prechecked`](Self::predict_prechecked) with P⁻ written
+    /// into `predicted` (`phi_p` scratch for Φ P; the values of both on
+    /// entry unread) and the filter's covariance left as it was: the
+    /// batch's full step, followed by
+    /// [`update_prechecked_from`](Self::update_prechecked_from), which
+    /// writes P⁺ from `predicted` into the filter, so that neither step
+    /// copies P. The same arithmetic and checks, bit for bit; on an error
+    /// the filter is as `predict_prechecked` leaves it (x⁻, P unchanged).
+    pub(crate) fn predict_prechecked_aside(
+        &mut self,
+        phi: &OMatrix<f64, N, N>,
+        q_symmetric: &OMatrix<f64, N, N>,
+        predicted: &mut OMatrix<f64, N, N>,
+        phi_p: &mut OMatrix<f64, N, N>,
+    ) -> Result<()> {
+        self.predict_state_prechecked(phi)?;
+        dense::congruence_onto(predicted, q_symmetric, phi, &self.p, phi_p);
+        check::finite(predicted, Step::Predict, Matrix::P)
+    }
+
+    /// [`update_prechecked`](Self::update_prechecked) after
+    /// [`predict_prechecked_aside`](Self::predict_prechecked_aside): the
+    /// update from P⁻ = `predicted` (the filter's own covariance on entry
+    /// is not read), the same arithmetic and checks, bit for bit. The
+    /// filter ends as `predict_prechecked` then `update_prechecked` leave
+    /// it: P⁺ when the update is applied, else (rejected, or an error) P⁻.
+    pub(crate) fn update_prechecked_from<M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
+        &mut self,
+        predicted: &OMatrix<f64, N, N>,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+        policy: Option<&mut Pol>,
+    ) -> Result<UpdateRecord<N, M>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let step = Step::Update;
+        let applied = check::finite(z, step, Matrix::Z)
+            .and_then(|()| self.innovate_prechecked(predicted, z, h, r))
+            .and_then(|innov| {
+                let decision = match policy {
+                    None => Decision::Accept,
+                    Some(p) => p.decide(&innov.view(r)),
+                };
+                self.apply_decision(Some(predicted), innov, decision, r)
+            });
+        // P⁺ was written only by an update applied without error.
+        if !matches!(&applied, Ok(rec) if rec.outcome != Outcome::Rejected) {
+            self.p.copy_from(predicted);
+        }
+        applied
     }
 }
