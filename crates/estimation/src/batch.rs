@@ -12,7 +12,7 @@ use nalgebra::{
 
 use crate::check;
 use crate::error::{EstimationError, Matrix, Result, Step};
-use crate::kalman::{FilterAllocator, KalmanFilter};
+use crate::kalman::{FilterAllocator, KalmanFilter, UpdateWork};
 use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
 use crate::smoother::ForwardEpoch;
 
@@ -294,6 +294,30 @@ where
     }
 }
 
+/// What the batch keeps for the updates of one size (`M` components
+/// present): the steady state and the update's reused innovation and gain.
+struct SizeState<N: Dim, M: Dim>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    steady: Option<Steady<N, M>>,
+    /// Made at the first update of this size (of another number of
+    /// components, for `Dyn`: made again).
+    work: Option<UpdateWork<N, M>>,
+}
+
+impl<N: Dim, M: Dim> SizeState<N, M>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    fn new() -> Self {
+        Self {
+            steady: None,
+            work: None,
+        }
+    }
+}
+
 /// Whether two matrices hold the same bits (not `==`: 0.0 and −0.0 differ
 /// here, and a NaN equals itself).
 fn same_bits<R: Dim, C: Dim>(a: &OMatrix<f64, R, C>, b: &OMatrix<f64, R, C>) -> bool
@@ -472,12 +496,13 @@ fn update_epoch<N: Dim, M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
     md: M,
     (k, row, present, predict): (usize, &[f64], &[usize], bool),
     mut policy: Option<&mut Pol>,
-    steady: &mut Option<Steady<N, M>>,
+    sized: &mut SizeState<N, M>,
     residuals: &mut [f64],
 ) -> Result<EpochUpdate<N>>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
+    let steady = &mut sized.steady;
     let z = OVector::<f64, M>::from_fn_generic(md, nalgebra::U1, |i, _| row[present[i]]);
     let phase = if predict && model.steady_allowed {
         steady
@@ -576,20 +601,28 @@ where
         };
         Box::new((x_predicted.clone(), p_predicted.clone()))
     });
-    let rec = match (&model.q_symmetric, policy) {
-        (Some(_), policy) if aside => {
-            kf.update_prechecked_from(&model.p_predicted, &z, &hc, &rc, policy)
-        }
-        (Some(_), policy) => kf.update_prechecked(&z, &hc, &rc, policy),
-        (None, None) => kf.update_with(&z, &hc, &rc, &mut AcceptAll),
-        (None, Some(p)) => kf.update_with(&z, &hc, &rc, p),
-    }?;
-    for (j, &i) in present.iter().enumerate() {
-        residuals[i] = rec.residual[j];
+    if sized
+        .work
+        .as_ref()
+        .is_some_and(|w| w.measurements() != md.value())
+    {
+        sized.work = None;
     }
-    if predict && model.steady_allowed && rec.outcome == Outcome::Accepted {
+    let work = sized.work.get_or_insert_with(|| UpdateWork::zeros(nd, md));
+    let outcome = match (&model.q_symmetric, policy) {
+        (Some(_), policy) if aside => {
+            kf.update_prechecked_from(&model.p_predicted, (&z, &hc, &rc), policy, work)?
+        }
+        (Some(_), policy) => work.take(kf.update_prechecked(&z, &hc, &rc, policy)?),
+        (None, None) => work.take(kf.update_with(&z, &hc, &rc, &mut AcceptAll)?),
+        (None, Some(p)) => work.take(kf.update_with(&z, &hc, &rc, p)?),
+    };
+    for (j, &i) in present.iter().enumerate() {
+        residuals[i] = work.residual()[j];
+    }
+    if predict && model.steady_allowed && outcome == Outcome::Accepted {
         if model.recent.closes_cycle(present, kf.covariance()) {
-            *steady = find_steady(kf, model, (z, hc, rc), &x_predicted, &rec, present, k);
+            *steady = find_steady(kf, model, (z, hc, rc), &x_predicted, work, present, k);
             if steady.is_some() {
                 model.recent.reset();
             }
@@ -598,18 +631,18 @@ where
         model.recent.reset();
     }
     Ok(EpochUpdate {
-        nis: rec.nis,
-        outcome: rec.outcome,
+        nis: work.nis(),
+        outcome,
         predicted,
     })
 }
 
-/// The steady state found at epoch `k`, whose accepted update `rec` left
+/// The steady state found at epoch `k`, whose accepted update (`work`) left
 /// P⁺ equal to that of one of the last few epochs of a run with the same
 /// components present: the cycle from P⁺, followed by a probe filter
 /// (predict, innovation, accepted update) until it comes back to P⁺, bit
 /// for bit, within [`MAX_STEADY_PERIOD`] phases. The cycle's last phase is
-/// then this epoch's step (its S and K are checked against `rec`), and the
+/// then this epoch's step (its S and K are checked against `work`'s), and the
 /// steady path's arithmetic is checked against this epoch's full step
 /// (residual, NIS and state, bit for bit); if either disagrees the steady
 /// path is switched off for the batch. None too when the probe fails or
@@ -619,7 +652,7 @@ fn find_steady<N: Dim, M: Dim>(
     model: &mut BatchModel<'_, N>,
     (z, hc, rc): Selected<N, M>,
     x_predicted: &OVector<f64, N>,
-    rec: &crate::kalman::UpdateRecord<N, M>,
+    work: &UpdateWork<N, M>,
     present: &[usize],
     k: usize,
 ) -> Option<Steady<N, M>>
@@ -653,10 +686,10 @@ where
     let nis = residual.dot(&last.chol.solve(&residual));
     let mut x = x_predicted.clone();
     x += &last.gain * &residual;
-    let agrees = same_bits(&last.s, &rec.s)
-        && same_bits(&last.gain, &rec.gain)
-        && same_bits(&residual, &rec.residual)
-        && nis.to_bits() == rec.nis.to_bits()
+    let agrees = same_bits(&last.s, work.s())
+        && same_bits(&last.gain, work.gain())
+        && same_bits(&residual, work.residual())
+        && nis.to_bits() == work.nis().to_bits()
         && same_bits(&x, kf.state());
     if !agrees {
         model.steady_allowed = false;
@@ -733,14 +766,15 @@ where
         p_predicted: kf.covariance().clone(),
         phi_p: kf.covariance().clone(),
     };
-    // The steady state of each update size (one set of components each).
-    let mut steady1 = None;
-    let mut steady2 = None;
-    let mut steady3 = None;
-    let mut steady4 = None;
-    let mut steady5 = None;
-    let mut steady6 = None;
-    let mut steady_dyn = None;
+    // What each update size keeps (its steady state: one set of
+    // components each).
+    let mut sized1 = SizeState::new();
+    let mut sized2 = SizeState::new();
+    let mut sized3 = SizeState::new();
+    let mut sized4 = SizeState::new();
+    let mut sized5 = SizeState::new();
+    let mut sized6 = SizeState::new();
+    let mut sized_dyn = SizeState::new();
     // The indices of the components present, reused by every epoch.
     let mut present: Vec<usize> = Vec::with_capacity(m);
     for (k, row) in z.chunks_exact(m).enumerate() {
@@ -752,7 +786,7 @@ where
         let residuals = &mut out.residuals[first..];
         let epoch = (k, row, present.as_slice(), predict);
         macro_rules! fixed {
-            ($c:literal, $steady:ident) => {
+            ($c:literal, $sized:ident) => {
                 match policy {
                     BatchPolicy::Accept => update_epoch::<N, Const<$c>, AsDyn<'_, P>>(
                         kf,
@@ -760,7 +794,7 @@ where
                         Const::<$c>,
                         epoch,
                         None,
-                        &mut $steady,
+                        &mut $sized,
                         residuals,
                     ),
                     BatchPolicy::Given(p) => update_epoch(
@@ -769,7 +803,7 @@ where
                         Const::<$c>,
                         epoch,
                         Some(&mut AsDyn(&mut **p)),
-                        &mut $steady,
+                        &mut $sized,
                         residuals,
                     ),
                 }
@@ -792,12 +826,12 @@ where
                         .then(|| Box::new((kf.state().clone(), kf.covariance().clone()))),
                 })
             }
-            1 => fixed!(1, steady1),
-            2 => fixed!(2, steady2),
-            3 => fixed!(3, steady3),
-            4 => fixed!(4, steady4),
-            5 => fixed!(5, steady5),
-            6 => fixed!(6, steady6),
+            1 => fixed!(1, sized1),
+            2 => fixed!(2, sized2),
+            3 => fixed!(3, sized3),
+            4 => fixed!(4, sized4),
+            5 => fixed!(5, sized5),
+            6 => fixed!(6, sized6),
             c => match policy {
                 BatchPolicy::Accept => update_epoch::<N, Dyn, P>(
                     kf,
@@ -805,7 +839,7 @@ where
                     Dyn(c),
                     epoch,
                     None,
-                    &mut steady_dyn,
+                    &mut sized_dyn,
                     residuals,
                 ),
                 BatchPolicy::Given(p) => update_epoch(
@@ -814,7 +848,7 @@ where
                     Dyn(c),
                     epoch,
                     Some(&mut **p),
-                    &mut steady_dyn,
+                    &mut sized_dyn,
                     residuals,
                 ),
             },
