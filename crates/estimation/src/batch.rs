@@ -295,12 +295,17 @@ where
 }
 
 /// What the batch keeps for the updates of one size (`M` components
-/// present): the steady state and the update's reused innovation and gain.
+/// present): the steady state, the rows of H and R last selected and the
+/// update's reused innovation and gain.
 struct SizeState<N: Dim, M: Dim>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
     steady: Option<Steady<N, M>>,
+    /// The components present at the last full step of this size and the
+    /// rows of H and of R (and columns) selected for them: selected again
+    /// only when the components change.
+    selected: Option<SelectedRows<N, M>>,
     /// Made at the first update of this size (of another number of
     /// components, for `Dyn`: made again).
     work: Option<UpdateWork<N, M>>,
@@ -313,10 +318,15 @@ where
     fn new() -> Self {
         Self {
             steady: None,
+            selected: None,
             work: None,
         }
     }
 }
+
+/// The components present and the rows of H and of R (and columns)
+/// selected for them.
+type SelectedRows<N, M> = (Vec<usize>, OMatrix<f64, M, N>, OMatrix<f64, M, M>);
 
 /// Whether two matrices hold the same bits (not `==`: 0.0 and −0.0 differ
 /// here, and a NaN equals itself).
@@ -502,7 +512,11 @@ fn update_epoch<N: Dim, M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
-    let steady = &mut sized.steady;
+    let SizeState {
+        steady,
+        selected,
+        work,
+    } = sized;
     let z = OVector::<f64, M>::from_fn_generic(md, nalgebra::U1, |i, _| row[present[i]]);
     let phase = if predict && model.steady_allowed {
         steady
@@ -579,9 +593,19 @@ where
     }
     // The full step.
     let (_, nd) = model.h.shape_generic();
-    let hc = OMatrix::<f64, M, N>::from_fn_generic(md, nd, |i, j| model.h[(present[i], j)]);
-    let rc =
-        OMatrix::<f64, M, M>::from_fn_generic(md, md, |i, j| model.r[(present[i], present[j])]);
+    if selected
+        .as_ref()
+        .is_some_and(|(last, _, _)| last != present)
+    {
+        *selected = None;
+    }
+    let (_, hc, rc) = selected.get_or_insert_with(|| {
+        let hc = OMatrix::<f64, M, N>::from_fn_generic(md, nd, |i, j| model.h[(present[i], j)]);
+        let rc =
+            OMatrix::<f64, M, M>::from_fn_generic(md, md, |i, j| model.r[(present[i], present[j])]);
+        (present.to_vec(), hc, rc)
+    });
+    let (hc, rc) = (&*hc, &*rc);
     // With the constants checked once, P⁻ is kept aside (model.p_predicted)
     // between the prediction and the update.
     let aside = predict && model.q_symmetric.is_some();
@@ -601,28 +625,28 @@ where
         };
         Box::new((x_predicted.clone(), p_predicted.clone()))
     });
-    if sized
-        .work
+    if work
         .as_ref()
         .is_some_and(|w| w.measurements() != md.value())
     {
-        sized.work = None;
+        *work = None;
     }
-    let work = sized.work.get_or_insert_with(|| UpdateWork::zeros(nd, md));
+    let work = work.get_or_insert_with(|| UpdateWork::zeros(nd, md));
     let outcome = match (&model.q_symmetric, policy) {
         (Some(_), policy) if aside => {
-            kf.update_prechecked_from(&model.p_predicted, (&z, &hc, &rc), policy, work)?
+            kf.update_prechecked_from(&model.p_predicted, (&z, hc, rc), policy, work)?
         }
-        (Some(_), policy) => work.take(kf.update_prechecked(&z, &hc, &rc, policy)?),
-        (None, None) => work.take(kf.update_with(&z, &hc, &rc, &mut AcceptAll)?),
-        (None, Some(p)) => work.take(kf.update_with(&z, &hc, &rc, p)?),
+        (Some(_), policy) => work.take(kf.update_prechecked(&z, hc, rc, policy)?),
+        (None, None) => work.take(kf.update_with(&z, hc, rc, &mut AcceptAll)?),
+        (None, Some(p)) => work.take(kf.update_with(&z, hc, rc, p)?),
     };
     for (j, &i) in present.iter().enumerate() {
         residuals[i] = work.residual()[j];
     }
     if predict && model.steady_allowed && outcome == Outcome::Accepted {
         if model.recent.closes_cycle(present, kf.covariance()) {
-            *steady = find_steady(kf, model, (z, hc, rc), &x_predicted, work, present, k);
+            let selection = (z, hc.clone(), rc.clone());
+            *steady = find_steady(kf, model, selection, &x_predicted, work, present, k);
             if steady.is_some() {
                 model.recent.reset();
             }
@@ -856,10 +880,11 @@ where
         .map_err(|e| e.at_epoch(k))?;
         out.nis.push(update.nis);
         out.outcomes.push(update.outcome);
-        out.states.extend(kf.state().iter());
+        out.states.extend_from_slice(kf.state().as_slice());
         if keep.covariance {
             // nalgebra is column-major; P is symmetric, so its columns are its rows.
-            out.covariances.extend(kf.covariance().iter());
+            out.covariances
+                .extend_from_slice(kf.covariance().as_slice());
         }
         if let Some(prediction) = update.predicted {
             let (x_predicted, p_predicted) = *prediction;
