@@ -12,7 +12,7 @@ use nalgebra::{
 
 use crate::check;
 use crate::error::{EstimationError, Matrix, Result, Step};
-use crate::kalman::{FilterAllocator, KalmanFilter};
+use crate::kalman::{FilterAllocator, KalmanFilter, UpdateWork};
 use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
 use crate::smoother::ForwardEpoch;
 
@@ -294,6 +294,40 @@ where
     }
 }
 
+/// What the batch keeps for the updates of one size (`M` components
+/// present): the steady state, the rows of H and R last selected and the
+/// update's reused innovation and gain.
+struct SizeState<N: Dim, M: Dim>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    steady: Option<Steady<N, M>>,
+    /// The components present at the last full step of this size and the
+    /// rows of H and of R (and columns) selected for them: selected again
+    /// only when the components change.
+    selected: Option<SelectedRows<N, M>>,
+    /// Made at the first update of this size (of another number of
+    /// components, for `Dyn`: made again).
+    work: Option<UpdateWork<N, M>>,
+}
+
+impl<N: Dim, M: Dim> SizeState<N, M>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    fn new() -> Self {
+        Self {
+            steady: None,
+            selected: None,
+            work: None,
+        }
+    }
+}
+
+/// The components present and the rows of H and of R (and columns)
+/// selected for them.
+type SelectedRows<N, M> = (Vec<usize>, OMatrix<f64, M, N>, OMatrix<f64, M, M>);
+
 /// Whether two matrices hold the same bits (not `==`: 0.0 and −0.0 differ
 /// here, and a NaN equals itself).
 fn same_bits<R: Dim, C: Dim>(a: &OMatrix<f64, R, C>, b: &OMatrix<f64, R, C>) -> bool
@@ -391,6 +425,12 @@ where
     steady_allowed: bool,
     /// Epochs computed in the steady state.
     steady_epochs: usize,
+    /// P⁻ of the full step with its constants checked once: the
+    /// prediction writes it here and the update P⁺ from it into the
+    /// filter, so that neither copies P.
+    p_predicted: OMatrix<f64, N, N>,
+    /// Scratch for Φ P in the prediction.
+    phi_p: OMatrix<f64, N, N>,
 }
 
 impl<N: Dim> BatchModel<'_, N>
@@ -466,12 +506,17 @@ fn update_epoch<N: Dim, M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
     md: M,
     (k, row, present, predict): (usize, &[f64], &[usize], bool),
     mut policy: Option<&mut Pol>,
-    steady: &mut Option<Steady<N, M>>,
+    sized: &mut SizeState<N, M>,
     residuals: &mut [f64],
 ) -> Result<EpochUpdate<N>>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
+    let SizeState {
+        steady,
+        selected,
+        work,
+    } = sized;
     let z = OVector::<f64, M>::from_fn_generic(md, nalgebra::U1, |i, _| row[present[i]]);
     let phase = if predict && model.steady_allowed {
         steady
@@ -548,28 +593,60 @@ where
     }
     // The full step.
     let (_, nd) = model.h.shape_generic();
-    let hc = OMatrix::<f64, M, N>::from_fn_generic(md, nd, |i, j| model.h[(present[i], j)]);
-    let rc =
-        OMatrix::<f64, M, M>::from_fn_generic(md, md, |i, j| model.r[(present[i], present[j])]);
-    if predict {
-        model.predict(kf)?;
+    if selected
+        .as_ref()
+        .is_some_and(|(last, _, _)| last != present)
+    {
+        *selected = None;
+    }
+    let (_, hc, rc) = selected.get_or_insert_with(|| {
+        let hc = OMatrix::<f64, M, N>::from_fn_generic(md, nd, |i, j| model.h[(present[i], j)]);
+        let rc =
+            OMatrix::<f64, M, M>::from_fn_generic(md, md, |i, j| model.r[(present[i], present[j])]);
+        (present.to_vec(), hc, rc)
+    });
+    let (hc, rc) = (&*hc, &*rc);
+    // With the constants checked once, P⁻ is kept aside (model.p_predicted)
+    // between the prediction and the update.
+    let aside = predict && model.q_symmetric.is_some();
+    match &model.q_symmetric {
+        Some(q) if aside => {
+            kf.predict_prechecked_aside(model.phi, q, &mut model.p_predicted, &mut model.phi_p)?
+        }
+        _ if predict => model.predict(kf)?,
+        _ => {}
     }
     let x_predicted = kf.state().clone();
-    let predicted = model
-        .keep
-        .forward
-        .then(|| Box::new((x_predicted.clone(), kf.covariance().clone())));
-    let rec = match (&model.q_symmetric, policy) {
-        (Some(_), policy) => kf.update_prechecked(&z, &hc, &rc, policy),
-        (None, None) => kf.update_with(&z, &hc, &rc, &mut AcceptAll),
-        (None, Some(p)) => kf.update_with(&z, &hc, &rc, p),
-    }?;
-    for (j, &i) in present.iter().enumerate() {
-        residuals[i] = rec.residual[j];
+    let predicted = model.keep.forward.then(|| {
+        let p_predicted = if aside {
+            &model.p_predicted
+        } else {
+            kf.covariance()
+        };
+        Box::new((x_predicted.clone(), p_predicted.clone()))
+    });
+    if work
+        .as_ref()
+        .is_some_and(|w| w.measurements() != md.value())
+    {
+        *work = None;
     }
-    if predict && model.steady_allowed && rec.outcome == Outcome::Accepted {
+    let work = work.get_or_insert_with(|| UpdateWork::zeros(nd, md));
+    let outcome = match (&model.q_symmetric, policy) {
+        (Some(_), policy) if aside => {
+            kf.update_prechecked_from(&model.p_predicted, (&z, hc, rc), policy, work)?
+        }
+        (Some(_), policy) => work.take(kf.update_prechecked(&z, hc, rc, policy)?),
+        (None, None) => work.take(kf.update_with(&z, hc, rc, &mut AcceptAll)?),
+        (None, Some(p)) => work.take(kf.update_with(&z, hc, rc, p)?),
+    };
+    for (j, &i) in present.iter().enumerate() {
+        residuals[i] = work.residual()[j];
+    }
+    if predict && model.steady_allowed && outcome == Outcome::Accepted {
         if model.recent.closes_cycle(present, kf.covariance()) {
-            *steady = find_steady(kf, model, (z, hc, rc), &x_predicted, &rec, present, k);
+            let selection = (z, hc.clone(), rc.clone());
+            *steady = find_steady(kf, model, selection, &x_predicted, work, present, k);
             if steady.is_some() {
                 model.recent.reset();
             }
@@ -578,18 +655,18 @@ where
         model.recent.reset();
     }
     Ok(EpochUpdate {
-        nis: rec.nis,
-        outcome: rec.outcome,
+        nis: work.nis(),
+        outcome,
         predicted,
     })
 }
 
-/// The steady state found at epoch `k`, whose accepted update `rec` left
+/// The steady state found at epoch `k`, whose accepted update (`work`) left
 /// P⁺ equal to that of one of the last few epochs of a run with the same
 /// components present: the cycle from P⁺, followed by a probe filter
 /// (predict, innovation, accepted update) until it comes back to P⁺, bit
 /// for bit, within [`MAX_STEADY_PERIOD`] phases. The cycle's last phase is
-/// then this epoch's step (its S and K are checked against `rec`), and the
+/// then this epoch's step (its S and K are checked against `work`'s), and the
 /// steady path's arithmetic is checked against this epoch's full step
 /// (residual, NIS and state, bit for bit); if either disagrees the steady
 /// path is switched off for the batch. None too when the probe fails or
@@ -599,7 +676,7 @@ fn find_steady<N: Dim, M: Dim>(
     model: &mut BatchModel<'_, N>,
     (z, hc, rc): Selected<N, M>,
     x_predicted: &OVector<f64, N>,
-    rec: &crate::kalman::UpdateRecord<N, M>,
+    work: &UpdateWork<N, M>,
     present: &[usize],
     k: usize,
 ) -> Option<Steady<N, M>>
@@ -633,10 +710,10 @@ where
     let nis = residual.dot(&last.chol.solve(&residual));
     let mut x = x_predicted.clone();
     x += &last.gain * &residual;
-    let agrees = same_bits(&last.s, &rec.s)
-        && same_bits(&last.gain, &rec.gain)
-        && same_bits(&residual, &rec.residual)
-        && nis.to_bits() == rec.nis.to_bits()
+    let agrees = same_bits(&last.s, work.s())
+        && same_bits(&last.gain, work.gain())
+        && same_bits(&residual, work.residual())
+        && nis.to_bits() == work.nis().to_bits()
         && same_bits(&x, kf.state());
     if !agrees {
         model.steady_allowed = false;
@@ -709,15 +786,19 @@ where
         recent: Recent::new(),
         steady_allowed: true,
         steady_epochs: 0,
+        // Any values: both are written before they are read.
+        p_predicted: kf.covariance().clone(),
+        phi_p: kf.covariance().clone(),
     };
-    // The steady state of each update size (one set of components each).
-    let mut steady1 = None;
-    let mut steady2 = None;
-    let mut steady3 = None;
-    let mut steady4 = None;
-    let mut steady5 = None;
-    let mut steady6 = None;
-    let mut steady_dyn = None;
+    // What each update size keeps (its steady state: one set of
+    // components each).
+    let mut sized1 = SizeState::new();
+    let mut sized2 = SizeState::new();
+    let mut sized3 = SizeState::new();
+    let mut sized4 = SizeState::new();
+    let mut sized5 = SizeState::new();
+    let mut sized6 = SizeState::new();
+    let mut sized_dyn = SizeState::new();
     // The indices of the components present, reused by every epoch.
     let mut present: Vec<usize> = Vec::with_capacity(m);
     for (k, row) in z.chunks_exact(m).enumerate() {
@@ -729,7 +810,7 @@ where
         let residuals = &mut out.residuals[first..];
         let epoch = (k, row, present.as_slice(), predict);
         macro_rules! fixed {
-            ($c:literal, $steady:ident) => {
+            ($c:literal, $sized:ident) => {
                 match policy {
                     BatchPolicy::Accept => update_epoch::<N, Const<$c>, AsDyn<'_, P>>(
                         kf,
@@ -737,7 +818,7 @@ where
                         Const::<$c>,
                         epoch,
                         None,
-                        &mut $steady,
+                        &mut $sized,
                         residuals,
                     ),
                     BatchPolicy::Given(p) => update_epoch(
@@ -746,7 +827,7 @@ where
                         Const::<$c>,
                         epoch,
                         Some(&mut AsDyn(&mut **p)),
-                        &mut $steady,
+                        &mut $sized,
                         residuals,
                     ),
                 }
@@ -769,12 +850,12 @@ where
                         .then(|| Box::new((kf.state().clone(), kf.covariance().clone()))),
                 })
             }
-            1 => fixed!(1, steady1),
-            2 => fixed!(2, steady2),
-            3 => fixed!(3, steady3),
-            4 => fixed!(4, steady4),
-            5 => fixed!(5, steady5),
-            6 => fixed!(6, steady6),
+            1 => fixed!(1, sized1),
+            2 => fixed!(2, sized2),
+            3 => fixed!(3, sized3),
+            4 => fixed!(4, sized4),
+            5 => fixed!(5, sized5),
+            6 => fixed!(6, sized6),
             c => match policy {
                 BatchPolicy::Accept => update_epoch::<N, Dyn, P>(
                     kf,
@@ -782,7 +863,7 @@ where
                     Dyn(c),
                     epoch,
                     None,
-                    &mut steady_dyn,
+                    &mut sized_dyn,
                     residuals,
                 ),
                 BatchPolicy::Given(p) => update_epoch(
@@ -791,7 +872,7 @@ where
                     Dyn(c),
                     epoch,
                     Some(&mut **p),
-                    &mut steady_dyn,
+                    &mut sized_dyn,
                     residuals,
                 ),
             },
@@ -799,10 +880,11 @@ where
         .map_err(|e| e.at_epoch(k))?;
         out.nis.push(update.nis);
         out.outcomes.push(update.outcome);
-        out.states.extend(kf.state().iter());
+        out.states.extend_from_slice(kf.state().as_slice());
         if keep.covariance {
             // nalgebra is column-major; P is symmetric, so its columns are its rows.
-            out.covariances.extend(kf.covariance().iter());
+            out.covariances
+                .extend_from_slice(kf.covariance().as_slice());
         }
         if let Some(prediction) = update.predicted {
             let (x_predicted, p_predicted) = *prediction;
@@ -1361,6 +1443,16 @@ mod tests {
         bad_z[3 * 7 + 1] = f64::INFINITY;
         let e = run(&phi, &q, &h, &bad_z).unwrap_err();
         assert!(e.starts_with("epoch 7:"), "{e}");
+        // The filter the error leaves is the step-by-step one's at the
+        // same point, bit for bit: x⁻ and P⁻ of epoch 7 (the batch's
+        // update writes P⁺ from its P⁻ kept aside, and puts P⁻ back).
+        let mut failed = prior.clone();
+        filter_batch_plain(&mut failed, &phi, &q, &h, &r, &bad_z, true, keep).unwrap_err();
+        let mut one = prior.clone();
+        filter_batch_plain(&mut one, &phi, &q, &h, &r, &bad_z[..3 * 7], true, keep).unwrap();
+        one.predict(&phi, &q).unwrap();
+        assert!(same_bits(failed.state(), one.state()));
+        assert!(same_bits(failed.covariance(), one.covariance()));
         let mut bad_phi = phi.clone();
         bad_phi[(2, 3)] = f64::NAN;
         let e = run(&bad_phi, &q, &h, &z).unwrap_err();

@@ -61,6 +61,8 @@ pub(crate) fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -
 /// order. When r − row0 is a compile-time constant (fixed-size matrices) the
 /// compiler keeps the whole output column in registers while the inner index
 /// runs: one load of a's column and one broadcast per column element pair.
+/// With `init` (r × c, column-major) each output column starts from init's
+/// instead of out's own values (out then needs no copy of it beforehand).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn columns<I: Iterator<Item = usize> + Clone>(
@@ -70,12 +72,15 @@ fn columns<I: Iterator<Item = usize> + Clone>(
     alpha: f64,
     a: &[f64],
     b: &impl Fn(usize, usize) -> f64,
-    beta: f64,
+    (beta, init): (f64, Option<&[f64]>),
     out: &mut [f64],
 ) {
     let len = r - row0;
     for j in cols {
         let oc = &mut out[j * r + row0..][..len];
+        if let Some(init) = init {
+            oc.copy_from_slice(&init[j * r + row0..][..len]);
+        }
         if beta == 0.0 {
             oc.fill(0.0);
         } else if beta != 1.0 {
@@ -118,17 +123,34 @@ fn kernel<I: Iterator<Item = usize> + Clone>(
     out: &mut [f64],
     lower: bool,
 ) {
+    kernel_from((r, c), inner, alpha, a, b, (beta, None), out, lower);
+}
+
+/// [`kernel`] with each output column started from `init`'s (see
+/// [`columns`]) when it is given: `α a B + β init`, out's own values unread.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn kernel_from<I: Iterator<Item = usize> + Clone>(
+    (r, c): (usize, usize),
+    inner: I,
+    alpha: f64,
+    a: &[f64],
+    b: impl Fn(usize, usize) -> f64,
+    start: (f64, Option<&[f64]>),
+    out: &mut [f64],
+    lower: bool,
+) {
     if !lower {
-        columns(r, (0, 0..c), &inner, alpha, a, &b, beta, out);
+        columns(r, (0, 0..c), &inner, alpha, a, &b, start, out);
         return;
     }
     let (s1, s2, s3) = lower_block_starts(r);
     // Four calls, not a loop or a closure: each inlines with its own
     // constant row count (fixed sizes), which keeps the columns in registers.
-    columns(r, (0, 0..s1), &inner, alpha, a, &b, beta, out);
-    columns(r, (s1, s1..s2), &inner, alpha, a, &b, beta, out);
-    columns(r, (s2, s2..s3), &inner, alpha, a, &b, beta, out);
-    columns(r, (s3, s3..r), &inner, alpha, a, &b, beta, out);
+    columns(r, (0, 0..s1), &inner, alpha, a, &b, start, out);
+    columns(r, (s1, s1..s2), &inner, alpha, a, &b, start, out);
+    columns(r, (s2, s2..s3), &inner, alpha, a, &b, start, out);
+    columns(r, (s3, s3..r), &inner, alpha, a, &b, start, out);
 }
 
 /// First columns (and rows) of blocks 1–3 of the [`LOWER_BLOCKS`] column
@@ -360,7 +382,7 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
         }
         return;
     }
-    rank_2k_lower_kernel(n, m, v.as_slice(), k.as_slice(), out.as_mut_slice());
+    rank_2k_lower_kernel(n, m, (v.as_slice(), k.as_slice()), None, out.as_mut_slice());
 }
 
 /// [`add_rank_2k_lower`] on the column-major slices: `out` (n × n), `a` =
@@ -374,34 +396,45 @@ impl Widened for Rank2kLower {
     #[inline(always)]
     fn run(self, out: &mut [f64], _scratch: &mut [f64], a: &[f64], b: &[f64]) {
         let (n, m) = (self.n, self.m);
-        rank_2k_lower_kernel(n, m, &a[..n * m], &b[..n * m], &mut out[..n * n]);
+        rank_2k_lower_kernel(n, m, (&a[..n * m], &b[..n * m]), None, &mut out[..n * n]);
     }
 }
 
-/// The kernel of [`add_rank_2k_lower`] on column-major slices (v, k: n × m).
+/// The kernel of [`add_rank_2k_lower`] on column-major slices (v, k: n × m),
+/// adding onto `prior` (n × n) when given instead of onto out's own values.
 #[inline(always)]
-fn rank_2k_lower_kernel(n: usize, m: usize, vs: &[f64], ks: &[f64], os: &mut [f64]) {
+fn rank_2k_lower_kernel(
+    n: usize,
+    m: usize,
+    (vs, ks): (&[f64], &[f64]),
+    prior: Option<&[f64]>,
+    os: &mut [f64],
+) {
     let (s1, s2, s3) = lower_block_starts(n);
-    rank_2k_columns(n, m, (0, 0..s1), vs, ks, os);
-    rank_2k_columns(n, m, (s1, s1..s2), vs, ks, os);
-    rank_2k_columns(n, m, (s2, s2..s3), vs, ks, os);
-    rank_2k_columns(n, m, (s3, s3..n), vs, ks, os);
+    rank_2k_columns(n, m, (0, 0..s1), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s1, s1..s2), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s2, s2..s3), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s3, s3..n), (vs, ks), prior, os);
 }
 
 /// Columns `cols`, rows `row0..n`, of [`add_rank_2k_lower`] (the column of
-/// out stays in registers for fixed sizes, as in [`columns`]).
+/// out stays in registers for fixed sizes, as in [`columns`]; with `prior`
+/// it starts from prior's column, as in [`columns`]'s `init`).
 #[inline(always)]
 fn rank_2k_columns(
     n: usize,
     m: usize,
     (row0, cols): (usize, std::ops::Range<usize>),
-    vs: &[f64],
-    ks: &[f64],
+    (vs, ks): (&[f64], &[f64]),
+    prior: Option<&[f64]>,
     os: &mut [f64],
 ) {
     let len = n - row0;
     for j in cols {
         let oc = &mut os[j * n + row0..][..len];
+        if let Some(prior) = prior {
+            oc.copy_from_slice(&prior[j * n + row0..][..len]);
+        }
         // (No opaque column reference for AVX-512 builds any more: with the
         // matrices as the dispatching function's slice arguments the
         // compiler knows they do not overlap, and the opaque reference,
@@ -674,41 +707,82 @@ pub(crate) fn add_congruence<D: Dim>(
     DefaultAllocator: Allocator<D, D>,
 {
     let (nd, _) = p.shape_generic();
-    let n = nd.value();
     let mut phi_p = OMatrix::<f64, D, D>::zeros_generic(nd, nd);
+    congruence(out, None, phi, p, &mut phi_p);
+}
+
+/// `out = Φ p Φᵀ + q`, [`add_congruence`] on a copy of `q` bit for bit,
+/// out's values on entry unread, `phi_p` the scratch for Φ P (its values
+/// on entry unread too): each column of out starts from q's inside the
+/// kernel instead of out being a copy of q made beforehand (the batch's
+/// time update, a copy of P fewer).
+pub(crate) fn congruence_onto<D: Dim>(
+    out: &mut OMatrix<f64, D, D>,
+    q: &OMatrix<f64, D, D>,
+    phi: &OMatrix<f64, D, D>,
+    p: &OMatrix<f64, D, D>,
+    phi_p: &mut OMatrix<f64, D, D>,
+) where
+    DefaultAllocator: Allocator<D, D>,
+{
+    congruence(out, Some(q), phi, p, phi_p);
+}
+
+/// [`add_congruence`] (`base` None: onto out's values) or
+/// [`congruence_onto`] (onto `base`).
+fn congruence<D: Dim>(
+    out: &mut OMatrix<f64, D, D>,
+    base: Option<&OMatrix<f64, D, D>>,
+    phi: &OMatrix<f64, D, D>,
+    p: &OMatrix<f64, D, D>,
+    phi_p: &mut OMatrix<f64, D, D>,
+) where
+    DefaultAllocator: Allocator<D, D>,
+{
+    let (nd, _) = p.shape_generic();
+    let n = nd.value();
     if use_kernel::<D, D, D>(n, n, n) {
         run_widest(
-            Congruence { n: nd },
+            Congruence {
+                n: nd,
+                base: base.map(|q| q.as_slice()),
+            },
             out.as_mut_slice(),
             phi_p.as_mut_slice(),
             phi.as_slice(),
             p.as_slice(),
         );
     } else {
-        gemm(&mut phi_p, 1.0, phi, p, 0.0);
-        gemm_nt_lower(out, 1.0, &phi_p, phi, 1.0);
+        if let Some(q) = base {
+            out.copy_from(q);
+        }
+        gemm(phi_p, 1.0, phi, p, 0.0);
+        gemm_nt_lower(out, 1.0, phi_p, phi, 1.0);
         mirror_lower(out);
     }
 }
 
 /// [`add_congruence`] on the column-major slices: `out` (n × n), `scratch`
-/// for Φ P (n × n), `a` = Φ, `b` = P.
-struct Congruence<D: Dim> {
+/// for Φ P (n × n), `a` = Φ, `b` = P; with `base` (n × n, Q) the sum
+/// starts from base's elements instead of out's.
+struct Congruence<'q, D: Dim> {
     n: D,
+    base: Option<&'q [f64]>,
 }
 
-impl<D: Dim> Widened for Congruence<D> {
+impl<D: Dim> Widened for Congruence<'_, D> {
     #[inline(always)]
     fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
         let n = self.n.value();
         let nn = n * n;
         let (out, phi_p, phi, p) = (&mut out[..nn], &mut scratch[..nn], &a[..nn], &b[..nn]);
+        let base = self.base.map(|q| &q[..nn]);
         // Φ P, as gemm(Φ P): b(kk, j) = P(kk, j).
         let read_p = |kk: usize, j: usize| p[j * n + kk];
         kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
         // (Φ P) Φᵀ, lower, as gemm_nt_lower: b(kk, j) = Φ(j, kk).
         let read_phi = |kk: usize, j: usize| phi[kk * n + j];
-        kernel((n, n), 0..n, 1.0, phi_p, read_phi, 1.0, out, true);
+        kernel_from((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
         mirror_lower_slice(n, out);
     }
 }
@@ -722,6 +796,36 @@ pub(crate) fn joseph_rank_2k<N: Dim, M: Dim>(
     v: &mut OMatrix<f64, N, M>,
     gain: &OMatrix<f64, N, M>,
     s: &OMatrix<f64, M, M>,
+    coefficients: (f64, f64),
+) where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
+{
+    joseph(p, None, v, (gain, s), coefficients);
+}
+
+/// `out = prior + V Kᵀ + K Vᵀ`: [`joseph_rank_2k`] on a copy of `prior`
+/// bit for bit, out's values on entry unread (each column of out starts
+/// from prior's inside the kernel: the batch's update, a copy of P fewer).
+pub(crate) fn joseph_rank_2k_onto<N: Dim, M: Dim>(
+    out: &mut OMatrix<f64, N, N>,
+    prior: &OMatrix<f64, N, N>,
+    v: &mut OMatrix<f64, N, M>,
+    gain: &OMatrix<f64, N, M>,
+    s: &OMatrix<f64, M, M>,
+    coefficients: (f64, f64),
+) where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
+{
+    joseph(out, Some(prior), v, (gain, s), coefficients);
+}
+
+/// [`joseph_rank_2k`] (`prior` None: onto p's values) or
+/// [`joseph_rank_2k_onto`] (onto `prior`).
+fn joseph<N: Dim, M: Dim>(
+    p: &mut OMatrix<f64, N, N>,
+    prior: Option<&OMatrix<f64, N, N>>,
+    v: &mut OMatrix<f64, N, M>,
+    (gain, s): (&OMatrix<f64, N, M>, &OMatrix<f64, M, M>),
     (alpha, beta): (f64, f64),
 ) where
     DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
@@ -735,6 +839,7 @@ pub(crate) fn joseph_rank_2k<N: Dim, M: Dim>(
                 m: md,
                 alpha,
                 beta,
+                prior: prior.map(|q| q.as_slice()),
             },
             p.as_mut_slice(),
             v.as_mut_slice(),
@@ -742,6 +847,9 @@ pub(crate) fn joseph_rank_2k<N: Dim, M: Dim>(
             s.as_slice(),
         );
     } else {
+        if let Some(prior) = prior {
+            p.copy_from(prior);
+        }
         gemm(v, alpha, gain, s, beta);
         add_rank_2k_lower(p, v, gain);
         mirror_lower(p);
@@ -749,15 +857,17 @@ pub(crate) fn joseph_rank_2k<N: Dim, M: Dim>(
 }
 
 /// [`joseph_rank_2k`] on the column-major slices: `out` = P (n × n),
-/// `scratch` = W, then V (n × m), `a` = K (n × m), `b` = S (m × m).
-struct JosephRank2k<N: Dim, M: Dim> {
+/// `scratch` = W, then V (n × m), `a` = K (n × m), `b` = S (m × m); with
+/// `prior` (n × n) the sum starts from prior's elements instead of out's.
+struct JosephRank2k<'p, N: Dim, M: Dim> {
     n: N,
     m: M,
     alpha: f64,
     beta: f64,
+    prior: Option<&'p [f64]>,
 }
 
-impl<N: Dim, M: Dim> Widened for JosephRank2k<N, M> {
+impl<N: Dim, M: Dim> Widened for JosephRank2k<'_, N, M> {
     #[inline(always)]
     fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
         let (n, m) = (self.n.value(), self.m.value());
@@ -767,10 +877,11 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<N, M> {
             &a[..n * m],
             &b[..m * m],
         );
+        let prior = self.prior.map(|q| &q[..n * n]);
         // V = α K S + β W, as gemm: b(kk, j) = S(kk, j).
         let read_s = |kk: usize, j: usize| s[j * m + kk];
         kernel((n, m), 0..m, self.alpha, gain, read_s, self.beta, v, false);
-        rank_2k_lower_kernel(n, m, v, gain, p);
+        rank_2k_lower_kernel(n, m, (v, gain), prior, p);
         mirror_lower_slice(n, p);
     }
 }
@@ -1177,7 +1288,10 @@ mod tests {
                 add_congruence(&mut dispatched, &phi, &p);
                 let mut portable = q.clone();
                 let mut scratch = DMatrix::zeros(n, n);
-                let work = Congruence { n: Dyn(n) };
+                let work = Congruence {
+                    n: Dyn(n),
+                    base: None,
+                };
                 work.run(
                     portable.as_mut_slice(),
                     scratch.as_mut_slice(),
@@ -1186,6 +1300,11 @@ mod tests {
                 );
                 assert_eq!(dispatched, portable, "Φ P Φᵀ + Q, n = {n}");
                 assert_eq!(dispatched, dispatched.transpose(), "symmetric, n = {n}");
+                // Onto Q from outside, out and the scratch NaN on entry.
+                let mut onto = DMatrix::repeat(n, n, f64::NAN);
+                let mut phi_p = DMatrix::repeat(n, n, f64::NAN);
+                congruence_onto(&mut onto, &q, &phi, &p, &mut phi_p);
+                assert_eq!(onto, dispatched, "Φ P Φᵀ + Q onto Q, n = {n}");
                 let reference = &phi * &p * phi.transpose() + &q;
                 let scale = reference.abs().max();
                 assert!(
@@ -1204,6 +1323,7 @@ mod tests {
                     m: Dyn(m),
                     alpha: 0.5,
                     beta: -1.0,
+                    prior: None,
                 };
                 work.run(
                     p_portable.as_mut_slice(),
@@ -1214,6 +1334,10 @@ mod tests {
                 assert_eq!(v_dispatched, v_portable, "V, {n}×{m}");
                 assert_eq!(p_dispatched, p_portable, "Joseph P, {n}×{m}");
                 assert_eq!(p_dispatched, p_dispatched.transpose());
+                // Onto P from outside, out NaN on entry.
+                let (mut p_onto, mut v_onto) = (DMatrix::repeat(n, n, f64::NAN), w.clone());
+                joseph_rank_2k_onto(&mut p_onto, &p, &mut v_onto, &gain, &s, (0.5, -1.0));
+                assert_eq!(p_onto, p_dispatched, "Joseph P onto P⁻, {n}×{m}");
                 // Innovation: P Hᵀ, H P Hᵀ and the gain solve.
                 let h = measurement_test_matrix(m, n);
                 let mut cross = DMatrix::zeros(n, m);
@@ -1276,7 +1400,11 @@ mod tests {
             add_congruence(&mut dispatched, &fixed(&phi), &fixed(&p));
             let mut portable = q.clone();
             let mut scratch = DMatrix::zeros(N, N);
-            Congruence { n: Dyn(N) }.run(
+            Congruence {
+                n: Dyn(N),
+                base: None,
+            }
+            .run(
                 portable.as_mut_slice(),
                 scratch.as_mut_slice(),
                 phi.as_slice(),

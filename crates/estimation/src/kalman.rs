@@ -304,13 +304,16 @@ where
         check::finite(h, step, Matrix::H)?;
         check::finite(r, step, Matrix::R)?;
         check::symmetric(r, step, Matrix::R)?;
-        self.innovate_prechecked(z, h, r)
+        self.innovate_prechecked(&self.p, z, h, r)
     }
 
     /// [`innovate`](Self::innovate) for an H and R the caller checked
-    /// (shapes, finite, R symmetric) and a finite z: the arithmetic alone.
+    /// (shapes, finite, R symmetric) and a finite z: the arithmetic alone,
+    /// on the covariance `p` (the filter's own, or the batch's P⁻ kept
+    /// aside by [`predict_prechecked_aside`](Self::predict_prechecked_aside)).
     fn innovate_prechecked<M: Dim>(
         &self,
+        p: &OMatrix<f64, N, N>,
         z: &OVector<f64, M>,
         h: &OMatrix<f64, M, N>,
         r: &OMatrix<f64, M, M>,
@@ -318,40 +321,52 @@ where
     where
         DefaultAllocator: FilterAllocator<N, M>,
     {
+        let (md, nd) = h.shape_generic();
+        let mut innov = Innovated::zeros(nd, md);
+        self.innovate_into(p, z, h, r, &mut innov)?;
+        Ok(innov)
+    }
+
+    /// [`innovate_prechecked`](Self::innovate_prechecked) into `innov`
+    /// (its values on entry unread): the batch's update reuses one for
+    /// every epoch instead of moving a new one through the calls.
+    fn innovate_into<M: Dim>(
+        &self,
+        p: &OMatrix<f64, N, N>,
+        z: &OVector<f64, M>,
+        h: &OMatrix<f64, M, N>,
+        r: &OMatrix<f64, M, M>,
+        innov: &mut Innovated<N, M>,
+    ) -> Result<()>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
         let step = Step::Update;
         let (m, n) = (z.len(), self.dim());
-        let residual = z - h * &self.x;
+        innov.residual = z - h * &self.x;
         let (md, nd) = h.shape_generic();
-        let mut cross = OMatrix::<f64, N, M>::zeros_generic(nd, md);
-        let mut hph = OMatrix::<f64, M, M>::zeros_generic(md, md);
         if dense::use_kernel::<M, N, N>(m, n, n) {
             // Only H's nonzero elements enter P Hᵀ and H P Hᵀ (a navigation
             // filter's H selects a few states); the rest are exact zeros.
-            dense::symmetric_times_h_transpose(&mut cross, &self.p, h);
-            dense::h_times_cross(&mut hph, h, &cross);
+            dense::symmetric_times_h_transpose(&mut innov.cross, p, h);
+            dense::h_times_cross(&mut innov.hph, h, &innov.cross);
         } else {
             let mut listed = [0; dense::MAX_LISTED];
             let columns = dense::nonzero_columns(h, &mut listed);
             let mut hp = OMatrix::<f64, M, N>::zeros_generic(md, nd);
-            dense::h_times_symmetric(&mut hp, h, &self.p, columns);
-            dense::times_h_transpose(&mut hph, &hp, h, columns);
-            cross = hp.transpose();
+            dense::h_times_symmetric(&mut hp, h, p, columns);
+            dense::times_h_transpose(&mut innov.hph, &hp, h, columns);
+            innov.cross = hp.transpose();
         }
-        check::symmetrize(&mut hph);
-        let s = &hph + r;
-        let chol = Cholesky::new(s.clone()).ok_or(EstimationError::NotPositiveDefinite {
-            step,
-            matrix: Matrix::S,
-        })?;
-        let nis = residual.dot(&chol.solve(&residual));
-        Ok(Innovated {
-            residual,
-            cross,
-            hph,
-            s,
-            chol,
-            nis,
-        })
+        check::symmetrize(&mut innov.hph);
+        innov.s = &innov.hph + r;
+        innov.chol =
+            Cholesky::new(innov.s.clone()).ok_or(EstimationError::NotPositiveDefinite {
+                step,
+                matrix: Matrix::S,
+            })?;
+        innov.nis = innov.residual.dot(&innov.chol.solve(&innov.residual));
+        Ok(())
     }
 
     /// Measurement update accepting every measurement (the plain Kalman filter).
@@ -381,7 +396,7 @@ where
     {
         let innov = self.innovate(z, h, r)?;
         let decision = policy.decide(&innov.view(r));
-        self.apply_decision(innov, decision, r)
+        self.decided_record(innov, decision, r)
     }
 
     /// [`update_with`](Self::update_with) with the policy's decision already
@@ -399,11 +414,12 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         let innov = self.innovate(z, h, r)?;
-        self.apply_decision(innov, decision, r)
+        self.decided_record(innov, decision, r)
     }
 
-    /// The update a decision asks for, on the innovation it was taken on.
-    fn apply_decision<M: Dim>(
+    /// The update a decision asks for, on the innovation it was taken on,
+    /// and its record.
+    fn decided_record<M: Dim>(
         &mut self,
         innov: Innovated<N, M>,
         decision: Decision<M>,
@@ -412,22 +428,51 @@ where
     where
         DefaultAllocator: FilterAllocator<N, M>,
     {
+        let (nd, md) = innov.cross.shape_generic();
+        let mut gain = OMatrix::zeros_generic(nd, md);
+        let outcome = self.apply_decision(None, &innov, decision, r, &mut gain)?;
+        Ok(UpdateRecord {
+            residual: innov.residual,
+            s: innov.s,
+            gain,
+            nis: innov.nis,
+            outcome,
+        })
+    }
+
+    /// The update a decision asks for, on the innovation it was taken on;
+    /// P⁺ from `prior` (P⁻) when given, else from the filter's own P (see
+    /// [`apply`](Self::apply)). The gain applied (zero when rejected) is
+    /// written into `gain`.
+    fn apply_decision<M: Dim>(
+        &mut self,
+        prior: Option<&OMatrix<f64, N, N>>,
+        innov: &Innovated<N, M>,
+        decision: Decision<M>,
+        r: &OMatrix<f64, M, M>,
+        gain: &mut OMatrix<f64, N, M>,
+    ) -> Result<Outcome>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
         let step = Step::Update;
         let m = innov.residual.len();
-        let (nrows, ncols) = innov.cross.shape_generic();
-        let (outcome, gain) = match decision {
-            Decision::Reject => (Outcome::Rejected, OMatrix::zeros_generic(nrows, ncols)),
+        let outcome = match decision {
+            Decision::Reject => {
+                gain.fill(0.0);
+                Outcome::Rejected
+            }
             Decision::Accept => {
-                let gain = Self::gain(&innov.chol, &innov.cross);
-                self.apply(&gain, &innov.residual, &innov.cross, &innov.s, step)?;
-                (Outcome::Accepted, gain)
+                Self::gain_into(&innov.chol, &innov.cross, gain);
+                self.apply(prior, gain, &innov.residual, &innov.cross, &innov.s, step)?;
+                Outcome::Accepted
             }
             Decision::ReplaceResidual(limited) => {
                 check::shape(&limited, (m, 1), step, Matrix::Innovation)?;
                 check::finite(&limited, step, Matrix::Innovation)?;
-                let gain = Self::gain(&innov.chol, &innov.cross);
-                self.apply(&gain, &limited, &innov.cross, &innov.s, step)?;
-                (Outcome::Limited, gain)
+                Self::gain_into(&innov.chol, &innov.cross, gain);
+                self.apply(prior, gain, &limited, &innov.cross, &innov.s, step)?;
+                Outcome::Limited
             }
             Decision::InflateR(factor) => {
                 if !(factor.is_finite() && factor > 0.0) {
@@ -442,14 +487,14 @@ where
                         step,
                         matrix: Matrix::S,
                     })?;
-                let gain = Self::gain(&chol, &innov.cross);
-                self.apply(&gain, &innov.residual, &innov.cross, &s_used, step)?;
-                (Outcome::Reweighted, gain)
+                Self::gain_into(&chol, &innov.cross, gain);
+                self.apply(prior, gain, &innov.residual, &innov.cross, &s_used, step)?;
+                Outcome::Reweighted
             }
             Decision::GainCovariance(c) => {
-                let gain = Self::gain_from(c, &innov.cross, m, step)?;
-                self.apply(&gain, &innov.residual, &innov.cross, &innov.s, step)?;
-                (Outcome::AdaptiveGain, gain)
+                Self::gain_from(c, &innov.cross, m, step, gain)?;
+                self.apply(prior, gain, &innov.residual, &innov.cross, &innov.s, step)?;
+                Outcome::AdaptiveGain
             }
             Decision::LimitWithGainCovariance {
                 residual,
@@ -457,43 +502,41 @@ where
             } => {
                 check::shape(&residual, (m, 1), step, Matrix::Innovation)?;
                 check::finite(&residual, step, Matrix::Innovation)?;
-                let gain = Self::gain_from(covariance, &innov.cross, m, step)?;
-                self.apply(&gain, &residual, &innov.cross, &innov.s, step)?;
-                (Outcome::Limited, gain)
+                Self::gain_from(covariance, &innov.cross, m, step, gain)?;
+                self.apply(prior, gain, &residual, &innov.cross, &innov.s, step)?;
+                Outcome::Limited
             }
         };
-        Ok(UpdateRecord {
-            residual: innov.residual,
-            s: innov.s,
-            gain,
-            nis: innov.nis,
-            outcome,
-        })
+        Ok(outcome)
     }
 
-    /// K = P Hᵀ C⁻¹ from a Cholesky factor of C, solving C Kᵀ = H P (C, P
-    /// symmetric), given `cross` = P Hᵀ.
-    fn gain<M: Dim>(chol: &Cholesky<f64, M>, cross: &OMatrix<f64, N, M>) -> OMatrix<f64, N, M>
-    where
+    /// K = P Hᵀ C⁻¹ into `gain` from a Cholesky factor of C, solving
+    /// C Kᵀ = H P (C, P symmetric), given `cross` = P Hᵀ.
+    fn gain_into<M: Dim>(
+        chol: &Cholesky<f64, M>,
+        cross: &OMatrix<f64, N, M>,
+        gain: &mut OMatrix<f64, N, M>,
+    ) where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         let (n, m) = cross.shape();
         if m <= dense::MAX_GAIN_SOLVE && dense::use_kernel::<N, M, M>(n, m, m) {
-            let mut gain = cross.clone();
-            dense::solve_gain_in_place(&mut gain, chol.l_dirty());
-            gain
+            gain.copy_from(cross);
+            dense::solve_gain_in_place(gain, chol.l_dirty());
         } else {
-            chol.solve(&cross.transpose()).transpose()
+            *gain = chol.solve(&cross.transpose()).transpose();
         }
     }
 
-    /// K = P⁻ Hᵀ C⁻¹ for a policy-supplied C (checked: shape, finite, positive definite).
+    /// K = P⁻ Hᵀ C⁻¹ into `gain` for a policy-supplied C (checked: shape,
+    /// finite, positive definite).
     fn gain_from<M: Dim>(
         c: OMatrix<f64, M, M>,
         cross: &OMatrix<f64, N, M>,
         m: usize,
         step: Step,
-    ) -> Result<OMatrix<f64, N, M>>
+        gain: &mut OMatrix<f64, N, M>,
+    ) -> Result<()>
     where
         DefaultAllocator: FilterAllocator<N, M>,
     {
@@ -503,7 +546,8 @@ where
             step,
             matrix: Matrix::S,
         })?;
-        Ok(Self::gain(&chol, cross))
+        Self::gain_into(&chol, cross, gain);
+        Ok(())
     }
 
     /// x += K ν; P by the configured form; symmetrise and check.
@@ -519,8 +563,16 @@ where
     /// triangle of V Kᵀ + K Vᵀ, n²m multiply-adds instead of the 3n²m of
     /// `A = P − K U`, `A + (K R − A Hᵀ) Kᵀ`, with P exactly symmetric by
     /// construction. The sequential update expands it the same way.
+    ///
+    /// With `prior` (P⁻ kept aside by the batch) P⁺ is written straight
+    /// into the filter's covariance from it, no copy of P made; on an error
+    /// the caller puts P⁻ back (see
+    /// [`update_prechecked_from`](Self::update_prechecked_from)). Without,
+    /// P⁺ is computed on a copy of the filter's P and the filter's P is
+    /// left as it was on an error.
     fn apply<M: Dim>(
         &mut self,
+        prior: Option<&OMatrix<f64, N, N>>,
         gain: &OMatrix<f64, N, M>,
         residual: &OVector<f64, M>,
         cross: &OMatrix<f64, N, M>,
@@ -532,23 +584,52 @@ where
     {
         check::finite(gain, step, Matrix::K)?;
         self.x += gain * residual;
-        let mut p = self.p.clone();
-        match self.covariance_update {
-            CovarianceUpdate::Joseph => {
-                // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
-                let mut v = cross.clone();
-                dense::joseph_rank_2k(&mut p, &mut v, gain, s_used, (0.5, -1.0));
-            }
-            CovarianceUpdate::Standard => {
-                // (I − K H) P = P − K (H P)
-                dense::gemm(&mut p, -1.0, gain, &cross.transpose(), 1.0);
-                check::symmetrize(&mut p);
-            }
+        let form = self.covariance_update;
+        if let Some(prior) = prior {
+            Self::update_covariance(form, &mut self.p, Some(prior), gain, cross, s_used);
+            check::finite(&self.x, step, Matrix::X)?;
+            return check::finite(&self.p, step, Matrix::P);
         }
+        let mut p = self.p.clone();
+        Self::update_covariance(form, &mut p, None, gain, cross, s_used);
         check::finite(&self.x, step, Matrix::X)?;
         check::finite(&p, step, Matrix::P)?;
         self.p = p;
         Ok(())
+    }
+
+    /// P⁺ by `form` into `p`, from `prior` when given, else from p's own
+    /// values (see [`apply`](Self::apply)).
+    fn update_covariance<M: Dim>(
+        form: CovarianceUpdate,
+        p: &mut OMatrix<f64, N, N>,
+        prior: Option<&OMatrix<f64, N, N>>,
+        gain: &OMatrix<f64, N, M>,
+        cross: &OMatrix<f64, N, M>,
+        s_used: &OMatrix<f64, M, M>,
+    ) where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        match form {
+            CovarianceUpdate::Joseph => {
+                // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
+                let mut v = cross.clone();
+                match prior {
+                    Some(prior) => {
+                        dense::joseph_rank_2k_onto(p, prior, &mut v, gain, s_used, (0.5, -1.0))
+                    }
+                    None => dense::joseph_rank_2k(p, &mut v, gain, s_used, (0.5, -1.0)),
+                }
+            }
+            CovarianceUpdate::Standard => {
+                if let Some(prior) = prior {
+                    p.copy_from(prior);
+                }
+                // (I − K H) P = P − K (H P)
+                dense::gemm(p, -1.0, gain, &cross.transpose(), 1.0);
+                check::symmetrize(p);
+            }
+        }
     }
 
     /// Sequential (scalar-by-scalar) update for a diagonal R: each component is
@@ -676,6 +757,19 @@ impl<N: Dim, M: Dim> Innovated<N, M>
 where
     DefaultAllocator: FilterAllocator<N, M>,
 {
+    /// Zeros (and the identity's factor) for n states, m measurements: a
+    /// place for [`KalmanFilter::innovate_into`] to write.
+    fn zeros(nd: N, md: M) -> Self {
+        Self {
+            residual: OVector::zeros_generic(md, nalgebra::U1),
+            cross: OMatrix::zeros_generic(nd, md),
+            hph: OMatrix::zeros_generic(md, md),
+            s: OMatrix::zeros_generic(md, md),
+            chol: Cholesky::new_unchecked(OMatrix::identity_generic(md, md)),
+            nis: 0.0,
+        }
+    }
+
     /// What a policy sees of this innovation, with the R it was formed with.
     fn view<'a>(&'a self, r: &'a OMatrix<f64, M, M>) -> InnovationView<'a, M> {
         InnovationView {
@@ -741,11 +835,143 @@ where
     {
         let step = Step::Update;
         check::finite(z, step, Matrix::Z)?;
-        let innov = self.innovate_prechecked(z, h, r)?;
+        let innov = self.innovate_prechecked(&self.p, z, h, r)?;
         let decision = match policy {
             None => Decision::Accept,
             Some(p) => p.decide(&innov.view(r)),
         };
-        self.apply_decision(innov, decision, r)
+        self.decided_record(innov, decision, r)
+    }
+
+    /// [`predict_prechecked`](Self::predict_prechecked) with P⁻ written
+    /// into `predicted` (`phi_p` scratch for Φ P; the values of both on
+    /// entry unread) and the filter's covariance left as it was: the
+    /// batch's full step, followed by
+    /// [`update_prechecked_from`](Self::update_prechecked_from), which
+    /// writes P⁺ from `predicted` into the filter, so that neither step
+    /// copies P. The same arithmetic and checks, bit for bit; on an error
+    /// the filter is as `predict_prechecked` leaves it (x⁻, P unchanged).
+    pub(crate) fn predict_prechecked_aside(
+        &mut self,
+        phi: &OMatrix<f64, N, N>,
+        q_symmetric: &OMatrix<f64, N, N>,
+        predicted: &mut OMatrix<f64, N, N>,
+        phi_p: &mut OMatrix<f64, N, N>,
+    ) -> Result<()> {
+        self.predict_state_prechecked(phi)?;
+        dense::congruence_onto(predicted, q_symmetric, phi, &self.p, phi_p);
+        check::finite(predicted, Step::Predict, Matrix::P)
+    }
+
+    /// [`update_prechecked`](Self::update_prechecked) after
+    /// [`predict_prechecked_aside`](Self::predict_prechecked_aside): the
+    /// update from P⁻ = `predicted` (the filter's own covariance on entry
+    /// is not read), the same arithmetic and checks, bit for bit, its
+    /// innovation and gain left in `work` (what the record would hold)
+    /// instead of a record. The filter ends as `predict_prechecked` then
+    /// `update_prechecked` leave it: P⁺ when the update is applied, else
+    /// (rejected, or an error) P⁻.
+    pub(crate) fn update_prechecked_from<M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
+        &mut self,
+        predicted: &OMatrix<f64, N, N>,
+        (z, h, r): Measured<'_, N, M>,
+        policy: Option<&mut Pol>,
+        work: &mut UpdateWork<N, M>,
+    ) -> Result<Outcome>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let applied = self.update_onto(predicted, (z, h, r), policy, work);
+        // P⁺ was written only by an update applied without error.
+        if !matches!(applied, Ok(outcome) if outcome != Outcome::Rejected) {
+            self.p.copy_from(predicted);
+        }
+        applied
+    }
+
+    /// The body of [`update_prechecked_from`](Self::update_prechecked_from).
+    fn update_onto<M: Dim, Pol: MeasurementPolicy<M> + ?Sized>(
+        &mut self,
+        predicted: &OMatrix<f64, N, N>,
+        (z, h, r): Measured<'_, N, M>,
+        policy: Option<&mut Pol>,
+        work: &mut UpdateWork<N, M>,
+    ) -> Result<Outcome>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        check::finite(z, Step::Update, Matrix::Z)?;
+        self.innovate_into(predicted, z, h, r, &mut work.innov)?;
+        let decision = match policy {
+            None => Decision::Accept,
+            Some(p) => p.decide(&work.innov.view(r)),
+        };
+        self.apply_decision(Some(predicted), &work.innov, decision, r, &mut work.gain)
+    }
+}
+
+/// A measurement and its model: z, H and R.
+pub(crate) type Measured<'a, N, M> = (
+    &'a OVector<f64, M>,
+    &'a OMatrix<f64, M, N>,
+    &'a OMatrix<f64, M, M>,
+);
+
+/// What the batch's update of one measurement size reuses from epoch to
+/// epoch: the innovation and the gain, written in place (an update record
+/// moved through the calls was several copies of them per epoch).
+pub(crate) struct UpdateWork<N: Dim, M: Dim>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    innov: Innovated<N, M>,
+    gain: OMatrix<f64, N, M>,
+}
+
+impl<N: Dim, M: Dim> UpdateWork<N, M>
+where
+    DefaultAllocator: FilterAllocator<N, M>,
+{
+    /// Zeros for n states and m measurements.
+    pub(crate) fn zeros(nd: N, md: M) -> Self {
+        Self {
+            innov: Innovated::zeros(nd, md),
+            gain: OMatrix::zeros_generic(nd, md),
+        }
+    }
+
+    /// Its number of measurement components.
+    pub(crate) fn measurements(&self) -> usize {
+        self.innov.residual.len()
+    }
+
+    /// A record's innovation and gain put into this work, its outcome
+    /// returned (the batch's updates that return a record).
+    pub(crate) fn take(&mut self, rec: UpdateRecord<N, M>) -> Outcome {
+        self.innov.residual = rec.residual;
+        self.innov.s = rec.s;
+        self.innov.nis = rec.nis;
+        self.gain = rec.gain;
+        rec.outcome
+    }
+
+    /// ν = z − H x⁻.
+    pub(crate) fn residual(&self) -> &OVector<f64, M> {
+        &self.innov.residual
+    }
+
+    /// S = H P⁻ Hᵀ + R.
+    pub(crate) fn s(&self) -> &OMatrix<f64, M, M> {
+        &self.innov.s
+    }
+
+    /// The gain applied (zero when rejected).
+    pub(crate) fn gain(&self) -> &OMatrix<f64, N, M> {
+        &self.gain
+    }
+
+    /// The NIS.
+    pub(crate) fn nis(&self) -> f64 {
+        self.innov.nis
     }
 }
