@@ -121,24 +121,18 @@ pub(crate) fn symmetric<D: Dim, S: RawStorage<f64, D, D>>(
 /// Whether every element of the square n × n matrix stored column-major in
 /// `m` has its mirror's bits or equals it (`==`: ±0): exactly symmetric,
 /// a NaN counted equal to a NaN of the same bits (the callers check
-/// finiteness on every path). The bits first, as one branch-free OR of
-/// XORs (three instructions a pair, against about seven for the `==`
+/// finiteness on every path). The bits first ([`crate::dense::symmetric_bits`],
+/// three instructions a pair, against about seven for the `==`
 /// comparison, which only a matrix with a +0/−0 pair or an asymmetry
 /// reaches). Inlined, so that a compile-time n unrolls the loops and drops
 /// the bounds checks (an iterator that skips to the diagonal cost 14
 /// instructions a pair).
 #[inline(always)]
 fn exactly_symmetric(m: &[f64], n: usize) -> bool {
-    let m = &m[..n * n];
-    let mut differ = 0_u64;
-    for j in 0..n {
-        for i in j + 1..n {
-            differ |= m[j * n + i].to_bits() ^ m[i * n + j].to_bits();
-        }
-    }
-    if differ == 0 {
+    if crate::dense::symmetric_bits(m, n) {
         return true;
     }
+    let m = &m[..n * n];
     let mut exact = true;
     for j in 0..n {
         for i in j + 1..n {

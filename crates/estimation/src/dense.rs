@@ -958,6 +958,30 @@ pub(crate) fn mirror_lower_slice(n: usize, s: &mut [f64]) {
     }
 }
 
+/// Whether every element of the square n × n matrix stored column-major in
+/// `m` has the bits of its mirror (symmetric bit for bit: a +0/−0 pair
+/// differs, a NaN equals a NaN of the same bits): when it does, the lower
+/// triangle ([`push_lower_triangle`]) carries the whole matrix. One
+/// branch-free OR of XORs, three instructions a pair; inlined, so that a
+/// compile-time n unrolls the loops and drops the bounds checks.
+///
+/// ```
+/// use aidnav_estimation::symmetric_bits;
+/// assert!(symmetric_bits(&[4.0, 1.0, 1.0, 9.0], 2));
+/// assert!(!symmetric_bits(&[4.0, 0.0, -0.0, 9.0], 2));
+/// ```
+#[inline(always)]
+pub fn symmetric_bits(m: &[f64], n: usize) -> bool {
+    let m = &m[..n * n];
+    let mut differ = 0_u64;
+    for j in 0..n {
+        for i in j + 1..n {
+            differ |= m[j * n + i].to_bits() ^ m[i * n + j].to_bits();
+        }
+    }
+    differ == 0
+}
+
 /// Append the lower triangle of the N × N `m`, column by column (column j
 /// from its diagonal down): N (N + 1) / 2 values, which
 /// [`read_lower_triangle`] turns back into the symmetric matrix.

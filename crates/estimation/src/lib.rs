@@ -80,7 +80,7 @@ pub use batch::{
 };
 pub use cancel::{Cancel, Cancelled};
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
-pub use dense::{Widened, push_lower_triangle, read_lower_triangle, run_widest};
+pub use dense::{Widened, push_lower_triangle, read_lower_triangle, run_widest, symmetric_bits};
 pub use error::{EstimationError, Matrix, Result, Step};
 pub use information::{FisherInformation, InformationFilter};
 pub use kalman::{

@@ -46,6 +46,7 @@ use std::thread::JoinHandle;
 
 use aidnav_estimation::{
     EstimationError, RtsRecorder, TrailingDiagonal, push_lower_triangle, read_lower_triangle,
+    symmetric_bits,
 };
 use nalgebra::{SMatrix, SVector};
 
@@ -445,15 +446,7 @@ fn read_phi<const N: usize>(data: &[f64], phi: &mut SMatrix<f64, N, N>, rows: us
 /// exactly symmetric (bit for bit), else whole; returns whether packed.
 fn write_covariance<const N: usize>(data: &mut Vec<f64>, p: &SMatrix<f64, N, N>) -> bool {
     let s = p.as_slice();
-    // Branch-free: the XOR of each pair's bits, OR-ed (column j below the
-    // diagonal against row j, indexed so that no bound is checked).
-    let mut differ = 0_u64;
-    for j in 0..N {
-        for i in (j + 1)..N {
-            differ |= p[(i, j)].to_bits() ^ p[(j, i)].to_bits();
-        }
-    }
-    if differ != 0 {
+    if !symmetric_bits(s, N) {
         data.extend_from_slice(s);
         return false;
     }
