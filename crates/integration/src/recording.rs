@@ -637,11 +637,6 @@ impl<const N: usize> Worker<N> {
         write(pending);
     }
 
-    /// [`send_batch`] of this worker's channels.
-    fn send_batch(&self, pending: &mut Pending<N>, flush: Option<SyncSender<()>>) {
-        send_batch(&self.calls, &self.returns, pending, flush);
-    }
-
     /// Wait until the worker has done every call queued so far (the open
     /// epoch ends the record so far: its P⁻ is read, so it must have been
     /// handed over).
@@ -650,10 +645,10 @@ impl<const N: usize> Worker<N> {
         {
             let mut pending = self.batch.lock().unwrap_or_else(PoisonError::into_inner);
             assert!(pending.open_prediction.is_none(), "{UNSUPPLIED}");
-            self.send_batch(&mut pending, Some(done));
+            send_batch(&self.calls, &self.returns, &mut pending, Some(done));
         }
         if wait.recv().is_err() {
-            self.worker_died();
+            worker_died();
         }
     }
 
@@ -668,7 +663,7 @@ impl<const N: usize> Worker<N> {
                 .open_prediction
                 .take()
                 .map(|start| pending.data.split_off(start));
-            self.send_batch(&mut pending, Some(done));
+            send_batch(&self.calls, &self.returns, &mut pending, Some(done));
             open.map(|call| {
                 let (_, _, zero, rows) = untag(call[0]);
                 let mut phi = SMatrix::zeros();
@@ -681,17 +676,12 @@ impl<const N: usize> Worker<N> {
             })
         };
         if wait.recv().is_err() {
-            self.worker_died();
+            worker_died();
         }
         Inline {
             recorder: lock(&self.recorder).clone(),
             waiting,
         }
-    }
-
-    /// See [`worker_died`].
-    fn worker_died(&self) -> ! {
-        worker_died()
     }
 }
 
