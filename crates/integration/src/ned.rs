@@ -643,6 +643,17 @@ impl NedFilter {
             .map(|v| v.into_iter().map(|(s, _)| s).collect()))
     }
 
+    /// Wait until the smoother's worker thread has recorded the whole
+    /// forward pass so far (nothing to wait for without a recording or
+    /// when it is recorded inline). Optional: the backward pass waits
+    /// for it too; called before other threads start work (the outputs'
+    /// writers), the worker finishes on a core of its own.
+    pub fn catch_up_recording(&self) {
+        if let Some(r) = self.record.as_ref() {
+            r.rts.catch_up(self.kf.covariance());
+        }
+    }
+
     /// [`smoothed_states`](Self::smoothed_states), each with the smoothed
     /// covariance of its antenna position error (NED, m²; `H P Hᵀ` as in
     /// [`antenna_position_covariance`](Self::antenna_position_covariance),

@@ -382,6 +382,16 @@ impl<const N: usize> Recording<N> {
         }
     }
 
+    /// Return once the worker has done every call so far (none waits on an
+    /// inline recording); `p` as for [`smooth_with`](Self::smooth_with).
+    /// The backward pass then starts at once.
+    pub(crate) fn catch_up(&self, p: &SMatrix<f64, N, N>) {
+        if let Self::Background(w) = self {
+            w.supply(p);
+            w.flush();
+        }
+    }
+
     /// [`RtsRecorder::smooth_with`], once the worker has done every call;
     /// `p` is the caller's P, P⁻ of an open prediction (the backward pass
     /// starts from it).

@@ -432,6 +432,12 @@ pub(crate) struct PendingSmoothing {
 pub(crate) struct SmoothedPositions(Vec<(Geodetic, Geodetic, Matrix3<f64>)>);
 
 impl PendingSmoothing {
+    /// Wait until the filter's recording has caught up with the forward
+    /// pass ([`NedFilter::catch_up_recording`]).
+    pub(crate) fn catch_up(&self) {
+        self.filter.catch_up_recording();
+    }
+
     /// The backward pass; the recording is freed before it returns.
     pub(crate) fn finish(self) -> Result<SmoothedPositions, ProcessError> {
         let filter = self.filter;
