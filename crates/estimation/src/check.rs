@@ -36,11 +36,18 @@ const FINITE_LANES: usize = 8;
 /// True when every value is finite: Σ v·0 is (±)0 when every v is finite and
 /// NaN as soon as one is ±∞ or NaN (∞·0 = NaN, and a NaN survives every
 /// later addition). A multiply and an add per element, over
-/// [`FINITE_LANES`] partial sums the compiler keeps in vector registers (no
+/// eight partial sums the compiler keeps in vector registers (no
 /// reassociation needed, so it vectorises without fast-math), and no branch
 /// until the end.
+///
+/// ```
+/// use aidnav_estimation::all_finite;
+/// assert!(all_finite(&[1.0, -2.5e300, 0.0]));
+/// assert!(!all_finite(&[1.0, f64::INFINITY]));
+/// assert!(!all_finite(&[f64::NAN; 9]));
+/// ```
 #[inline]
-pub(crate) fn all_finite(values: &[f64]) -> bool {
+pub fn all_finite(values: &[f64]) -> bool {
     let mut partial = [0.0_f64; FINITE_LANES];
     let chunks = values.chunks_exact(FINITE_LANES);
     let rest = chunks.remainder();

@@ -79,6 +79,7 @@ pub use batch::{
     filter_batch, filter_batch_plain,
 };
 pub use cancel::{Cancel, Cancelled};
+pub use check::all_finite;
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
 pub use dense::{Widened, push_lower_triangle, read_lower_triangle, run_widest, symmetric_bits};
 pub use error::{EstimationError, Matrix, Result, Step};

@@ -71,6 +71,70 @@ fn corrected(state: &NedState, x: &Vector21) -> NedState {
 /// Record of one GNSS update.
 pub type GnssUpdate = UpdateRecord<Const<STATES>, U3>;
 
+/// The columns of [`NedErrorModel::position_measurement`]'s H that are not
+/// +0.0 by construction (the IMU position and the attitude error), in
+/// increasing order.
+const ANTENNA_COLUMNS: [usize; 6] = [
+    POSITION,
+    POSITION + 1,
+    POSITION + 2,
+    ATTITUDE,
+    ATTITUDE + 1,
+    ATTITUDE + 2,
+];
+
+/// The antenna position's covariance `H P Hᵀ`, symmetrised, for the H of
+/// [`NedErrorModel::position_measurement`] at `lever_nav` = Ĉ l: nalgebra's
+/// `h * p * h.transpose()` and `(s + sᵀ) / 2` to the bit, with each sum run
+/// over H's six columns that are not +0.0 by construction instead of all 21
+/// (a fifth of the arithmetic, at every GNSS epoch of the forward pass and
+/// of the smoothed one).
+///
+/// nalgebra sums each element of a product from its first term on, in
+/// order. The terms left out are `p · (+0.0)`, ±0 for a finite P, and adding
+/// ±0 changes no sum but one that is itself ±0 (its sign), while a zero
+/// partial sum becomes the next nonzero term whatever its sign: the sums
+/// differ at most in the sign of a zero result. So an element of either
+/// product that ends at ±0, or a P that is not finite (∞ · 0 is NaN), takes
+/// nalgebra's formula.
+fn antenna_covariance(lever_nav: &Vector3<f64>, p: &Matrix21) -> Matrix3<f64> {
+    let h = NedErrorModel::position_measurement(lever_nav);
+    let by_nalgebra = || {
+        let s = h * p * h.transpose();
+        (s + s.transpose()) * 0.5
+    };
+    if !aidnav_estimation::all_finite(p.as_slice()) {
+        return by_nalgebra();
+    }
+    let [first, rest @ ..] = ANTENNA_COLUMNS;
+    // H P on H's columns: hp[(i, c)] = (H P)(i, ANTENNA_COLUMNS[c]).
+    let mut hp = SMatrix::<f64, 3, 6>::zeros();
+    for (c, &j) in ANTENNA_COLUMNS.iter().enumerate() {
+        for i in 0..3 {
+            let mut sum = p[(first, j)] * h[(i, first)];
+            for &k in &rest {
+                sum += p[(k, j)] * h[(i, k)];
+            }
+            hp[(i, c)] = sum;
+        }
+    }
+    // (H P) Hᵀ: element (i, l) sums (H P)(i, k) · H(l, k) over k.
+    let mut s = Matrix3::zeros();
+    for l in 0..3 {
+        for i in 0..3 {
+            let mut sum = h[(l, first)] * hp[(i, 0)];
+            for (c, &k) in rest.iter().enumerate() {
+                sum += h[(l, k)] * hp[(i, c + 1)];
+            }
+            s[(i, l)] = sum;
+        }
+    }
+    if hp.iter().chain(s.iter()).any(|&v| v == 0.0) {
+        return by_nalgebra();
+    }
+    (s + s.transpose()) * 0.5
+}
+
 /// Bytes a smoothing run keeps per smoothed (marked) epoch: the
 /// recorder's backward map, the nominal state, and the smoothed state with
 /// its antenna covariance. Independent of the IMU rate and of the updates
@@ -418,9 +482,7 @@ impl NedFilter {
     /// cross-covariance (symmetrised).
     pub fn antenna_position_covariance(&self) -> Matrix3<f64> {
         let c = self.solution().attitude.matrix();
-        let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
-        let p = h * self.kf.covariance() * h.transpose();
-        (p + p.transpose()) * 0.5
+        antenna_covariance((c * self.lever_arm).as_raw(), self.kf.covariance())
     }
 
     /// The antenna position and NED velocity implied by the INS.
@@ -581,6 +643,17 @@ impl NedFilter {
             .map(|v| v.into_iter().map(|(s, _)| s).collect()))
     }
 
+    /// Wait until the smoother's worker thread has recorded the whole
+    /// forward pass so far (nothing to wait for without a recording or
+    /// when it is recorded inline). Optional: the backward pass waits
+    /// for it too; called before other threads start work (the outputs'
+    /// writers), the worker finishes on a core of its own.
+    pub fn catch_up_recording(&self) {
+        if let Some(r) = self.record.as_ref() {
+            r.rts.catch_up(self.kf.covariance());
+        }
+    }
+
     /// [`smoothed_states`](Self::smoothed_states), each with the smoothed
     /// covariance of its antenna position error (NED, m²; `H P Hᵀ` as in
     /// [`antenna_position_covariance`](Self::antenna_position_covariance),
@@ -596,10 +669,8 @@ impl NedFilter {
         r.rts.smooth_with(self.kf.covariance(), |mark, x, p| {
             let state = corrected(&out[mark], x);
             let c = state.attitude.matrix();
-            let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
-            let p = h * p * h.transpose();
+            covariances[mark] = antenna_covariance((c * self.lever_arm).as_raw(), p);
             out[mark] = state;
-            covariances[mark] = (p + p.transpose()) * 0.5;
             Ok(())
         })?;
         Ok(Some(out.into_iter().zip(covariances).collect()))
@@ -1000,6 +1071,48 @@ impl NedFilter {
 mod tests {
     use super::*;
     use aidnav_models::ned_ins::ImuNoise;
+
+    /// The structured antenna covariance equals nalgebra's formula to the
+    /// bit: random covariances, lever arms zero and not, exact zeros of
+    /// either sign where the sums end at zero (the fallback), and a P that
+    /// is not finite.
+    #[test]
+    fn antenna_covariance_is_nalgebras_formula_to_the_bit() {
+        use rand::{RngExt, SeedableRng};
+        let by_nalgebra = |lever: &Vector3<f64>, p: &Matrix21| {
+            let h = NedErrorModel::position_measurement(lever);
+            let s = h * p * h.transpose();
+            (s + s.transpose()) * 0.5
+        };
+        let bits = |m: &Matrix3<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(20_261_130);
+        let mut fallbacks = 0;
+        for case in 0..600 {
+            let a = Matrix21::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let mut p = a * a.transpose();
+            let lever = match case % 3 {
+                0 => Vector3::zeros(),
+                1 => Vector3::from_fn(|_, _| rng.random_range(-2.0..2.0)),
+                _ => Vector3::new(0.0, rng.random_range(-0.5..0.5), 0.0),
+            };
+            if case % 4 == 0 {
+                // Zeros of both signs in the position rows and columns.
+                for (i, j, v) in [(0, 1, -0.0), (1, 2, 0.0), (0, 7, -0.0), (2, 2, 0.0)] {
+                    p[(i, j)] = v;
+                    p[(j, i)] = v;
+                }
+                fallbacks += 1;
+            }
+            let ours = antenna_covariance(&lever, &p);
+            assert_eq!(bits(&ours), bits(&by_nalgebra(&lever, &p)), "case {case}");
+        }
+        assert!(fallbacks > 0);
+        let mut p = Matrix21::identity();
+        p[(12, 12)] = f64::INFINITY;
+        let lever = Vector3::new(0.1, 0.2, 0.3);
+        assert!(antenna_covariance(&lever, &p).iter().all(|v| v.is_nan()));
+        assert!(by_nalgebra(&lever, &p).iter().all(|v| v.is_nan()));
+    }
 
     /// Prior σ: position, velocity, tilt, heading as given, instruments from
     /// the model's noise terms.

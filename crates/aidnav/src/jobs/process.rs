@@ -208,6 +208,12 @@ impl ProcessRun {
         let navresult = process.config().output.kf_gins_text;
         let (mut result, smoothing) =
             aidnav_sim::Cancel::catch(|| process.run_forward())?.map_err(process_error)?;
+        // The smoother's worker finishes recording before the writers
+        // below take the second core (it caught up at a quarter of a core
+        // beside them).
+        if let Some(s) = &smoothing {
+            s.catch_up();
+        }
         // Before any thread writes: the directory, no stale summary.json.
         aidnav_io::writers::begin_outputs(out)?;
         let (forward, smoothed) = std::thread::scope(|s| {

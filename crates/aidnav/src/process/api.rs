@@ -346,6 +346,14 @@ impl std::fmt::Debug for Smoothing {
 }
 
 impl Smoothing {
+    /// Wait until the smoother's worker thread has recorded the whole
+    /// forward pass (the backward pass of [`finish`](Self::finish) then
+    /// starts at once): before other threads start, so that the worker
+    /// has a core to itself while it catches up.
+    pub fn catch_up(&self) {
+        self.pending.catch_up();
+    }
+
     /// The backward pass, and the smoothed epochs of `forward` (the
     /// result [`Process::run_forward`] gave with this smoothing) and
     /// their score, without changing `forward`. The recording is freed
