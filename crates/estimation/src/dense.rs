@@ -641,6 +641,39 @@ impl<N: Dim, M: Dim> Widened for GainSolve<N, M> {
     }
 }
 
+/// Solve C y = b in place (`b` holds b on entry, y on return) from the
+/// Cholesky factor of C (`l`, m × m column-major, m = b's length; its lower
+/// triangle read): nalgebra's `Cholesky::solve` on a vector operation for
+/// operation — forward, y_i = b_i / L(i, i) then b_r = −y_i L(r, i) + b_r
+/// for r > i (its axpy); back, from the last row, the dot product
+/// Σ_{r>i} L(r, i) y_r from +0 in increasing r (its dot of a run-time
+/// sized view, plain order below 8 terms), y_i = (y_i − dot) / L(i, i) — so
+/// the same bits, for the small fixed sizes whose generic views cost more
+/// than the arithmetic.
+#[inline(always)]
+pub(crate) fn cholesky_solve_vector(l: &[f64], b: &mut [f64]) {
+    let m = b.len();
+    let l = &l[..m * m];
+    for i in 0..m {
+        let coefficient = b[i] / l[i * m + i];
+        b[i] = coefficient;
+        for r in i + 1..m {
+            // nalgebra's axpy: a x + β y with β = 1 (exact).
+            #[allow(clippy::assign_op_pattern)]
+            {
+                b[r] = -coefficient * l[i * m + r] + b[r];
+            }
+        }
+    }
+    for i in (0..m).rev() {
+        let mut dot = 0.0;
+        for r in i + 1..m {
+            dot += l[i * m + r] * b[r];
+        }
+        b[i] = (b[i] - dot) / l[i * m + i];
+    }
+}
+
 /// `y = Φ x` (the time update's state) as nalgebra's product computes it
 /// (its gemv: `y = Φ(·, 0) x₀`, then `y = Φ(·, k) x_k + y` for k = 1, 2, …,
 /// its multiplications by α = β = 1 exact), through [`run_widest`]: the

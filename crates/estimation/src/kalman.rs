@@ -20,6 +20,7 @@ use crate::check;
 use crate::dense;
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
+use crate::smoother::cholesky_lower_in_place;
 
 /// Allocation bounds for a filter of `N` states and `M` measurements, named
 /// once so the generic signatures stay readable.
@@ -360,12 +361,11 @@ where
         }
         check::symmetrize(&mut innov.hph);
         innov.s = &innov.hph + r;
-        innov.chol =
-            Cholesky::new(innov.s.clone()).ok_or(EstimationError::NotPositiveDefinite {
-                step,
-                matrix: Matrix::S,
-            })?;
-        innov.nis = innov.residual.dot(&innov.chol.solve(&innov.residual));
+        innov.chol = factor(&innov.s).ok_or(EstimationError::NotPositiveDefinite {
+            step,
+            matrix: Matrix::S,
+        })?;
+        innov.nis = normalised_square(&innov.chol, &innov.residual);
         Ok(())
     }
 
@@ -719,6 +719,51 @@ where
     }
 }
 
+/// Largest measurement count whose S is factored and solved by the
+/// fixed-size code here ([`factor`], [`normalised_square`]) rather than by
+/// nalgebra's generic `Cholesky`: the batch's fixed-size updates.
+const MAX_FIXED_FACTOR: usize = 6;
+
+/// The Cholesky factor of S: for a fixed size up to [`MAX_FIXED_FACTOR`]
+/// by the smoother's in-place factor, nalgebra's `Cholesky::new` operation
+/// for operation (the same factor bit for bit, the same refusal of a pivot
+/// that is not positive, the upper triangle left as S's) without its
+/// generic column views, which cost more than the arithmetic at m = 3;
+/// else by nalgebra. None when S is not positive definite.
+fn factor<M: Dim>(s: &OMatrix<f64, M, M>) -> Option<Cholesky<f64, M>>
+where
+    DefaultAllocator: Allocator<M, M>,
+{
+    let mut l = s.clone();
+    let factored = match M::try_to_usize() {
+        Some(1) => cholesky_lower_in_place::<1>(l.as_mut_slice()),
+        Some(2) => cholesky_lower_in_place::<2>(l.as_mut_slice()),
+        Some(3) => cholesky_lower_in_place::<3>(l.as_mut_slice()),
+        Some(4) => cholesky_lower_in_place::<4>(l.as_mut_slice()),
+        Some(5) => cholesky_lower_in_place::<5>(l.as_mut_slice()),
+        Some(MAX_FIXED_FACTOR) => cholesky_lower_in_place::<MAX_FIXED_FACTOR>(l.as_mut_slice()),
+        _ => return Cholesky::new(l),
+    };
+    factored.then(|| Cholesky::pack_dirty(l))
+}
+
+/// The NIS νᵀ S⁻¹ ν from S's factor: S⁻¹ ν for a fixed size up to
+/// [`MAX_FIXED_FACTOR`] by [`dense::cholesky_solve_vector`] (nalgebra's
+/// `Cholesky::solve` operation for operation), else by nalgebra; the dot
+/// product nalgebra's in both.
+fn normalised_square<M: Dim>(chol: &Cholesky<f64, M>, residual: &OVector<f64, M>) -> f64
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    if M::try_to_usize().is_some_and(|m| m <= MAX_FIXED_FACTOR) {
+        let mut solved = residual.clone();
+        dense::cholesky_solve_vector(chol.l_dirty().as_slice(), solved.as_mut_slice());
+        residual.dot(&solved)
+    } else {
+        residual.dot(&chol.solve(residual))
+    }
+}
+
 /// An innovation with its covariance and factor, computed without changing the filter.
 #[derive(Debug, Clone)]
 pub struct Innovation<N: Dim, M: Dim>
@@ -973,5 +1018,73 @@ where
     /// The NIS.
     pub(crate) fn nis(&self) -> f64 {
         self.innov.nis
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Const, DMatrix, DVector, SMatrix, SVector};
+
+    /// `factor` and `normalised_square` give nalgebra's Cholesky factor
+    /// (all of it: the upper triangle too) and NIS bit for bit at every
+    /// fixed size they serve and a run-time size, and refuse what
+    /// nalgebra refuses (a zero, negative or NaN pivot).
+    #[test]
+    fn the_fixed_size_factor_and_nis_equal_nalgebras_bit_for_bit() {
+        let mut seed = 977_u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        fn case<const M: usize>(
+            next: &mut impl FnMut() -> f64,
+            bits: &impl Fn(&[f64]) -> Vec<u64>,
+        ) {
+            for round in 0..40 {
+                let a = SMatrix::<f64, M, M>::from_fn(|_, _| next());
+                let mut s = a * a.transpose() + SMatrix::<f64, M, M>::identity() * 0.1;
+                if round % 10 == 9 {
+                    // Not positive definite: a zero, negative or NaN pivot.
+                    s[(M - 1, M - 1)] = [0.0, -1.0, f64::NAN][round % 3];
+                }
+                let residual = SVector::<f64, M>::from_fn(|_, _| next());
+                let ours = factor::<Const<M>>(&s);
+                let theirs = Cholesky::new(s);
+                assert_eq!(ours.is_some(), theirs.is_some(), "{M}, round {round}");
+                if let (Some(ours), Some(theirs)) = (ours, theirs) {
+                    assert_eq!(
+                        bits(ours.l_dirty().as_slice()),
+                        bits(theirs.l_dirty().as_slice())
+                    );
+                    let nis = normalised_square(&ours, &residual);
+                    let expected = residual.dot(&theirs.solve(&residual));
+                    assert_eq!(nis.to_bits(), expected.to_bits(), "{M}, round {round}");
+                }
+            }
+        }
+        case::<1>(&mut next, &bits);
+        case::<2>(&mut next, &bits);
+        case::<3>(&mut next, &bits);
+        case::<4>(&mut next, &bits);
+        case::<5>(&mut next, &bits);
+        case::<6>(&mut next, &bits);
+        // Run-time sized: nalgebra's own path.
+        let a = DMatrix::from_fn(4, 4, |_, _| next());
+        let s = &a * a.transpose() + DMatrix::identity(4, 4);
+        let residual = DVector::from_fn(4, |_, _| next());
+        let ours = factor(&s).unwrap();
+        let theirs = Cholesky::new(s).unwrap();
+        assert_eq!(
+            bits(ours.l_dirty().as_slice()),
+            bits(theirs.l_dirty().as_slice())
+        );
+        assert_eq!(
+            normalised_square(&ours, &residual).to_bits(),
+            residual.dot(&theirs.solve(&residual)).to_bits()
+        );
     }
 }
