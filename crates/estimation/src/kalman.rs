@@ -836,7 +836,7 @@ where
     /// state, whose `p` is a covariance this filter's own full step
     /// computed (finite, symmetric by construction).
     pub(crate) fn set_covariance_computed(&mut self, p: &OMatrix<f64, N, N>) {
-        self.p.copy_from(p);
+        self.p.as_mut_slice().copy_from_slice(p.as_slice());
     }
 
     /// [`predict_state`](Self::predict_state) for a Φ the caller checked
