@@ -919,6 +919,189 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<'_, N, M> {
     }
 }
 
+/// How [`accepted_update`] ended: the check that failed, in the order of
+/// the update's own checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum AcceptedStatus {
+    /// Every check passed: x⁺ and P⁺ written.
+    Applied,
+    /// S is not positive definite (nothing else written).
+    SNotPositiveDefinite,
+    /// The gain is not finite (x and P not written).
+    GainNonFinite,
+    /// x⁺ is not finite (x⁺ and P⁺ written).
+    StateNonFinite,
+    /// P⁺ is not finite (x⁺ and P⁺ written).
+    CovarianceNonFinite,
+}
+
+/// The accepted Joseph update from P⁻ of a fixed-size measurement (`M`
+/// components, up to [`MAX_GAIN_SOLVE`]), whole, in one dispatch to its
+/// AVX2 build (as [`run_widest`]): P Hᵀ ([`CrossCovariance`]), H P Hᵀ
+/// ([`MeasuredCovariance`]) symmetrised as `check::symmetrize` does,
+/// S = H P Hᵀ + R, its Cholesky factor (the smoother's in-place factor,
+/// nalgebra's operations), the NIS ([`cholesky_solve_vector`] and
+/// nalgebra's dot), the gain ([`GainSolve`] on a copy of P Hᵀ),
+/// x⁺ = x⁻ + K ν (nalgebra's product and sum, in its order), P⁺
+/// ([`JosephRank2k`] from P⁻, V made in place of P Hᵀ) and the checks of
+/// K, x⁺ and P⁺ — the operations of `innovate_into` and `apply` in their
+/// order, so the same bits and the same failures, without the six
+/// dispatches and the calls and copies between them.
+///
+/// Every matrix is an argument of the dispatching function (as
+/// [`Widened`] explains: fields of a struct would lose the compiler's
+/// knowledge that they do not overlap): `p` = P⁺ (n × n, written),
+/// `cross` = P Hᵀ, then V (n × m), `prior` = P⁻, `h` = H (m × n), `r`,
+/// `residual` = ν, `x` (x⁻ on entry, x⁺ once the gain passed its check),
+/// `hph`, `s`, `factor` (S's Cholesky factor in its lower triangle, S's
+/// values above: nalgebra's layout) and `gain` written. Returns the NIS
+/// and how the update ended.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn accepted_update<N: Dim, const M: usize>(
+    n: N,
+    (p, cross): (&mut [f64], &mut [f64]),
+    (prior, h, r, residual): (&[f64], &[f64], &[f64], &[f64]),
+    x: &mut [f64],
+    hph: &mut [f64],
+    s: &mut [f64],
+    factor: &mut [f64],
+    gain: &mut [f64],
+) -> (f64, AcceptedStatus) {
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: `accepted_update_avx2`'s only requirement is that the
+        // CPU executes AVX2 instructions, which was just detected.
+        return unsafe {
+            accepted_update_avx2::<N, M>(
+                n, p, cross, prior, h, r, residual, x, hph, s, factor, gain,
+            )
+        };
+    }
+    accepted_update_body::<N, M>(n, p, cross, prior, h, r, residual, x, hph, s, factor, gain)
+}
+
+/// [`accepted_update`] compiled with AVX2.
+#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+fn accepted_update_avx2<N: Dim, const M: usize>(
+    n: N,
+    p: &mut [f64],
+    cross: &mut [f64],
+    prior: &[f64],
+    h: &[f64],
+    r: &[f64],
+    residual: &[f64],
+    x: &mut [f64],
+    hph: &mut [f64],
+    s: &mut [f64],
+    factor: &mut [f64],
+    gain: &mut [f64],
+) -> (f64, AcceptedStatus) {
+    accepted_update_body::<N, M>(n, p, cross, prior, h, r, residual, x, hph, s, factor, gain)
+}
+
+/// The body of [`accepted_update`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn accepted_update_body<N: Dim, const M: usize>(
+    nd: N,
+    p: &mut [f64],
+    cross: &mut [f64],
+    prior: &[f64],
+    h: &[f64],
+    r: &[f64],
+    residual: &[f64],
+    x: &mut [f64],
+    hph: &mut [f64],
+    s: &mut [f64],
+    factor: &mut [f64],
+    gain: &mut [f64],
+) -> (f64, AcceptedStatus) {
+    let n = nd.value();
+    let (p, cross, prior, h) = (
+        &mut p[..n * n],
+        &mut cross[..n * M],
+        &prior[..n * n],
+        &h[..M * n],
+    );
+    let (r, residual, x) = (&r[..M * M], &residual[..M], &mut x[..n]);
+    let (hph, s, l, gain) = (
+        &mut hph[..M * M],
+        &mut s[..M * M],
+        &mut factor[..M * M],
+        &mut gain[..n * M],
+    );
+    let md = nalgebra::Const::<M>;
+    CrossCovariance { n: nd, m: md }.run(cross, &mut [], prior, h);
+    MeasuredCovariance { n: nd, m: md }.run(hph, &mut [], h, cross);
+    // check::symmetrize: ½ (m(i, j) + m(j, i)) to both.
+    for i in 0..M {
+        for j in (i + 1)..M {
+            let v = 0.5 * (hph[j * M + i] + hph[i * M + j]);
+            hph[j * M + i] = v;
+            hph[i * M + j] = v;
+        }
+    }
+    for ((s, &hv), &rv) in s.iter_mut().zip(hph.iter()).zip(r) {
+        *s = hv + rv;
+    }
+    l.copy_from_slice(s);
+    if !crate::smoother::cholesky_lower_in_place::<M>(l) {
+        return (f64::NAN, AcceptedStatus::SNotPositiveDefinite);
+    }
+    let mut solved = [0.0; M];
+    solved.copy_from_slice(residual);
+    cholesky_solve_vector(l, &mut solved);
+    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
+    let nis = nu.dot(&nalgebra::SVector::<f64, M>::from_column_slice(&solved));
+    gain.copy_from_slice(cross);
+    GainSolve { n: nd, m: md }.run(gain, &mut [], l, &[]);
+    if !crate::check::all_finite_kernel(gain) {
+        return (nis, AcceptedStatus::GainNonFinite);
+    }
+    // x += K ν: nalgebra's product (K(·, 0) ν₀, then K(·, l) ν_l + y),
+    // then its sum x + y.
+    let mut step = [0.0; MAX_FUSED_STATES];
+    let step = &mut step[..n];
+    for (o, &k) in step.iter_mut().zip(&gain[..n]) {
+        *o = k * nu[0];
+    }
+    for (l, &nl) in nu.iter().enumerate().skip(1) {
+        for (o, &k) in step.iter_mut().zip(&gain[l * n..(l + 1) * n]) {
+            #[allow(clippy::assign_op_pattern)]
+            {
+                *o = k * nl + *o;
+            }
+        }
+    }
+    for (x, &d) in x.iter_mut().zip(step.iter()) {
+        *x += d;
+    }
+    JosephRank2k {
+        n: nd,
+        m: md,
+        alpha: 0.5,
+        beta: -1.0,
+        prior: Some(prior),
+    }
+    .run(p, cross, gain, s);
+    let status = if !crate::check::all_finite_kernel(x) {
+        AcceptedStatus::StateNonFinite
+    } else if !crate::check::all_finite_kernel(p) {
+        AcceptedStatus::CovarianceNonFinite
+    } else {
+        AcceptedStatus::Applied
+    };
+    (nis, status)
+}
+
+/// Largest number of states [`accepted_update`] takes (its K ν on the
+/// stack): the kernels' run-time limit.
+pub(crate) const MAX_FUSED_STATES: usize = SMALL_DYN;
+
 /// Work that [`run_widest`] may compile for a wider instruction set, on
 /// column-major slices: `out` and `scratch` written, `a` and `b` read.
 /// An implementation should mark `run` `#[inline(always)]` (nothing

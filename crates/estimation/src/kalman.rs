@@ -946,12 +946,90 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         check::finite(z, Step::Update, Matrix::Z)?;
+        if policy.is_none() && self.covariance_update == CovarianceUpdate::Joseph {
+            let fused = match M::try_to_usize() {
+                Some(1) => self.accept_fused::<M, 1>(predicted, (z, h, r), work),
+                Some(2) => self.accept_fused::<M, 2>(predicted, (z, h, r), work),
+                Some(3) => self.accept_fused::<M, 3>(predicted, (z, h, r), work),
+                Some(4) => self.accept_fused::<M, 4>(predicted, (z, h, r), work),
+                Some(5) => self.accept_fused::<M, 5>(predicted, (z, h, r), work),
+                Some(6) => self.accept_fused::<M, 6>(predicted, (z, h, r), work),
+                _ => None,
+            };
+            if let Some(outcome) = fused {
+                return outcome;
+            }
+        }
         self.innovate_into(predicted, z, h, r, &mut work.innov)?;
         let decision = match policy {
             None => Decision::Accept,
             Some(p) => p.decide(&work.innov.view(r)),
         };
         self.apply_decision(Some(predicted), &work.innov, decision, r, &mut work.gain)
+    }
+}
+
+impl<N: Dim> KalmanFilter<N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    /// [`update_onto`](Self::update_onto) accepting the update (no
+    /// policy), Joseph form, for `M` = `Const<C>`: the innovation, gain, x⁺
+    /// and P⁺ (into the filter) in one dispatch ([`dense::accepted_update`],
+    /// the same operations in the same order, the same errors), the
+    /// residual z − H x⁻ by nalgebra first as in
+    /// [`innovate_into`](Self::innovate_into). None (nothing done) where
+    /// the kernels do not serve the size: more than
+    /// [`dense::MAX_FUSED_STATES`] states.
+    fn accept_fused<M: Dim, const C: usize>(
+        &mut self,
+        predicted: &OMatrix<f64, N, N>,
+        (z, h, r): Measured<'_, N, M>,
+        work: &mut UpdateWork<N, M>,
+    ) -> Option<Result<Outcome>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let n = self.dim();
+        if n > dense::MAX_FUSED_STATES || C > dense::MAX_GAIN_SOLVE {
+            return None;
+        }
+        let step = Step::Update;
+        let innov = &mut work.innov;
+        innov.residual = z - h * &self.x;
+        let mut factor = innov.s.clone();
+        let (nis, status) = dense::accepted_update::<N, C>(
+            predicted.shape_generic().0,
+            (self.p.as_mut_slice(), innov.cross.as_mut_slice()),
+            (
+                predicted.as_slice(),
+                h.as_slice(),
+                r.as_slice(),
+                innov.residual.as_slice(),
+            ),
+            self.x.as_mut_slice(),
+            innov.hph.as_mut_slice(),
+            innov.s.as_mut_slice(),
+            factor.as_mut_slice(),
+            work.gain.as_mut_slice(),
+        );
+        let matrix = match status {
+            dense::AcceptedStatus::Applied => {
+                innov.chol = Cholesky::pack_dirty(factor);
+                innov.nis = nis;
+                return Some(Ok(Outcome::Accepted));
+            }
+            dense::AcceptedStatus::SNotPositiveDefinite => {
+                return Some(Err(EstimationError::NotPositiveDefinite {
+                    step,
+                    matrix: Matrix::S,
+                }));
+            }
+            dense::AcceptedStatus::GainNonFinite => Matrix::K,
+            dense::AcceptedStatus::StateNonFinite => Matrix::X,
+            dense::AcceptedStatus::CovarianceNonFinite => Matrix::P,
+        };
+        Some(Err(EstimationError::NonFinite { step, matrix }))
     }
 }
 
@@ -1086,5 +1164,113 @@ mod tests {
             normalised_square(&ours, &residual).to_bits(),
             residual.dot(&theirs.solve(&residual)).to_bits()
         );
+    }
+    /// The batch's fused accepted update (no policy: one dispatch) equals
+    /// the update through the policy path (`AcceptAll`: the innovation,
+    /// gain and Joseph form in separate steps) bit for bit — x⁺, P⁺, ν, S,
+    /// K, the NIS — and fails with the same error leaving the same filter
+    /// (S not positive definite, P⁺ overflowing), at every measurement
+    /// size it serves, on fixed-size and run-time sized filters.
+    #[test]
+    fn the_fused_accepted_update_equals_the_stepwise_update_bit_for_bit() {
+        let mut seed = 4242_u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        fn case<N: Dim, const M: usize>(nd: N, next: &mut impl FnMut() -> f64)
+        where
+            DefaultAllocator: FilterAllocator<N, Const<M>>,
+        {
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let n = nd.value();
+            let md = Const::<M>;
+            for round in 0..12 {
+                let a = OMatrix::<f64, N, N>::from_fn_generic(nd, nd, |_, _| next());
+                let mut predicted =
+                    &a * a.transpose() + OMatrix::<f64, N, N>::identity_generic(nd, nd);
+                // Sparse rows as a navigation H, with an exact zero column.
+                let h = OMatrix::<f64, Const<M>, N>::from_fn_generic(md, nd, |i, j| {
+                    if j == 0 || (i + j) % 3 == 0 {
+                        0.0
+                    } else {
+                        next()
+                    }
+                });
+                let mut r = OMatrix::<f64, Const<M>, Const<M>>::from_fn_generic(md, md, |i, j| {
+                    if i == j { 0.5 } else { 0.01 }
+                });
+                let z = OVector::<f64, Const<M>>::from_fn_generic(md, nalgebra::U1, |_, _| next());
+                match round {
+                    // S not positive definite.
+                    10 => r[(M - 1, M - 1)] = -1e9,
+                    // Values near overflow: P⁺ or the gain may not be
+                    // finite (the same error either way).
+                    11 => predicted *= 1e307,
+                    _ => {}
+                }
+                let x0 = OVector::<f64, N>::from_fn_generic(nd, nalgebra::U1, |_, _| next());
+                let prior = KalmanFilter::new(x0, OMatrix::identity_generic(nd, nd)).unwrap();
+                let (mut fused, mut stepwise) = (prior.clone(), prior);
+                let mut fused_work = UpdateWork::zeros(nd, md);
+                let mut stepwise_work = UpdateWork::zeros(nd, md);
+                let ours = fused.update_prechecked_from(
+                    &predicted,
+                    (&z, &h, &r),
+                    None::<&mut AcceptAll>,
+                    &mut fused_work,
+                );
+                let theirs = stepwise.update_prechecked_from(
+                    &predicted,
+                    (&z, &h, &r),
+                    Some(&mut AcceptAll),
+                    &mut stepwise_work,
+                );
+                let what = format!("{n}/{M}, round {round}");
+                assert_eq!(ours, theirs, "{what}");
+                assert_eq!(
+                    bits(fused.x.as_slice()),
+                    bits(stepwise.x.as_slice()),
+                    "{what}"
+                );
+                assert_eq!(
+                    bits(fused.p.as_slice()),
+                    bits(stepwise.p.as_slice()),
+                    "{what}"
+                );
+                if ours.is_ok() {
+                    for (a, b) in [
+                        (
+                            fused_work.residual().as_slice(),
+                            stepwise_work.residual().as_slice(),
+                        ),
+                        (fused_work.s().as_slice(), stepwise_work.s().as_slice()),
+                        (
+                            fused_work.gain().as_slice(),
+                            stepwise_work.gain().as_slice(),
+                        ),
+                    ] {
+                        assert_eq!(bits(a), bits(b), "{what}");
+                    }
+                    assert_eq!(fused_work.nis().to_bits(), stepwise_work.nis().to_bits());
+                } else {
+                    assert!(round >= 10, "{what}: {ours:?}");
+                }
+                if round == 10 {
+                    assert!(ours.is_err(), "{what}");
+                }
+            }
+        }
+        case::<Const<9>, 1>(Const::<9>, &mut next);
+        case::<Const<9>, 2>(Const::<9>, &mut next);
+        case::<Const<9>, 3>(Const::<9>, &mut next);
+        case::<Const<15>, 4>(Const::<15>, &mut next);
+        case::<Const<6>, 5>(Const::<6>, &mut next);
+        case::<Const<21>, 6>(Const::<21>, &mut next);
+        case::<Const<24>, 3>(Const::<24>, &mut next);
+        case::<Dyn, 3>(Dyn(7), &mut next);
+        case::<Dyn, 6>(Dyn(13), &mut next);
     }
 }
