@@ -28,8 +28,10 @@
 //! with AVX2 — four elements per instruction instead of two, the same
 //! operations on each element in the same order, no FMA — so P is the same
 //! bit for bit on every machine, and one predict + update at 21 states /
-//! 6 measurements runs about 1.3× faster. The one `unsafe` call of the
-//! crate is that dispatch, after run-time detection.
+//! 6 measurements runs about 1.3× faster. The `unsafe` calls of the crate
+//! are that dispatch and the batch's two fused ones ([`predicted_aside`],
+//! [`accepted_update`]: many matrices, each an argument of the dispatching
+//! function), each after run-time detection.
 
 use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, allocator::Allocator};
 
@@ -1098,8 +1100,94 @@ fn accepted_update_body<N: Dim, const M: usize>(
     (nis, status)
 }
 
-/// Largest number of states [`accepted_update`] takes (its K ν on the
-/// stack): the kernels' run-time limit.
+/// How [`predicted_aside`] ended: the check that failed, in the order of
+/// the time update's own checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PredictedStatus {
+    /// x⁻ and P⁻ finite, both written.
+    Applied,
+    /// x⁻ is not finite (written; P⁻ not computed).
+    StateNonFinite,
+    /// P⁻ is not finite (x⁻ and P⁻ written).
+    CovarianceNonFinite,
+}
+
+/// The batch's time update with P⁻ kept aside, whole, in one dispatch to
+/// its AVX2 build (as [`accepted_update`]): x⁻ = Φ x ([`MatrixVector`],
+/// nalgebra's product) and its check, then P⁻ = Φ P Φᵀ + Q
+/// ([`Congruence`] onto Q) and its check — the operations and checks of
+/// `predict_state_prechecked` and `congruence_onto` followed by
+/// `check::finite`, in their order, without the two dispatches, the calls
+/// and the copy of x between them. `x` holds x on entry, x⁻ on return;
+/// `predicted` (P⁻) and `phi_p` (scratch for Φ P) are written, their
+/// values on entry unread; n at most [`MAX_FUSED_STATES`].
+#[inline(always)]
+pub(crate) fn predicted_aside<D: Dim>(
+    n: D,
+    x: &mut [f64],
+    (phi, q, p): (&[f64], &[f64], &[f64]),
+    predicted: &mut [f64],
+    phi_p: &mut [f64],
+) -> PredictedStatus {
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: `predicted_aside_avx2`'s only requirement is that the
+        // CPU executes AVX2 instructions, which was just detected.
+        return unsafe { predicted_aside_avx2(n, x, phi, q, p, predicted, phi_p) };
+    }
+    predicted_aside_body(n, x, phi, q, p, predicted, phi_p)
+}
+
+/// [`predicted_aside`] compiled with AVX2.
+#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+#[target_feature(enable = "avx2")]
+fn predicted_aside_avx2<D: Dim>(
+    n: D,
+    x: &mut [f64],
+    phi: &[f64],
+    q: &[f64],
+    p: &[f64],
+    predicted: &mut [f64],
+    phi_p: &mut [f64],
+) -> PredictedStatus {
+    predicted_aside_body(n, x, phi, q, p, predicted, phi_p)
+}
+
+/// The body of [`predicted_aside`].
+#[inline(always)]
+fn predicted_aside_body<D: Dim>(
+    nd: D,
+    x: &mut [f64],
+    phi: &[f64],
+    q: &[f64],
+    p: &[f64],
+    predicted: &mut [f64],
+    phi_p: &mut [f64],
+) -> PredictedStatus {
+    let n = nd.value();
+    let mut x_predicted = [0.0; MAX_FUSED_STATES];
+    let x_predicted = &mut x_predicted[..n];
+    MatrixVector { n: nd }.run(x_predicted, &mut [], phi, x);
+    let x = &mut x[..n];
+    x.copy_from_slice(x_predicted);
+    if !crate::check::all_finite_kernel(x) {
+        return PredictedStatus::StateNonFinite;
+    }
+    Congruence {
+        n: nd,
+        base: Some(q),
+    }
+    .run(predicted, phi_p, phi, p);
+    if crate::check::all_finite_kernel(&predicted[..n * n]) {
+        PredictedStatus::Applied
+    } else {
+        PredictedStatus::CovarianceNonFinite
+    }
+}
+
+/// Largest number of states [`accepted_update`] and [`predicted_aside`]
+/// take (a vector of n on the stack): the kernels' run-time limit.
 pub(crate) const MAX_FUSED_STATES: usize = SMALL_DYN;
 
 /// Work that [`run_widest`] may compile for a wider instruction set, on

@@ -903,9 +903,28 @@ where
         predicted: &mut OMatrix<f64, N, N>,
         phi_p: &mut OMatrix<f64, N, N>,
     ) -> Result<()> {
-        self.predict_state_prechecked(phi)?;
-        dense::congruence_onto(predicted, q_symmetric, phi, &self.p, phi_p);
-        check::finite(predicted, Step::Predict, Matrix::P)
+        let (nd, _) = phi.shape_generic();
+        if nd.value() > dense::MAX_FUSED_STATES {
+            self.predict_state_prechecked(phi)?;
+            dense::congruence_onto(predicted, q_symmetric, phi, &self.p, phi_p);
+            return check::finite(predicted, Step::Predict, Matrix::P);
+        }
+        // One dispatch for x⁻, P⁻ and their checks (the same operations).
+        let matrix = match dense::predicted_aside(
+            nd,
+            self.x.as_mut_slice(),
+            (phi.as_slice(), q_symmetric.as_slice(), self.p.as_slice()),
+            predicted.as_mut_slice(),
+            phi_p.as_mut_slice(),
+        ) {
+            dense::PredictedStatus::Applied => return Ok(()),
+            dense::PredictedStatus::StateNonFinite => Matrix::X,
+            dense::PredictedStatus::CovarianceNonFinite => Matrix::P,
+        };
+        Err(EstimationError::NonFinite {
+            step: Step::Predict,
+            matrix,
+        })
     }
 
     /// [`update_prechecked`](Self::update_prechecked) after
@@ -1272,5 +1291,80 @@ mod tests {
         case::<Const<24>, 3>(Const::<24>, &mut next);
         case::<Dyn, 3>(Dyn(7), &mut next);
         case::<Dyn, 6>(Dyn(13), &mut next);
+    }
+    /// The batch's fused time update with P⁻ aside (one dispatch) equals
+    /// `predict_prechecked` bit for bit — x⁻, P⁻ — and fails with the same
+    /// error leaving the same state (x⁻ overflowing, P⁻ overflowing), on
+    /// fixed-size and run-time sized filters.
+    #[test]
+    fn the_fused_prediction_aside_equals_the_checked_prediction_bit_for_bit() {
+        let mut seed = 99_u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        fn case<N: Dim>(nd: N, next: &mut impl FnMut() -> f64)
+        where
+            DefaultAllocator: Allocator<N> + Allocator<N, N>,
+        {
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let n = nd.value();
+            for round in 0..6 {
+                let a = OMatrix::<f64, N, N>::from_fn_generic(nd, nd, |_, _| next());
+                let p0 = &a * a.transpose() + OMatrix::<f64, N, N>::identity_generic(nd, nd);
+                let mut phi = OMatrix::<f64, N, N>::from_fn_generic(nd, nd, |i, j| {
+                    if i == j { 1.0 } else { 0.1 * next() }
+                });
+                let q = OMatrix::<f64, N, N>::identity_generic(nd, nd) * 1e-3;
+                let mut x0 = OVector::<f64, N>::from_fn_generic(nd, nalgebra::U1, |_, _| next());
+                match round {
+                    // x⁻ overflows (and P⁻ would).
+                    4 => {
+                        phi *= 1e200;
+                        x0 *= 1e200;
+                    }
+                    // P⁻ overflows, x⁻ does not.
+                    5 => phi *= 1e160,
+                    _ => {}
+                }
+                let prior = KalmanFilter::new(x0, p0).unwrap();
+                let (mut fused, mut checked) = (prior.clone(), prior);
+                let mut predicted = OMatrix::<f64, N, N>::from_element_generic(nd, nd, f64::NAN);
+                let mut phi_p = predicted.clone();
+                let ours = fused.predict_prechecked_aside(&phi, &q, &mut predicted, &mut phi_p);
+                let theirs = checked.predict_prechecked(&phi, &q);
+                let what = format!("n {n}, round {round}");
+                assert_eq!(ours, theirs, "{what}");
+                assert_eq!(
+                    bits(fused.x.as_slice()),
+                    bits(checked.x.as_slice()),
+                    "{what}"
+                );
+                match round {
+                    4 | 5 => assert!(ours.is_err(), "{what}"),
+                    _ => assert_eq!(
+                        bits(predicted.as_slice()),
+                        bits(checked.p.as_slice()),
+                        "{what}"
+                    ),
+                }
+                if round == 5 {
+                    assert_eq!(
+                        ours,
+                        Err(EstimationError::NonFinite {
+                            step: Step::Predict,
+                            matrix: Matrix::P
+                        })
+                    );
+                }
+            }
+        }
+        case(Const::<3>, &mut next);
+        case(Const::<9>, &mut next);
+        case(Const::<24>, &mut next);
+        case(Dyn(11), &mut next);
+        case(Dyn(40), &mut next);
     }
 }
