@@ -1054,16 +1054,12 @@ fn accepted_update_body<N: Dim, const M: usize>(
     if !crate::smoother::cholesky_lower_in_place::<M>(l) {
         return (f64::NAN, AcceptedStatus::SNotPositiveDefinite);
     }
-    let mut solved = [0.0; M];
-    solved.copy_from_slice(residual);
-    cholesky_solve_vector(l, &mut solved);
-    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
-    let nis = nu.dot(&nalgebra::SVector::<f64, M>::from_column_slice(&solved));
     gain.copy_from_slice(cross);
     GainSolve { n: nd, m: md }.run(gain, &mut [], l, &[]);
     if !crate::check::all_finite_kernel(gain) {
-        return (nis, AcceptedStatus::GainNonFinite);
+        return (f64::NAN, AcceptedStatus::GainNonFinite);
     }
+    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
     // x += K ν: nalgebra's product (K(·, 0) ν₀, then K(·, l) ν_l + y),
     // then its sum x + y.
     let mut step = [0.0; MAX_FUSED_STATES];
@@ -1090,6 +1086,13 @@ fn accepted_update_body<N: Dim, const M: usize>(
         prior: Some(prior),
     }
     .run(p, cross, gain, s);
+    // The NIS last: its chain of divisions then runs beside the Joseph
+    // update's products instead of beside the gain's divisions, which the
+    // rest waits for (nothing here reads it; the same operations).
+    let mut solved = [0.0; M];
+    solved.copy_from_slice(residual);
+    cholesky_solve_vector(l, &mut solved);
+    let nis = nu.dot(&nalgebra::SVector::<f64, M>::from_column_slice(&solved));
     let status = if !crate::check::all_finite_kernel(x) {
         AcceptedStatus::StateNonFinite
     } else if !crate::check::all_finite_kernel(p) {
