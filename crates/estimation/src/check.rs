@@ -48,6 +48,13 @@ const FINITE_LANES: usize = 8;
 /// ```
 #[inline]
 pub fn all_finite(values: &[f64]) -> bool {
+    all_finite_kernel(values)
+}
+
+/// [`all_finite`]'s body, always inlined: into the AVX2 build of the
+/// batch's fused update too ([`crate::dense::accepted_update`]).
+#[inline(always)]
+pub(crate) fn all_finite_kernel(values: &[f64]) -> bool {
     let mut partial = [0.0_f64; FINITE_LANES];
     let chunks = values.chunks_exact(FINITE_LANES);
     let rest = chunks.remainder();

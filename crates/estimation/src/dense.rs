@@ -28,8 +28,10 @@
 //! with AVX2 — four elements per instruction instead of two, the same
 //! operations on each element in the same order, no FMA — so P is the same
 //! bit for bit on every machine, and one predict + update at 21 states /
-//! 6 measurements runs about 1.3× faster. The one `unsafe` call of the
-//! crate is that dispatch, after run-time detection.
+//! 6 measurements runs about 1.3× faster. The `unsafe` calls of the crate
+//! are that dispatch and the batch's two fused ones ([`predicted_aside`],
+//! [`accepted_update`]: many matrices, each an argument of the dispatching
+//! function), each after run-time detection.
 
 use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, allocator::Allocator};
 
@@ -641,6 +643,39 @@ impl<N: Dim, M: Dim> Widened for GainSolve<N, M> {
     }
 }
 
+/// Solve C y = b in place (`b` holds b on entry, y on return) from the
+/// Cholesky factor of C (`l`, m × m column-major, m = b's length; its lower
+/// triangle read): nalgebra's `Cholesky::solve` on a vector operation for
+/// operation — forward, y_i = b_i / L(i, i) then b_r = −y_i L(r, i) + b_r
+/// for r > i (its axpy); back, from the last row, the dot product
+/// Σ_{r>i} L(r, i) y_r from +0 in increasing r (its dot of a run-time
+/// sized view, plain order below 8 terms), y_i = (y_i − dot) / L(i, i) — so
+/// the same bits, for the small fixed sizes whose generic views cost more
+/// than the arithmetic.
+#[inline(always)]
+pub(crate) fn cholesky_solve_vector(l: &[f64], b: &mut [f64]) {
+    let m = b.len();
+    let l = &l[..m * m];
+    for i in 0..m {
+        let coefficient = b[i] / l[i * m + i];
+        b[i] = coefficient;
+        for r in i + 1..m {
+            // nalgebra's axpy: a x + β y with β = 1 (exact).
+            #[allow(clippy::assign_op_pattern)]
+            {
+                b[r] = -coefficient * l[i * m + r] + b[r];
+            }
+        }
+    }
+    for i in (0..m).rev() {
+        let mut dot = 0.0;
+        for r in i + 1..m {
+            dot += l[i * m + r] * b[r];
+        }
+        b[i] = (b[i] - dot) / l[i * m + i];
+    }
+}
+
 /// `y = Φ x` (the time update's state) as nalgebra's product computes it
 /// (its gemv: `y = Φ(·, 0) x₀`, then `y = Φ(·, k) x_k + y` for k = 1, 2, …,
 /// its multiplications by α = β = 1 exact), through [`run_widest`]: the
@@ -885,6 +920,278 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<'_, N, M> {
         mirror_lower_slice(n, p);
     }
 }
+
+/// How [`accepted_update`] ended: the check that failed, in the order of
+/// the update's own checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum AcceptedStatus {
+    /// Every check passed: x⁺ and P⁺ written.
+    Applied,
+    /// S is not positive definite (nothing else written).
+    SNotPositiveDefinite,
+    /// The gain is not finite (x and P not written).
+    GainNonFinite,
+    /// x⁺ is not finite (x⁺ and P⁺ written).
+    StateNonFinite,
+    /// P⁺ is not finite (x⁺ and P⁺ written).
+    CovarianceNonFinite,
+}
+
+/// The accepted Joseph update from P⁻ of a fixed-size measurement (`M`
+/// components, up to [`MAX_GAIN_SOLVE`]), whole, in one dispatch to its
+/// AVX2 build (as [`run_widest`]): P Hᵀ ([`CrossCovariance`]), H P Hᵀ
+/// ([`MeasuredCovariance`]) symmetrised as `check::symmetrize` does,
+/// S = H P Hᵀ + R, its Cholesky factor (the smoother's in-place factor,
+/// nalgebra's operations), the NIS ([`cholesky_solve_vector`] and
+/// nalgebra's dot), the gain ([`GainSolve`] on a copy of P Hᵀ),
+/// x⁺ = x⁻ + K ν (nalgebra's product and sum, in its order), P⁺
+/// ([`JosephRank2k`] from P⁻, V made in place of P Hᵀ) and the checks of
+/// K, x⁺ and P⁺ — the operations of `innovate_into` and `apply` in their
+/// order, so the same bits and the same failures, without the six
+/// dispatches and the calls and copies between them.
+///
+/// Every matrix is an argument of the dispatching function (as
+/// [`Widened`] explains: fields of a struct would lose the compiler's
+/// knowledge that they do not overlap): `p` = P⁺ (n × n, written),
+/// `cross` = P Hᵀ, then V (n × m), `prior` = P⁻, `h` = H (m × n), `r`,
+/// `residual` = ν, `x` (x⁻ on entry, x⁺ once the gain passed its check),
+/// `hph`, `s`, `factor` (S's Cholesky factor in its lower triangle, S's
+/// values above: nalgebra's layout) and `gain` written. Returns the NIS
+/// and how the update ended.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn accepted_update<N: Dim, const M: usize>(
+    n: N,
+    (p, cross): (&mut [f64], &mut [f64]),
+    (prior, h, r, residual): (&[f64], &[f64], &[f64], &[f64]),
+    x: &mut [f64],
+    hph: &mut [f64],
+    s: &mut [f64],
+    factor: &mut [f64],
+    gain: &mut [f64],
+) -> (f64, AcceptedStatus) {
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: `accepted_update_avx2`'s only requirement is that the
+        // CPU executes AVX2 instructions, which was just detected.
+        return unsafe {
+            accepted_update_avx2::<N, M>(
+                n, p, cross, prior, h, r, residual, x, hph, s, factor, gain,
+            )
+        };
+    }
+    accepted_update_body::<N, M>(n, p, cross, prior, h, r, residual, x, hph, s, factor, gain)
+}
+
+/// [`accepted_update`] compiled with AVX2.
+#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+fn accepted_update_avx2<N: Dim, const M: usize>(
+    n: N,
+    p: &mut [f64],
+    cross: &mut [f64],
+    prior: &[f64],
+    h: &[f64],
+    r: &[f64],
+    residual: &[f64],
+    x: &mut [f64],
+    hph: &mut [f64],
+    s: &mut [f64],
+    factor: &mut [f64],
+    gain: &mut [f64],
+) -> (f64, AcceptedStatus) {
+    accepted_update_body::<N, M>(n, p, cross, prior, h, r, residual, x, hph, s, factor, gain)
+}
+
+/// The body of [`accepted_update`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn accepted_update_body<N: Dim, const M: usize>(
+    nd: N,
+    p: &mut [f64],
+    cross: &mut [f64],
+    prior: &[f64],
+    h: &[f64],
+    r: &[f64],
+    residual: &[f64],
+    x: &mut [f64],
+    hph: &mut [f64],
+    s: &mut [f64],
+    factor: &mut [f64],
+    gain: &mut [f64],
+) -> (f64, AcceptedStatus) {
+    let n = nd.value();
+    let (p, cross, prior, h) = (
+        &mut p[..n * n],
+        &mut cross[..n * M],
+        &prior[..n * n],
+        &h[..M * n],
+    );
+    let (r, residual, x) = (&r[..M * M], &residual[..M], &mut x[..n]);
+    let (hph, s, l, gain) = (
+        &mut hph[..M * M],
+        &mut s[..M * M],
+        &mut factor[..M * M],
+        &mut gain[..n * M],
+    );
+    let md = nalgebra::Const::<M>;
+    CrossCovariance { n: nd, m: md }.run(cross, &mut [], prior, h);
+    MeasuredCovariance { n: nd, m: md }.run(hph, &mut [], h, cross);
+    // check::symmetrize: ½ (m(i, j) + m(j, i)) to both.
+    for i in 0..M {
+        for j in (i + 1)..M {
+            let v = 0.5 * (hph[j * M + i] + hph[i * M + j]);
+            hph[j * M + i] = v;
+            hph[i * M + j] = v;
+        }
+    }
+    for ((s, &hv), &rv) in s.iter_mut().zip(hph.iter()).zip(r) {
+        *s = hv + rv;
+    }
+    l.copy_from_slice(s);
+    if !crate::smoother::cholesky_lower_in_place::<M>(l) {
+        return (f64::NAN, AcceptedStatus::SNotPositiveDefinite);
+    }
+    gain.copy_from_slice(cross);
+    GainSolve { n: nd, m: md }.run(gain, &mut [], l, &[]);
+    if !crate::check::all_finite_kernel(gain) {
+        return (f64::NAN, AcceptedStatus::GainNonFinite);
+    }
+    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
+    // x += K ν: nalgebra's product (K(·, 0) ν₀, then K(·, l) ν_l + y),
+    // then its sum x + y.
+    let mut step = [0.0; MAX_FUSED_STATES];
+    let step = &mut step[..n];
+    for (o, &k) in step.iter_mut().zip(&gain[..n]) {
+        *o = k * nu[0];
+    }
+    for (l, &nl) in nu.iter().enumerate().skip(1) {
+        for (o, &k) in step.iter_mut().zip(&gain[l * n..(l + 1) * n]) {
+            #[allow(clippy::assign_op_pattern)]
+            {
+                *o = k * nl + *o;
+            }
+        }
+    }
+    for (x, &d) in x.iter_mut().zip(step.iter()) {
+        *x += d;
+    }
+    JosephRank2k {
+        n: nd,
+        m: md,
+        alpha: 0.5,
+        beta: -1.0,
+        prior: Some(prior),
+    }
+    .run(p, cross, gain, s);
+    // The NIS last: its chain of divisions then runs beside the Joseph
+    // update's products instead of beside the gain's divisions, which the
+    // rest waits for (nothing here reads it; the same operations).
+    let mut solved = [0.0; M];
+    solved.copy_from_slice(residual);
+    cholesky_solve_vector(l, &mut solved);
+    let nis = nu.dot(&nalgebra::SVector::<f64, M>::from_column_slice(&solved));
+    let status = if !crate::check::all_finite_kernel(x) {
+        AcceptedStatus::StateNonFinite
+    } else if !crate::check::all_finite_kernel(p) {
+        AcceptedStatus::CovarianceNonFinite
+    } else {
+        AcceptedStatus::Applied
+    };
+    (nis, status)
+}
+
+/// How [`predicted_aside`] ended: the check that failed, in the order of
+/// the time update's own checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PredictedStatus {
+    /// x⁻ and P⁻ finite, both written.
+    Applied,
+    /// x⁻ is not finite (written; P⁻ not computed).
+    StateNonFinite,
+    /// P⁻ is not finite (x⁻ and P⁻ written).
+    CovarianceNonFinite,
+}
+
+/// The batch's time update with P⁻ kept aside, whole, in one dispatch to
+/// its AVX2 build (as [`accepted_update`]): x⁻ = Φ x ([`MatrixVector`],
+/// nalgebra's product) and its check, then P⁻ = Φ P Φᵀ + Q
+/// ([`Congruence`] onto Q) and its check — the operations and checks of
+/// `predict_state_prechecked` and `congruence_onto` followed by
+/// `check::finite`, in their order, without the two dispatches, the calls
+/// and the copy of x between them. `x` holds x on entry, x⁻ on return;
+/// `predicted` (P⁻) and `phi_p` (scratch for Φ P) are written, their
+/// values on entry unread; n at most [`MAX_FUSED_STATES`].
+#[inline(always)]
+pub(crate) fn predicted_aside<D: Dim>(
+    n: D,
+    x: &mut [f64],
+    (phi, q, p): (&[f64], &[f64], &[f64]),
+    predicted: &mut [f64],
+    phi_p: &mut [f64],
+) -> PredictedStatus {
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: `predicted_aside_avx2`'s only requirement is that the
+        // CPU executes AVX2 instructions, which was just detected.
+        return unsafe { predicted_aside_avx2(n, x, phi, q, p, predicted, phi_p) };
+    }
+    predicted_aside_body(n, x, phi, q, p, predicted, phi_p)
+}
+
+/// [`predicted_aside`] compiled with AVX2.
+#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+#[target_feature(enable = "avx2")]
+fn predicted_aside_avx2<D: Dim>(
+    n: D,
+    x: &mut [f64],
+    phi: &[f64],
+    q: &[f64],
+    p: &[f64],
+    predicted: &mut [f64],
+    phi_p: &mut [f64],
+) -> PredictedStatus {
+    predicted_aside_body(n, x, phi, q, p, predicted, phi_p)
+}
+
+/// The body of [`predicted_aside`].
+#[inline(always)]
+fn predicted_aside_body<D: Dim>(
+    nd: D,
+    x: &mut [f64],
+    phi: &[f64],
+    q: &[f64],
+    p: &[f64],
+    predicted: &mut [f64],
+    phi_p: &mut [f64],
+) -> PredictedStatus {
+    let n = nd.value();
+    let mut x_predicted = [0.0; MAX_FUSED_STATES];
+    let x_predicted = &mut x_predicted[..n];
+    MatrixVector { n: nd }.run(x_predicted, &mut [], phi, x);
+    let x = &mut x[..n];
+    x.copy_from_slice(x_predicted);
+    if !crate::check::all_finite_kernel(x) {
+        return PredictedStatus::StateNonFinite;
+    }
+    Congruence {
+        n: nd,
+        base: Some(q),
+    }
+    .run(predicted, phi_p, phi, p);
+    if crate::check::all_finite_kernel(&predicted[..n * n]) {
+        PredictedStatus::Applied
+    } else {
+        PredictedStatus::CovarianceNonFinite
+    }
+}
+
+/// Largest number of states [`accepted_update`] and [`predicted_aside`]
+/// take (a vector of n on the stack): the kernels' run-time limit.
+pub(crate) const MAX_FUSED_STATES: usize = SMALL_DYN;
 
 /// Work that [`run_widest`] may compile for a wider instruction set, on
 /// column-major slices: `out` and `scratch` written, `a` and `b` read.

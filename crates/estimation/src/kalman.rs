@@ -20,6 +20,7 @@ use crate::check;
 use crate::dense;
 use crate::error::{EstimationError, Matrix, Result, Step};
 use crate::policy::{AcceptAll, Decision, InnovationView, MeasurementPolicy, Outcome};
+use crate::smoother::cholesky_lower_in_place;
 
 /// Allocation bounds for a filter of `N` states and `M` measurements, named
 /// once so the generic signatures stay readable.
@@ -360,12 +361,11 @@ where
         }
         check::symmetrize(&mut innov.hph);
         innov.s = &innov.hph + r;
-        innov.chol =
-            Cholesky::new(innov.s.clone()).ok_or(EstimationError::NotPositiveDefinite {
-                step,
-                matrix: Matrix::S,
-            })?;
-        innov.nis = innov.residual.dot(&innov.chol.solve(&innov.residual));
+        innov.chol = factor(&innov.s).ok_or(EstimationError::NotPositiveDefinite {
+            step,
+            matrix: Matrix::S,
+        })?;
+        innov.nis = normalised_square(&innov.chol, &innov.residual);
         Ok(())
     }
 
@@ -719,6 +719,51 @@ where
     }
 }
 
+/// Largest measurement count whose S is factored and solved by the
+/// fixed-size code here ([`factor`], [`normalised_square`]) rather than by
+/// nalgebra's generic `Cholesky`: the batch's fixed-size updates.
+const MAX_FIXED_FACTOR: usize = 6;
+
+/// The Cholesky factor of S: for a fixed size up to [`MAX_FIXED_FACTOR`]
+/// by the smoother's in-place factor, nalgebra's `Cholesky::new` operation
+/// for operation (the same factor bit for bit, the same refusal of a pivot
+/// that is not positive, the upper triangle left as S's) without its
+/// generic column views, which cost more than the arithmetic at m = 3;
+/// else by nalgebra. None when S is not positive definite.
+fn factor<M: Dim>(s: &OMatrix<f64, M, M>) -> Option<Cholesky<f64, M>>
+where
+    DefaultAllocator: Allocator<M, M>,
+{
+    let mut l = s.clone();
+    let factored = match M::try_to_usize() {
+        Some(1) => cholesky_lower_in_place::<1>(l.as_mut_slice()),
+        Some(2) => cholesky_lower_in_place::<2>(l.as_mut_slice()),
+        Some(3) => cholesky_lower_in_place::<3>(l.as_mut_slice()),
+        Some(4) => cholesky_lower_in_place::<4>(l.as_mut_slice()),
+        Some(5) => cholesky_lower_in_place::<5>(l.as_mut_slice()),
+        Some(MAX_FIXED_FACTOR) => cholesky_lower_in_place::<MAX_FIXED_FACTOR>(l.as_mut_slice()),
+        _ => return Cholesky::new(l),
+    };
+    factored.then(|| Cholesky::pack_dirty(l))
+}
+
+/// The NIS νᵀ S⁻¹ ν from S's factor: S⁻¹ ν for a fixed size up to
+/// [`MAX_FIXED_FACTOR`] by [`dense::cholesky_solve_vector`] (nalgebra's
+/// `Cholesky::solve` operation for operation), else by nalgebra; the dot
+/// product nalgebra's in both.
+fn normalised_square<M: Dim>(chol: &Cholesky<f64, M>, residual: &OVector<f64, M>) -> f64
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, M>,
+{
+    if M::try_to_usize().is_some_and(|m| m <= MAX_FIXED_FACTOR) {
+        let mut solved = residual.clone();
+        dense::cholesky_solve_vector(chol.l_dirty().as_slice(), solved.as_mut_slice());
+        residual.dot(&solved)
+    } else {
+        residual.dot(&chol.solve(residual))
+    }
+}
+
 /// An innovation with its covariance and factor, computed without changing the filter.
 #[derive(Debug, Clone)]
 pub struct Innovation<N: Dim, M: Dim>
@@ -791,7 +836,7 @@ where
     /// state, whose `p` is a covariance this filter's own full step
     /// computed (finite, symmetric by construction).
     pub(crate) fn set_covariance_computed(&mut self, p: &OMatrix<f64, N, N>) {
-        self.p.copy_from(p);
+        self.p.as_mut_slice().copy_from_slice(p.as_slice());
     }
 
     /// [`predict_state`](Self::predict_state) for a Φ the caller checked
@@ -858,9 +903,28 @@ where
         predicted: &mut OMatrix<f64, N, N>,
         phi_p: &mut OMatrix<f64, N, N>,
     ) -> Result<()> {
-        self.predict_state_prechecked(phi)?;
-        dense::congruence_onto(predicted, q_symmetric, phi, &self.p, phi_p);
-        check::finite(predicted, Step::Predict, Matrix::P)
+        let (nd, _) = phi.shape_generic();
+        if nd.value() > dense::MAX_FUSED_STATES {
+            self.predict_state_prechecked(phi)?;
+            dense::congruence_onto(predicted, q_symmetric, phi, &self.p, phi_p);
+            return check::finite(predicted, Step::Predict, Matrix::P);
+        }
+        // One dispatch for x⁻, P⁻ and their checks (the same operations).
+        let matrix = match dense::predicted_aside(
+            nd,
+            self.x.as_mut_slice(),
+            (phi.as_slice(), q_symmetric.as_slice(), self.p.as_slice()),
+            predicted.as_mut_slice(),
+            phi_p.as_mut_slice(),
+        ) {
+            dense::PredictedStatus::Applied => return Ok(()),
+            dense::PredictedStatus::StateNonFinite => Matrix::X,
+            dense::PredictedStatus::CovarianceNonFinite => Matrix::P,
+        };
+        Err(EstimationError::NonFinite {
+            step: Step::Predict,
+            matrix,
+        })
     }
 
     /// [`update_prechecked`](Self::update_prechecked) after
@@ -901,12 +965,90 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         check::finite(z, Step::Update, Matrix::Z)?;
+        if policy.is_none() && self.covariance_update == CovarianceUpdate::Joseph {
+            let fused = match M::try_to_usize() {
+                Some(1) => self.accept_fused::<M, 1>(predicted, (z, h, r), work),
+                Some(2) => self.accept_fused::<M, 2>(predicted, (z, h, r), work),
+                Some(3) => self.accept_fused::<M, 3>(predicted, (z, h, r), work),
+                Some(4) => self.accept_fused::<M, 4>(predicted, (z, h, r), work),
+                Some(5) => self.accept_fused::<M, 5>(predicted, (z, h, r), work),
+                Some(6) => self.accept_fused::<M, 6>(predicted, (z, h, r), work),
+                _ => None,
+            };
+            if let Some(outcome) = fused {
+                return outcome;
+            }
+        }
         self.innovate_into(predicted, z, h, r, &mut work.innov)?;
         let decision = match policy {
             None => Decision::Accept,
             Some(p) => p.decide(&work.innov.view(r)),
         };
         self.apply_decision(Some(predicted), &work.innov, decision, r, &mut work.gain)
+    }
+}
+
+impl<N: Dim> KalmanFilter<N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    /// [`update_onto`](Self::update_onto) accepting the update (no
+    /// policy), Joseph form, for `M` = `Const<C>`: the innovation, gain, x⁺
+    /// and P⁺ (into the filter) in one dispatch ([`dense::accepted_update`],
+    /// the same operations in the same order, the same errors), the
+    /// residual z − H x⁻ by nalgebra first as in
+    /// [`innovate_into`](Self::innovate_into). None (nothing done) where
+    /// the kernels do not serve the size: more than
+    /// [`dense::MAX_FUSED_STATES`] states.
+    fn accept_fused<M: Dim, const C: usize>(
+        &mut self,
+        predicted: &OMatrix<f64, N, N>,
+        (z, h, r): Measured<'_, N, M>,
+        work: &mut UpdateWork<N, M>,
+    ) -> Option<Result<Outcome>>
+    where
+        DefaultAllocator: FilterAllocator<N, M>,
+    {
+        let n = self.dim();
+        if n > dense::MAX_FUSED_STATES || C > dense::MAX_GAIN_SOLVE {
+            return None;
+        }
+        let step = Step::Update;
+        let innov = &mut work.innov;
+        innov.residual = z - h * &self.x;
+        let mut factor = innov.s.clone();
+        let (nis, status) = dense::accepted_update::<N, C>(
+            predicted.shape_generic().0,
+            (self.p.as_mut_slice(), innov.cross.as_mut_slice()),
+            (
+                predicted.as_slice(),
+                h.as_slice(),
+                r.as_slice(),
+                innov.residual.as_slice(),
+            ),
+            self.x.as_mut_slice(),
+            innov.hph.as_mut_slice(),
+            innov.s.as_mut_slice(),
+            factor.as_mut_slice(),
+            work.gain.as_mut_slice(),
+        );
+        let matrix = match status {
+            dense::AcceptedStatus::Applied => {
+                innov.chol = Cholesky::pack_dirty(factor);
+                innov.nis = nis;
+                return Some(Ok(Outcome::Accepted));
+            }
+            dense::AcceptedStatus::SNotPositiveDefinite => {
+                return Some(Err(EstimationError::NotPositiveDefinite {
+                    step,
+                    matrix: Matrix::S,
+                }));
+            }
+            dense::AcceptedStatus::GainNonFinite => Matrix::K,
+            dense::AcceptedStatus::StateNonFinite => Matrix::X,
+            dense::AcceptedStatus::CovarianceNonFinite => Matrix::P,
+        };
+        Some(Err(EstimationError::NonFinite { step, matrix }))
     }
 }
 
@@ -973,5 +1115,256 @@ where
     /// The NIS.
     pub(crate) fn nis(&self) -> f64 {
         self.innov.nis
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Const, DMatrix, DVector, SMatrix, SVector};
+
+    /// `factor` and `normalised_square` give nalgebra's Cholesky factor
+    /// (all of it: the upper triangle too) and NIS bit for bit at every
+    /// fixed size they serve and a run-time size, and refuse what
+    /// nalgebra refuses (a zero, negative or NaN pivot).
+    #[test]
+    fn the_fixed_size_factor_and_nis_equal_nalgebras_bit_for_bit() {
+        let mut seed = 977_u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        fn case<const M: usize>(
+            next: &mut impl FnMut() -> f64,
+            bits: &impl Fn(&[f64]) -> Vec<u64>,
+        ) {
+            for round in 0..40 {
+                let a = SMatrix::<f64, M, M>::from_fn(|_, _| next());
+                let mut s = a * a.transpose() + SMatrix::<f64, M, M>::identity() * 0.1;
+                if round % 10 == 9 {
+                    // Not positive definite: a zero, negative or NaN pivot.
+                    s[(M - 1, M - 1)] = [0.0, -1.0, f64::NAN][round % 3];
+                }
+                let residual = SVector::<f64, M>::from_fn(|_, _| next());
+                let ours = factor::<Const<M>>(&s);
+                let theirs = Cholesky::new(s);
+                assert_eq!(ours.is_some(), theirs.is_some(), "{M}, round {round}");
+                if let (Some(ours), Some(theirs)) = (ours, theirs) {
+                    assert_eq!(
+                        bits(ours.l_dirty().as_slice()),
+                        bits(theirs.l_dirty().as_slice())
+                    );
+                    let nis = normalised_square(&ours, &residual);
+                    let expected = residual.dot(&theirs.solve(&residual));
+                    assert_eq!(nis.to_bits(), expected.to_bits(), "{M}, round {round}");
+                }
+            }
+        }
+        case::<1>(&mut next, &bits);
+        case::<2>(&mut next, &bits);
+        case::<3>(&mut next, &bits);
+        case::<4>(&mut next, &bits);
+        case::<5>(&mut next, &bits);
+        case::<6>(&mut next, &bits);
+        // Run-time sized: nalgebra's own path.
+        let a = DMatrix::from_fn(4, 4, |_, _| next());
+        let s = &a * a.transpose() + DMatrix::identity(4, 4);
+        let residual = DVector::from_fn(4, |_, _| next());
+        let ours = factor(&s).unwrap();
+        let theirs = Cholesky::new(s).unwrap();
+        assert_eq!(
+            bits(ours.l_dirty().as_slice()),
+            bits(theirs.l_dirty().as_slice())
+        );
+        assert_eq!(
+            normalised_square(&ours, &residual).to_bits(),
+            residual.dot(&theirs.solve(&residual)).to_bits()
+        );
+    }
+    /// The batch's fused accepted update (no policy: one dispatch) equals
+    /// the update through the policy path (`AcceptAll`: the innovation,
+    /// gain and Joseph form in separate steps) bit for bit — x⁺, P⁺, ν, S,
+    /// K, the NIS — and fails with the same error leaving the same filter
+    /// (S not positive definite, P⁺ overflowing), at every measurement
+    /// size it serves, on fixed-size and run-time sized filters.
+    #[test]
+    fn the_fused_accepted_update_equals_the_stepwise_update_bit_for_bit() {
+        let mut seed = 4242_u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        fn case<N: Dim, const M: usize>(nd: N, next: &mut impl FnMut() -> f64)
+        where
+            DefaultAllocator: FilterAllocator<N, Const<M>>,
+        {
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let n = nd.value();
+            let md = Const::<M>;
+            for round in 0..12 {
+                let a = OMatrix::<f64, N, N>::from_fn_generic(nd, nd, |_, _| next());
+                let mut predicted =
+                    &a * a.transpose() + OMatrix::<f64, N, N>::identity_generic(nd, nd);
+                // Sparse rows as a navigation H, with an exact zero column.
+                let h = OMatrix::<f64, Const<M>, N>::from_fn_generic(md, nd, |i, j| {
+                    if j == 0 || (i + j) % 3 == 0 {
+                        0.0
+                    } else {
+                        next()
+                    }
+                });
+                let mut r = OMatrix::<f64, Const<M>, Const<M>>::from_fn_generic(md, md, |i, j| {
+                    if i == j { 0.5 } else { 0.01 }
+                });
+                let z = OVector::<f64, Const<M>>::from_fn_generic(md, nalgebra::U1, |_, _| next());
+                match round {
+                    // S not positive definite.
+                    10 => r[(M - 1, M - 1)] = -1e9,
+                    // Values near overflow: P⁺ or the gain may not be
+                    // finite (the same error either way).
+                    11 => predicted *= 1e307,
+                    _ => {}
+                }
+                let x0 = OVector::<f64, N>::from_fn_generic(nd, nalgebra::U1, |_, _| next());
+                let prior = KalmanFilter::new(x0, OMatrix::identity_generic(nd, nd)).unwrap();
+                let (mut fused, mut stepwise) = (prior.clone(), prior);
+                let mut fused_work = UpdateWork::zeros(nd, md);
+                let mut stepwise_work = UpdateWork::zeros(nd, md);
+                let ours = fused.update_prechecked_from(
+                    &predicted,
+                    (&z, &h, &r),
+                    None::<&mut AcceptAll>,
+                    &mut fused_work,
+                );
+                let theirs = stepwise.update_prechecked_from(
+                    &predicted,
+                    (&z, &h, &r),
+                    Some(&mut AcceptAll),
+                    &mut stepwise_work,
+                );
+                let what = format!("{n}/{M}, round {round}");
+                assert_eq!(ours, theirs, "{what}");
+                assert_eq!(
+                    bits(fused.x.as_slice()),
+                    bits(stepwise.x.as_slice()),
+                    "{what}"
+                );
+                assert_eq!(
+                    bits(fused.p.as_slice()),
+                    bits(stepwise.p.as_slice()),
+                    "{what}"
+                );
+                if ours.is_ok() {
+                    for (a, b) in [
+                        (
+                            fused_work.residual().as_slice(),
+                            stepwise_work.residual().as_slice(),
+                        ),
+                        (fused_work.s().as_slice(), stepwise_work.s().as_slice()),
+                        (
+                            fused_work.gain().as_slice(),
+                            stepwise_work.gain().as_slice(),
+                        ),
+                    ] {
+                        assert_eq!(bits(a), bits(b), "{what}");
+                    }
+                    assert_eq!(fused_work.nis().to_bits(), stepwise_work.nis().to_bits());
+                } else {
+                    assert!(round >= 10, "{what}: {ours:?}");
+                }
+                if round == 10 {
+                    assert!(ours.is_err(), "{what}");
+                }
+            }
+        }
+        case::<Const<9>, 1>(Const::<9>, &mut next);
+        case::<Const<9>, 2>(Const::<9>, &mut next);
+        case::<Const<9>, 3>(Const::<9>, &mut next);
+        case::<Const<15>, 4>(Const::<15>, &mut next);
+        case::<Const<6>, 5>(Const::<6>, &mut next);
+        case::<Const<21>, 6>(Const::<21>, &mut next);
+        case::<Const<24>, 3>(Const::<24>, &mut next);
+        case::<Dyn, 3>(Dyn(7), &mut next);
+        case::<Dyn, 6>(Dyn(13), &mut next);
+    }
+    /// The batch's fused time update with P⁻ aside (one dispatch) equals
+    /// `predict_prechecked` bit for bit — x⁻, P⁻ — and fails with the same
+    /// error leaving the same state (x⁻ overflowing, P⁻ overflowing), on
+    /// fixed-size and run-time sized filters.
+    #[test]
+    fn the_fused_prediction_aside_equals_the_checked_prediction_bit_for_bit() {
+        let mut seed = 99_u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        fn case<N: Dim>(nd: N, next: &mut impl FnMut() -> f64)
+        where
+            DefaultAllocator: Allocator<N> + Allocator<N, N>,
+        {
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let n = nd.value();
+            for round in 0..6 {
+                let a = OMatrix::<f64, N, N>::from_fn_generic(nd, nd, |_, _| next());
+                let p0 = &a * a.transpose() + OMatrix::<f64, N, N>::identity_generic(nd, nd);
+                let mut phi = OMatrix::<f64, N, N>::from_fn_generic(nd, nd, |i, j| {
+                    if i == j { 1.0 } else { 0.1 * next() }
+                });
+                let q = OMatrix::<f64, N, N>::identity_generic(nd, nd) * 1e-3;
+                let mut x0 = OVector::<f64, N>::from_fn_generic(nd, nalgebra::U1, |_, _| next());
+                match round {
+                    // x⁻ overflows (and P⁻ would).
+                    4 => {
+                        phi *= 1e200;
+                        x0 *= 1e200;
+                    }
+                    // P⁻ overflows, x⁻ does not.
+                    5 => phi *= 1e160,
+                    _ => {}
+                }
+                let prior = KalmanFilter::new(x0, p0).unwrap();
+                let (mut fused, mut checked) = (prior.clone(), prior);
+                let mut predicted = OMatrix::<f64, N, N>::from_element_generic(nd, nd, f64::NAN);
+                let mut phi_p = predicted.clone();
+                let ours = fused.predict_prechecked_aside(&phi, &q, &mut predicted, &mut phi_p);
+                let theirs = checked.predict_prechecked(&phi, &q);
+                let what = format!("n {n}, round {round}");
+                assert_eq!(ours, theirs, "{what}");
+                assert_eq!(
+                    bits(fused.x.as_slice()),
+                    bits(checked.x.as_slice()),
+                    "{what}"
+                );
+                match round {
+                    4 | 5 => assert!(ours.is_err(), "{what}"),
+                    _ => assert_eq!(
+                        bits(predicted.as_slice()),
+                        bits(checked.p.as_slice()),
+                        "{what}"
+                    ),
+                }
+                if round == 5 {
+                    assert_eq!(
+                        ours,
+                        Err(EstimationError::NonFinite {
+                            step: Step::Predict,
+                            matrix: Matrix::P
+                        })
+                    );
+                }
+            }
+        }
+        case(Const::<3>, &mut next);
+        case(Const::<9>, &mut next);
+        case(Const::<24>, &mut next);
+        case(Dyn(11), &mut next);
+        case(Dyn(40), &mut next);
     }
 }

@@ -448,7 +448,7 @@ impl<const N: usize> Widened for TimesTranspose<N> {
 /// computed on the way are not stored. Each stored element is the same
 /// sum in the same order.
 #[inline(always)]
-fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
+pub(crate) fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
     let m = &mut m[..N * N];
     // Separate calls, as in `add_symmetric_product`.
     let block = |b: usize| (b, b..(b + 4).min(N));
