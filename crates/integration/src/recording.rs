@@ -387,8 +387,7 @@ impl<const N: usize> Recording<N> {
     /// The backward pass then starts at once.
     pub(crate) fn catch_up(&self, p: &SMatrix<f64, N, N>) {
         if let Self::Background(w) = self {
-            w.supply(p);
-            w.flush();
+            w.catch_up(p);
         }
     }
 
@@ -408,8 +407,7 @@ impl<const N: usize> Recording<N> {
             }
             Self::Inline(r) => r.recorder.smooth_with(visit),
             Self::Background(w) => {
-                w.supply(p);
-                w.flush();
+                w.catch_up(p);
                 lock(w.recorder()).smooth_with(visit)
             }
         }
@@ -578,6 +576,13 @@ fn close_prediction<const N: usize>(pending: &mut Pending<N>, p_predicted: &SMat
 }
 
 impl<const N: usize> Worker<N> {
+    /// The open prediction's P⁻ handed over (`p`), the calls not yet sent
+    /// sent, and the worker done with all of them.
+    fn catch_up(&self, p: &SMatrix<f64, N, N>) {
+        self.supply(p);
+        self.flush();
+    }
+
     /// The recorder the worker thread feeds (behind its lock).
     fn recorder(&self) -> &Mutex<RtsRecorder<N>> {
         self.recorder
