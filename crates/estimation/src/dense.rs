@@ -1306,9 +1306,26 @@ pub fn symmetric_bits(m: &[f64], n: usize) -> bool {
 /// ```
 #[inline]
 pub fn push_lower_triangle<const N: usize>(m: &SMatrix<f64, N, N>, out: &mut Vec<f64>) {
-    for (j, column) in m.as_slice().chunks_exact(N).enumerate() {
-        out.extend_from_slice(&column[j..]);
+    let s = m.as_slice();
+    let start = out.len();
+    let count = N * (N + 1) / 2;
+    // Each column is copied N long from its diagonal (a copy of constant
+    // length, inlined; it runs on into the next column, which is written
+    // over it) — a copy of the N − j elements alone was a call to memcpy
+    // per column. Room for N values past the end; cut off after.
+    out.resize(start + count + N, 0.0);
+    let packed = &mut out[start..];
+    let mut at = 0;
+    for j in 0..N {
+        let from = j * N + j;
+        if from + N <= N * N {
+            packed[at..at + N].copy_from_slice(&s[from..from + N]);
+        } else {
+            packed[at..at + N - j].copy_from_slice(&s[from..]);
+        }
+        at += N - j;
     }
+    out.truncate(start + count);
 }
 
 /// The symmetric N × N matrix whose lower triangle
@@ -1416,6 +1433,30 @@ mod tests {
                 assert_eq!(out, &a * &b * -2.0 + &base * 0.5, "{r}×{c}");
             }
         }
+    }
+
+    /// `push_lower_triangle` appends column j from its diagonal down, after
+    /// what the vector held, and nothing else: checked against a plain
+    /// element loop at sizes whose last columns take its short copy.
+    #[test]
+    fn the_lower_triangle_is_appended_column_by_column() {
+        fn case<const N: usize>() {
+            let m = SMatrix::<f64, N, N>::from_fn(|i, j| (i * 100 + j) as f64 + 0.5);
+            let mut packed = vec![-1.0, -2.0];
+            push_lower_triangle(&m, &mut packed);
+            let mut expected = vec![-1.0, -2.0];
+            for j in 0..N {
+                for i in j..N {
+                    expected.push(m[(i, j)]);
+                }
+            }
+            assert_eq!(packed, expected, "N = {N}");
+        }
+        case::<1>();
+        case::<2>();
+        case::<3>();
+        case::<9>();
+        case::<21>();
     }
 
     #[test]

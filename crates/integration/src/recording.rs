@@ -423,12 +423,25 @@ fn write_phi<const N: usize>(data: &mut Vec<f64>, phi: &SMatrix<f64, N, N>, rows
         data.extend_from_slice(s);
         return;
     }
+    // Each column is copied whole (a copy of constant length, inlined) and
+    // the next one written over its rows from `rows` on: a copy of the
+    // first `rows` elements, whose length is known only here, was a call
+    // to memcpy per column, the main cost of a prediction's hand-over.
+    // Room for one whole column past the end; cut off after.
+    let start = data.len();
+    let count = N * rows + (N - rows);
+    data.resize(start + count + N, 0.0);
+    let out = &mut data[start..];
+    let mut at = 0;
     for (j, column) in s.chunks_exact(N).enumerate() {
-        data.extend_from_slice(&column[..rows]);
+        out[at..at + N].copy_from_slice(column);
+        at += rows;
         if j >= rows {
-            data.push(column[j]);
+            out[at] = column[j];
+            at += 1;
         }
     }
+    data.truncate(start + count);
 }
 
 /// Φ from what [`write_phi`] appended at the start of `data` into `phi`;
