@@ -10,7 +10,7 @@
 # builds the copy (CMake, Release). RUNS (default 5): rounds of three runs —
 # aidnav on examples/drive_0708.toml (RTS smoother on), aidnav with the
 # smoother off, KF-GINS on the converted drive — interleaved so all three see
-# the same machine load.
+# the same machine load, each after a `sync` outside its time.
 #
 # Everything goes under BENCH_DIR (default: ${CARGO_TARGET_DIR:-target}/kfgins-bench
 # of this repository): src/ (the copy), build/, drive/ (aidnav convert's
@@ -66,16 +66,28 @@ grep -q '^smooth = false ' "$nosmooth" || { echo "error: $config has no 'smooth 
 
 now() { date +%s.%N; }
 elapsed() { awk -v a="$1" -v b="$2" 'BEGIN {printf "%.4f", b - a}'; }
+# timed LOG COMMAND...: run COMMAND (output to LOG), its wall time in $last.
+# Each run starts after a `sync` that is not timed, so that no program pays
+# for the writeback of the run before it: aidnav syncs each output file
+# before it renames it into place (a write error then surfaces as an error,
+# not as a truncated file), and right after KF-GINS has left 47 MB of
+# output to the kernel those syncs took up to 6 ms each instead of under 1.
+timed() {
+    local log=$1 t0
+    shift
+    sync
+    t0=$(now)
+    "$@" >"$log" 2>&1
+    last=$(elapsed "$t0" "$(now)")
+}
 a_times=() n_times=() k_times=()
 for ((i = 1; i <= runs; i++)); do
-    t0=$(now)
-    "$aidnav" process "$config" --no-score --out "$bench/aidnav" >/dev/null 2>&1
-    t1=$(now)
-    "$aidnav" process "$nosmooth" --no-score --out "$bench/aidnav_no_smoother" >/dev/null 2>&1
-    t2=$(now)
-    "$kfgins" "$yaml" >"$bench/kfgins.log" 2>&1
-    t3=$(now)
-    a_times+=("$(elapsed "$t0" "$t1")") n_times+=("$(elapsed "$t1" "$t2")") k_times+=("$(elapsed "$t2" "$t3")")
+    timed /dev/null "$aidnav" process "$config" --no-score --out "$bench/aidnav"
+    a_times+=("$last")
+    timed /dev/null "$aidnav" process "$nosmooth" --no-score --out "$bench/aidnav_no_smoother"
+    n_times+=("$last")
+    timed "$bench/kfgins.log" "$kfgins" "$yaml"
+    k_times+=("$last")
     echo "run $i: aidnav ${a_times[-1]} s, aidnav smoother off ${n_times[-1]} s, KF-GINS ${k_times[-1]} s"
 done
 
