@@ -423,10 +423,10 @@ fn write_phi<const N: usize>(data: &mut Vec<f64>, phi: &SMatrix<f64, N, N>, rows
         data.extend_from_slice(s);
         return;
     }
-    // Each column is copied whole (a copy of constant length, inlined) and
-    // the next one written over its rows from `rows` on: a copy of the
-    // first `rows` elements, whose length is known only here, was a call
-    // to memcpy per column, the main cost of a prediction's hand-over.
+    // Each column is copied whole (a copy of constant length) and the next
+    // one written over its rows from `rows` on, into room reserved once:
+    // a `extend_from_slice` of the first `rows` elements, a length known
+    // only here, per column measured 3 % slower on the smoothed drive.
     // Room for one whole column past the end; cut off after.
     let start = data.len();
     let count = N * rows + (N - rows);
