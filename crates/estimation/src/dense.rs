@@ -56,11 +56,11 @@ pub(crate) fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -
     all_static || r.max(k).max(c) <= SMALL_DYN
 }
 
-/// Columns `cols` of `out = α · a · B + β · out`, rows `row0..r`, for
+/// Columns `cols` of `out = α · a · B + β · out`, rows `rows`, for
 /// column-major a (r × k) and out (r × c), where `b(kk, j)` reads element
 /// (kk, j) of B: B itself, or a transpose. Axpy form: each output column
 /// accumulates scaled columns of a over the inner indices `inner`, in their
-/// order. When r − row0 is a compile-time constant (fixed-size matrices) the
+/// order. When the row count is a compile-time constant (fixed-size matrices) the
 /// compiler keeps the whole output column in registers while the inner index
 /// runs: one load of a's column and one broadcast per column element pair.
 /// With `init` (r × c, column-major) each output column starts from init's
@@ -69,7 +69,7 @@ pub(crate) fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -
 #[allow(clippy::too_many_arguments)]
 fn columns<I: Iterator<Item = usize> + Clone>(
     r: usize,
-    (row0, cols): (usize, std::ops::Range<usize>),
+    (rows, cols): (std::ops::Range<usize>, std::ops::Range<usize>),
     inner: &I,
     alpha: f64,
     a: &[f64],
@@ -77,7 +77,7 @@ fn columns<I: Iterator<Item = usize> + Clone>(
     (beta, init): (f64, Option<&[f64]>),
     out: &mut [f64],
 ) {
-    let len = r - row0;
+    let (row0, len) = (rows.start, rows.end - rows.start);
     for j in cols {
         let oc = &mut out[j * r + row0..][..len];
         if let Some(init) = init {
@@ -143,16 +143,34 @@ fn kernel_from<I: Iterator<Item = usize> + Clone>(
     lower: bool,
 ) {
     if !lower {
-        columns(r, (0, 0..c), &inner, alpha, a, &b, start, out);
+        columns(r, (0..r, 0..c), &inner, alpha, a, &b, start, out);
         return;
     }
-    let (s1, s2, s3) = lower_block_starts(r);
+    lower_leading(r, r, inner, alpha, a, b, start, out);
+}
+
+/// The lower triangle of the leading `rows` × `rows` block of a square
+/// r × r `out` (see [`kernel_from`], `lower`), in [`LOWER_BLOCKS`] column
+/// blocks.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn lower_leading<I: Iterator<Item = usize> + Clone>(
+    r: usize,
+    rows: usize,
+    inner: I,
+    alpha: f64,
+    a: &[f64],
+    b: impl Fn(usize, usize) -> f64,
+    start: (f64, Option<&[f64]>),
+    out: &mut [f64],
+) {
+    let (s1, s2, s3) = lower_block_starts(rows);
     // Four calls, not a loop or a closure: each inlines with its own
     // constant row count (fixed sizes), which keeps the columns in registers.
-    columns(r, (0, 0..s1), &inner, alpha, a, &b, start, out);
-    columns(r, (s1, s1..s2), &inner, alpha, a, &b, start, out);
-    columns(r, (s2, s2..s3), &inner, alpha, a, &b, start, out);
-    columns(r, (s3, s3..r), &inner, alpha, a, &b, start, out);
+    columns(r, (0..rows, 0..s1), &inner, alpha, a, &b, start, out);
+    columns(r, (s1..rows, s1..s2), &inner, alpha, a, &b, start, out);
+    columns(r, (s2..rows, s2..s3), &inner, alpha, a, &b, start, out);
+    columns(r, (s3..rows, s3..rows), &inner, alpha, a, &b, start, out);
 }
 
 /// First columns (and rows) of blocks 1–3 of the [`LOWER_BLOCKS`] column
@@ -384,7 +402,13 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
         }
         return;
     }
-    rank_2k_lower_kernel(n, m, (v.as_slice(), k.as_slice()), None, out.as_mut_slice());
+    rank_2k_lower_kernel(
+        (n, n),
+        m,
+        (v.as_slice(), k.as_slice()),
+        None,
+        out.as_mut_slice(),
+    );
 }
 
 /// [`add_rank_2k_lower`] on the column-major slices: `out` (n × n), `a` =
@@ -398,40 +422,47 @@ impl Widened for Rank2kLower {
     #[inline(always)]
     fn run(self, out: &mut [f64], _scratch: &mut [f64], a: &[f64], b: &[f64]) {
         let (n, m) = (self.n, self.m);
-        rank_2k_lower_kernel(n, m, (&a[..n * m], &b[..n * m]), None, &mut out[..n * n]);
+        rank_2k_lower_kernel(
+            (n, n),
+            m,
+            (&a[..n * m], &b[..n * m]),
+            None,
+            &mut out[..n * n],
+        );
     }
 }
 
 /// The kernel of [`add_rank_2k_lower`] on column-major slices (v, k: n × m),
-/// adding onto `prior` (n × n) when given instead of onto out's own values.
+/// adding onto `prior` (n × n) when given instead of onto out's own values:
+/// the lower triangle of the leading `rows` × `rows` block of out (n × n).
 #[inline(always)]
 fn rank_2k_lower_kernel(
-    n: usize,
+    (n, rows): (usize, usize),
     m: usize,
     (vs, ks): (&[f64], &[f64]),
     prior: Option<&[f64]>,
     os: &mut [f64],
 ) {
-    let (s1, s2, s3) = lower_block_starts(n);
-    rank_2k_columns(n, m, (0, 0..s1), (vs, ks), prior, os);
-    rank_2k_columns(n, m, (s1, s1..s2), (vs, ks), prior, os);
-    rank_2k_columns(n, m, (s2, s2..s3), (vs, ks), prior, os);
-    rank_2k_columns(n, m, (s3, s3..n), (vs, ks), prior, os);
+    let (s1, s2, s3) = lower_block_starts(rows);
+    rank_2k_columns(n, m, (0..rows, 0..s1), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s1..rows, s1..s2), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s2..rows, s2..s3), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s3..rows, s3..rows), (vs, ks), prior, os);
 }
 
-/// Columns `cols`, rows `row0..n`, of [`add_rank_2k_lower`] (the column of
+/// Columns `cols`, rows `rows`, of [`add_rank_2k_lower`] (the column of
 /// out stays in registers for fixed sizes, as in [`columns`]; with `prior`
 /// it starts from prior's column, as in [`columns`]'s `init`).
 #[inline(always)]
 fn rank_2k_columns(
     n: usize,
     m: usize,
-    (row0, cols): (usize, std::ops::Range<usize>),
+    (rows, cols): (std::ops::Range<usize>, std::ops::Range<usize>),
     (vs, ks): (&[f64], &[f64]),
     prior: Option<&[f64]>,
     os: &mut [f64],
 ) {
-    let len = n - row0;
+    let (row0, len) = (rows.start, rows.end - rows.start);
     for j in cols {
         let oc = &mut os[j * n + row0..][..len];
         if let Some(prior) = prior {
@@ -817,8 +848,75 @@ impl<D: Dim> Widened for Congruence<'_, D> {
         kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
         // (Φ P) Φᵀ, lower, as gemm_nt_lower: b(kk, j) = Φ(j, kk).
         let read_phi = |kk: usize, j: usize| phi[kk * n + j];
-        kernel_from((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
-        mirror_lower_slice(n, out);
+        if !last_row_apart(n) {
+            kernel_from((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
+            mirror_lower_slice(n, out);
+            return;
+        }
+        let last = n - 1;
+        lower_leading(n, last, 0..n, 1.0, phi_p, read_phi, (1.0, base), out);
+        // Row `last`, element (last, j) the sum of Φ P(last, k) Φ(j, k) over
+        // k in order, the kernel's terms (each product commuted, exact):
+        // as a vector over j, Φ's column k scaled.
+        let column = last_row_start(n, base, out);
+        for k in 0..n {
+            axpy(column, &phi[k * n..][..n], phi_p[k * n + last]);
+        }
+        mirror_with_last_column(n, out);
+    }
+}
+
+/// Whether the fused kernels ([`Congruence`], [`JosephRank2k`]) compute
+/// the last row of their symmetric n × n result apart: when n − 1 is a
+/// multiple of four (n = 5, 9, 13, 21, …). The columns of the leading
+/// n − 1 rows then fill whole four-lane vectors, where at n = 9 each
+/// column of nine rows took two vectors and a scalar (a third of the
+/// instructions for a ninth of the elements); the last row, element
+/// (n − 1, j) for every j, is one more column's worth of vectors: the same
+/// terms summed in the same order, with the roles of the two factors of
+/// each product swapped (exact: multiplication commutes, and the inputs'
+/// NaN are the one default NaN), kept in the storage of column n − 1 and
+/// mirrored from there ([`mirror_with_last_column`]).
+#[inline(always)]
+fn last_row_apart(n: usize) -> bool {
+    n >= 5 && n % 4 == 1 && n <= SMALL_DYN
+}
+
+/// The start of row n − 1 of a lower-triangle sum onto `base` (or onto
+/// out's own values when None), element (n − 1, j) written at (j, n − 1),
+/// in column n − 1 of out (n × n), which is returned: the storage
+/// [`last_row_apart`]'s sums accumulate in.
+#[inline(always)]
+fn last_row_start<'o>(n: usize, base: Option<&[f64]>, out: &'o mut [f64]) -> &'o mut [f64] {
+    let last = n - 1;
+    let (head, column) = out[..n * n].split_at_mut(last * n);
+    for (j, o) in column[..last].iter_mut().enumerate() {
+        *o = match base {
+            Some(b) => b[j * n + last],
+            None => head[j * n + last],
+        };
+    }
+    if let Some(b) = base {
+        column[last] = b[last * n + last];
+    }
+    column
+}
+
+/// The symmetric n × n matrix from the lower triangle of its leading
+/// n − 1 rows and from its row n − 1 kept in column n − 1 (see
+/// [`last_row_apart`]): the leading block mirrored as by
+/// [`mirror_lower_slice`], then column n − 1 copied onto row n − 1.
+#[inline(always)]
+fn mirror_with_last_column(n: usize, s: &mut [f64]) {
+    let last = n - 1;
+    let s = &mut s[..n * n];
+    for j in 1..last {
+        for i in 0..j {
+            s[j * n + i] = s[i * n + j];
+        }
+    }
+    for j in 0..last {
+        s[j * n + last] = s[last * n + j];
     }
 }
 
@@ -916,8 +1014,24 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<'_, N, M> {
         // V = α K S + β W, as gemm: b(kk, j) = S(kk, j).
         let read_s = |kk: usize, j: usize| s[j * m + kk];
         kernel((n, m), 0..m, self.alpha, gain, read_s, self.beta, v, false);
-        rank_2k_lower_kernel(n, m, (v, gain), prior, p);
-        mirror_lower_slice(n, p);
+        if !last_row_apart(n) {
+            rank_2k_lower_kernel((n, n), m, (v, gain), prior, p);
+            mirror_lower_slice(n, p);
+            return;
+        }
+        let last = n - 1;
+        rank_2k_lower_kernel((n, last), m, (v, gain), prior, p);
+        // Row `last` (see last_row_apart): element (last, j) gets
+        // Σ V(last, l) K(j, l) then Σ K(last, l) V(j, l), as the kernel
+        // sums them.
+        let column = last_row_start(n, prior, p);
+        for l in 0..m {
+            axpy(column, &gain[l * n..][..n], v[l * n + last]);
+        }
+        for l in 0..m {
+            axpy(column, &v[l * n..][..n], gain[l * n + last]);
+        }
+        mirror_with_last_column(n, p);
     }
 }
 
@@ -1575,6 +1689,122 @@ mod tests {
                 .zip(nalgebra.iter())
                 .all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "n = {n}, m = {m}");
+        }
+    }
+
+    /// The fused kernels with the last row apart (n − 1 a multiple of
+    /// four) give the full lower triangle's result bit for bit: Φ P Φᵀ + Q
+    /// against gemm, gemm_nt_lower and mirror_lower, the Joseph update
+    /// against gemm, add_rank_2k_lower and mirror_lower, onto the matrix's
+    /// own values and onto a prior, at the fixed sizes 5, 9, 13 and 21 and
+    /// run-time sized; random values, exact zeros in Φ and a Q whose
+    /// mirrored zeros differ in sign, so that order and operands show.
+    #[test]
+    fn the_last_row_apart_equals_the_full_lower_triangle_bit_for_bit() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(29);
+        let bits = |m: &[f64]| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        fn check<D: Dim, M: Dim>(
+            (nd, md): (D, M),
+            rng: &mut rand_chacha::ChaCha8Rng,
+            bits: &impl Fn(&[f64]) -> Vec<u64>,
+        ) where
+            DefaultAllocator: Allocator<D, D> + Allocator<D, M> + Allocator<M, D> + Allocator<M, M>,
+        {
+            let (n, m) = (nd.value(), md.value());
+            assert!(last_row_apart(n), "n = {n}");
+            let square = |values: DMatrix<f64>| {
+                OMatrix::<f64, D, D>::from_iterator_generic(nd, nd, values.iter().copied())
+            };
+            let tall = |values: DMatrix<f64>| {
+                OMatrix::<f64, D, M>::from_iterator_generic(nd, md, values.iter().copied())
+            };
+            let mut phi = random_matrix(rng, n, n) * 0.3 + DMatrix::identity(n, n);
+            phi[(n - 1, 2)] = 0.0;
+            phi[(1, n - 1)] = 0.0;
+            let (phi, p) = (square(phi), square(random_covariance(rng, n)));
+            let mut q = random_covariance(rng, n) * 1e-3;
+            q[(n - 1, 0)] = 0.0;
+            q[(0, n - 1)] = -0.0;
+            let q = square(q);
+            // Time update, onto out's values and onto Q.
+            let mut full = q.clone();
+            let mut phi_p = square(DMatrix::zeros(n, n));
+            gemm(&mut phi_p, 1.0, &phi, &p, 0.0);
+            gemm_nt_lower(&mut full, 1.0, &phi_p, &phi, 1.0);
+            mirror_lower(&mut full);
+            let mut apart = q.clone();
+            add_congruence(&mut apart, &phi, &p);
+            assert_eq!(
+                bits(apart.as_slice()),
+                bits(full.as_slice()),
+                "Φ P Φᵀ + Q, n = {n}"
+            );
+            let mut onto = square(DMatrix::repeat(n, n, f64::NAN));
+            let mut scratch = square(DMatrix::repeat(n, n, f64::NAN));
+            congruence_onto(&mut onto, &q, &phi, &p, &mut scratch);
+            assert_eq!(
+                bits(onto.as_slice()),
+                bits(full.as_slice()),
+                "onto Q, n = {n}"
+            );
+            // Joseph update, onto P's values and onto a prior.
+            let gain = tall(random_matrix(rng, n, m) * 0.2);
+            let s = OMatrix::<f64, M, M>::from_iterator_generic(
+                md,
+                md,
+                (random_covariance(rng, m) + DMatrix::identity(m, m))
+                    .iter()
+                    .copied(),
+            );
+            let w = tall(random_matrix(rng, n, m));
+            let (mut full, mut v) = (p.clone(), w.clone());
+            gemm(&mut v, 0.5, &gain, &s, -1.0);
+            add_rank_2k_lower(&mut full, &v, &gain);
+            mirror_lower(&mut full);
+            let (mut apart, mut v_apart) = (p.clone(), w.clone());
+            joseph_rank_2k(&mut apart, &mut v_apart, &gain, &s, (0.5, -1.0));
+            assert_eq!(
+                bits(apart.as_slice()),
+                bits(full.as_slice()),
+                "Joseph, {n}×{m}"
+            );
+            let (mut onto, mut v_onto) = (square(DMatrix::repeat(n, n, f64::NAN)), w.clone());
+            joseph_rank_2k_onto(&mut onto, &p, &mut v_onto, &gain, &s, (0.5, -1.0));
+            assert_eq!(
+                bits(onto.as_slice()),
+                bits(full.as_slice()),
+                "Joseph onto P⁻, {n}×{m}"
+            );
+        }
+        for _ in 0..3 {
+            check(
+                (nalgebra::Const::<5>, nalgebra::Const::<2>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<9>, nalgebra::Const::<3>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<9>, nalgebra::Const::<6>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<13>, nalgebra::Const::<4>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<21>, nalgebra::Const::<6>),
+                &mut rng,
+                &bits,
+            );
+            check((Dyn(9), Dyn(3)), &mut rng, &bits);
+            check((Dyn(29), Dyn(1)), &mut rng, &bits);
         }
     }
 
