@@ -1170,7 +1170,7 @@ fn accepted_update_body<N: Dim, const M: usize>(
     }
     gain.copy_from_slice(cross);
     GainSolve { n: nd, m: md }.run(gain, &mut [], l, &[]);
-    if !crate::check::all_finite_kernel(gain) {
+    if !crate::check::all_finite_by_exponent(gain) {
         return (f64::NAN, AcceptedStatus::GainNonFinite);
     }
     let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
@@ -1207,9 +1207,9 @@ fn accepted_update_body<N: Dim, const M: usize>(
     solved.copy_from_slice(residual);
     cholesky_solve_vector(l, &mut solved);
     let nis = nu.dot(&nalgebra::SVector::<f64, M>::from_column_slice(&solved));
-    let status = if !crate::check::all_finite_kernel(x) {
+    let status = if !crate::check::all_finite_by_exponent(x) {
         AcceptedStatus::StateNonFinite
-    } else if !crate::check::all_finite_kernel(p) {
+    } else if !crate::check::all_finite_by_exponent(p) {
         AcceptedStatus::CovarianceNonFinite
     } else {
         AcceptedStatus::Applied
@@ -1288,7 +1288,7 @@ fn predicted_aside_body<D: Dim>(
     MatrixVector { n: nd }.run(x_predicted, &mut [], phi, x);
     let x = &mut x[..n];
     x.copy_from_slice(x_predicted);
-    if !crate::check::all_finite_kernel(x) {
+    if !crate::check::all_finite_by_exponent(x) {
         return PredictedStatus::StateNonFinite;
     }
     Congruence {
@@ -1296,7 +1296,7 @@ fn predicted_aside_body<D: Dim>(
         base: Some(q),
     }
     .run(predicted, phi_p, phi, p);
-    if crate::check::all_finite_kernel(&predicted[..n * n]) {
+    if crate::check::all_finite_by_exponent(&predicted[..n * n]) {
         PredictedStatus::Applied
     } else {
         PredictedStatus::CovarianceNonFinite
