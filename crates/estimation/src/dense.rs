@@ -1173,15 +1173,16 @@ fn accepted_update_body<N: Dim, const M: usize>(
     if !crate::check::all_finite_by_exponent(gain) {
         return (f64::NAN, AcceptedStatus::GainNonFinite);
     }
-    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
     // x += K ν: nalgebra's product (K(·, 0) ν₀, then K(·, l) ν_l + y),
-    // then its sum x + y.
+    // then its sum x + y. (Over the residual's slice: skip(1) on
+    // nalgebra's iterator of ν was a call, with the vectors spilled around
+    // it.)
     let mut step = [0.0; MAX_FUSED_STATES];
     let step = &mut step[..n];
     for (o, &k) in step.iter_mut().zip(&gain[..n]) {
-        *o = k * nu[0];
+        *o = k * residual[0];
     }
-    for (l, &nl) in nu.iter().enumerate().skip(1) {
+    for (l, &nl) in residual.iter().enumerate().skip(1) {
         for (o, &k) in step.iter_mut().zip(&gain[l * n..(l + 1) * n]) {
             #[allow(clippy::assign_op_pattern)]
             {
@@ -1206,6 +1207,7 @@ fn accepted_update_body<N: Dim, const M: usize>(
     let mut solved = [0.0; M];
     solved.copy_from_slice(residual);
     cholesky_solve_vector(l, &mut solved);
+    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
     let nis = nu.dot(&nalgebra::SVector::<f64, M>::from_column_slice(&solved));
     let status = if !crate::check::all_finite_by_exponent(x) {
         AcceptedStatus::StateNonFinite
