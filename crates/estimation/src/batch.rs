@@ -450,6 +450,11 @@ where
     p_predicted: OMatrix<f64, N, N>,
     /// Scratch for Φ P in the prediction.
     phi_p: OMatrix<f64, N, N>,
+    /// The filter's P is symmetric bit for bit: checked once, at the
+    /// start; every P an epoch gives the filter then is too (the time
+    /// update and the Joseph form mirror their lower triangle, the standard
+    /// form symmetrises, a steady phase's P⁺ was computed so).
+    p_symmetric: bool,
 }
 
 impl<N: Dim> BatchModel<'_, N>
@@ -629,9 +634,12 @@ where
     // between the prediction and the update.
     let aside = predict && model.q_symmetric.is_some();
     match &model.q_symmetric {
-        Some(q) if aside => {
-            kf.predict_prechecked_aside(model.phi, q, &mut model.p_predicted, &mut model.phi_p)?
-        }
+        Some(q) if aside => kf.predict_prechecked_aside(
+            model.phi,
+            q,
+            (&mut model.p_predicted, &mut model.phi_p),
+            model.p_symmetric,
+        )?,
         _ if predict => model.predict(kf)?,
         _ => {}
     }
@@ -808,6 +816,7 @@ where
         // Any values: both are written before they are read.
         p_predicted: kf.covariance().clone(),
         phi_p: kf.covariance().clone(),
+        p_symmetric: crate::dense::symmetric_bits(kf.covariance().as_slice(), n),
     };
     // What each update size keeps (its steady state: one set of
     // components each).

@@ -812,6 +812,7 @@ fn congruence<D: Dim>(
             Congruence {
                 n: nd,
                 base: base.map(|q| q.as_slice()),
+                p_symmetric: false,
             },
             out.as_mut_slice(),
             phi_p.as_mut_slice(),
@@ -830,10 +831,14 @@ fn congruence<D: Dim>(
 
 /// [`add_congruence`] on the column-major slices: `out` (n × n), `scratch`
 /// for Φ P (n × n), `a` = Φ, `b` = P; with `base` (n × n, Q) the sum
-/// starts from base's elements instead of out's.
+/// starts from base's elements instead of out's. `p_symmetric`: the caller
+/// knows P to be symmetric bit for bit, so that row n − 1 of Φ P, too, is
+/// a column's worth of vectors (see [`last_row_apart`]; row n − 1 of the
+/// scratch is then left unwritten).
 struct Congruence<'q, D: Dim> {
     n: D,
     base: Option<&'q [f64]>,
+    p_symmetric: bool,
 }
 
 impl<D: Dim> Widened for Congruence<'_, D> {
@@ -845,22 +850,49 @@ impl<D: Dim> Widened for Congruence<'_, D> {
         let base = self.base.map(|q| &q[..nn]);
         // Φ P, as gemm(Φ P): b(kk, j) = P(kk, j).
         let read_p = |kk: usize, j: usize| p[j * n + kk];
-        kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
         // (Φ P) Φᵀ, lower, as gemm_nt_lower: b(kk, j) = Φ(j, kk).
         let read_phi = |kk: usize, j: usize| phi[kk * n + j];
         if !last_row_apart(n) {
+            kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
             kernel_from((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
             mirror_lower_slice(n, out);
             return;
         }
         let last = n - 1;
+        // Row `last` of Φ P: with P symmetric bit for bit, element
+        // (last, j), Σ Φ(last, kk) P(kk, j) from +0 over kk in order, has
+        // the terms of Φ(last, kk) P(j, kk): as a vector over j, P's
+        // column kk scaled (each product commuted, exact); else as the
+        // other rows.
+        let mut phi_p_last = [0.0; SMALL_DYN];
+        let phi_p_last = &mut phi_p_last[..n];
+        if self.p_symmetric {
+            columns(
+                n,
+                (0..last, 0..n),
+                &(0..n),
+                1.0,
+                phi,
+                &read_p,
+                (0.0, None),
+                phi_p,
+            );
+            for kk in 0..n {
+                axpy(phi_p_last, &p[kk * n..][..n], phi[kk * n + last]);
+            }
+        } else {
+            kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
+            for (k, v) in phi_p_last.iter_mut().enumerate() {
+                *v = phi_p[k * n + last];
+            }
+        }
         lower_leading(n, last, 0..n, 1.0, phi_p, read_phi, (1.0, base), out);
         // Row `last`, element (last, j) the sum of Φ P(last, k) Φ(j, k) over
         // k in order, the kernel's terms (each product commuted, exact):
         // as a vector over j, Φ's column k scaled.
         let column = last_row_start(n, base, out);
-        for k in 0..n {
-            axpy(column, &phi[k * n..][..n], phi_p[k * n + last]);
+        for (k, &s) in phi_p_last.iter().enumerate() {
+            axpy(column, &phi[k * n..][..n], s);
         }
         mirror_with_last_column(n, out);
     }
@@ -1239,10 +1271,11 @@ pub(crate) enum PredictedStatus {
 /// `check::finite`, in their order, without the two dispatches, the calls
 /// and the copy of x between them. `x` holds x on entry, x⁻ on return;
 /// `predicted` (P⁻) and `phi_p` (scratch for Φ P) are written, their
-/// values on entry unread; n at most [`MAX_FUSED_STATES`].
+/// values on entry unread; n at most [`MAX_FUSED_STATES`]; `p_symmetric`:
+/// P is known to be symmetric bit for bit (see [`Congruence`]).
 #[inline(always)]
 pub(crate) fn predicted_aside<D: Dim>(
-    n: D,
+    (n, p_symmetric): (D, bool),
     x: &mut [f64],
     (phi, q, p): (&[f64], &[f64], &[f64]),
     predicted: &mut [f64],
@@ -1253,16 +1286,16 @@ pub(crate) fn predicted_aside<D: Dim>(
         #[allow(unsafe_code)]
         // SAFETY: `predicted_aside_avx2`'s only requirement is that the
         // CPU executes AVX2 instructions, which was just detected.
-        return unsafe { predicted_aside_avx2(n, x, phi, q, p, predicted, phi_p) };
+        return unsafe { predicted_aside_avx2((n, p_symmetric), x, phi, q, p, predicted, phi_p) };
     }
-    predicted_aside_body(n, x, phi, q, p, predicted, phi_p)
+    predicted_aside_body((n, p_symmetric), x, phi, q, p, predicted, phi_p)
 }
 
 /// [`predicted_aside`] compiled with AVX2.
 #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
 #[target_feature(enable = "avx2")]
 fn predicted_aside_avx2<D: Dim>(
-    n: D,
+    n: (D, bool),
     x: &mut [f64],
     phi: &[f64],
     q: &[f64],
@@ -1276,7 +1309,7 @@ fn predicted_aside_avx2<D: Dim>(
 /// The body of [`predicted_aside`].
 #[inline(always)]
 fn predicted_aside_body<D: Dim>(
-    nd: D,
+    (nd, p_symmetric): (D, bool),
     x: &mut [f64],
     phi: &[f64],
     q: &[f64],
@@ -1296,6 +1329,7 @@ fn predicted_aside_body<D: Dim>(
     Congruence {
         n: nd,
         base: Some(q),
+        p_symmetric,
     }
     .run(predicted, phi_p, phi, p);
     if crate::check::all_finite_by_exponent(&predicted[..n * n]) {
@@ -1750,6 +1784,25 @@ mod tests {
                 bits(full.as_slice()),
                 "onto Q, n = {n}"
             );
+            // P symmetric bit for bit: row n − 1 of Φ P apart too.
+            assert_eq!(bits(p.as_slice()), bits(p.transpose().as_slice()));
+            let mut onto = square(DMatrix::repeat(n, n, f64::NAN));
+            run_widest(
+                Congruence {
+                    n: nd,
+                    base: Some(q.as_slice()),
+                    p_symmetric: true,
+                },
+                onto.as_mut_slice(),
+                scratch.as_mut_slice(),
+                phi.as_slice(),
+                p.as_slice(),
+            );
+            assert_eq!(
+                bits(onto.as_slice()),
+                bits(full.as_slice()),
+                "P symmetric, n = {n}"
+            );
             // Joseph update, onto P's values and onto a prior.
             let gain = tall(random_matrix(rng, n, m) * 0.2);
             let s = OMatrix::<f64, M, M>::from_iterator_generic(
@@ -1854,6 +1907,7 @@ mod tests {
                 let work = Congruence {
                     n: Dyn(n),
                     base: None,
+                    p_symmetric: false,
                 };
                 work.run(
                     portable.as_mut_slice(),
@@ -1966,6 +2020,7 @@ mod tests {
             Congruence {
                 n: Dyn(N),
                 base: None,
+                p_symmetric: false,
             }
             .run(
                 portable.as_mut_slice(),
