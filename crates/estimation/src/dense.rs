@@ -19,6 +19,12 @@
 //!   filter's H touches 3–6 of 15–21 states, so H P costs a third or less. The
 //!   skipped terms are exact zeros (P is finite), so the result is the dense one.
 //!
+//! The batch's fused time and Joseph updates add a third, at the sizes
+//! where n − 1 is a multiple of four (5, 9, 13, 21): the last row of the
+//! symmetric result is computed apart, as a vector over the other factor's
+//! columns (the same terms in the same order), so that the columns of the
+//! leading n − 1 rows fill whole four-lane vectors ([`last_row_apart`]).
+//!
 //! For run-time sized matrices beyond [`SMALL_DYN`] they hand over to
 //! nalgebra, whose `matrixmultiply` backend wins there.
 //!
