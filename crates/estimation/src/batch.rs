@@ -342,10 +342,13 @@ fn same_bits<R: Dim, C: Dim>(a: &OMatrix<f64, R, C>, b: &OMatrix<f64, R, C>) -> 
 where
     DefaultAllocator: Allocator<R, C>,
 {
-    a.as_slice()
-        .iter()
-        .zip(b.as_slice())
-        .all(|(x, y)| x.to_bits() == y.to_bits())
+    same_bit_slices(a.as_slice(), b.as_slice())
+}
+
+/// [`same_bits`] on two slices of one length.
+#[inline(always)]
+fn same_bit_slices(a: &[f64], b: &[f64]) -> bool {
+    a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
 /// The covariances after the last epochs of a run of full steps with the
@@ -357,9 +360,10 @@ where
 {
     /// The components present in the run.
     present: Vec<usize>,
-    /// P⁺ of the run's last epochs (up to [`MAX_STEADY_PERIOD`]), a ring.
+    /// P⁺ of the run's last epochs (up to [`MAX_STEADY_PERIOD`]), a ring
+    /// that starts at slot 0 with each run.
     covariances: Vec<OMatrix<f64, N, N>>,
-    /// How many of `covariances` belong to the run.
+    /// How many of `covariances` belong to the run: the first `len` slots.
     len: usize,
     /// The slot of the next P⁺.
     next: usize,
@@ -382,6 +386,7 @@ where
     /// epoch): forget it.
     fn reset(&mut self) {
         self.len = 0;
+        self.next = 0;
     }
 
     /// Epoch's P⁺ `p` after a predicted, accepted full step with the
@@ -391,16 +396,22 @@ where
         if self.len == 0 || !same_components(&self.present, present) {
             self.present.clear();
             self.present.extend_from_slice(present);
-            self.len = 0;
+            self.reset();
         }
-        let closes = (0..self.len).any(|back| {
-            let slot = (self.next + MAX_STEADY_PERIOD - 1 - back) % MAX_STEADY_PERIOD;
-            same_bits(p, &self.covariances[slot])
-        });
-        if self.covariances.len() < MAX_STEADY_PERIOD {
+        // The run's P⁺ are the first `len` slots (the ring restarts with
+        // each run), compared in slot order (whether any equals p: the
+        // order does not matter), without the ring's index arithmetic and
+        // its bounds checks per slot.
+        let values = p.as_slice();
+        let closes = self.covariances[..self.len]
+            .iter()
+            .any(|c| same_bit_slices(values, c.as_slice()));
+        if self.next == self.covariances.len() {
             self.covariances.push(p.clone());
         } else {
-            self.covariances[self.next].copy_from(p);
+            self.covariances[self.next]
+                .as_mut_slice()
+                .copy_from_slice(values);
         }
         self.next = (self.next + 1) % MAX_STEADY_PERIOD;
         self.len = (self.len + 1).min(MAX_STEADY_PERIOD);
@@ -439,6 +450,11 @@ where
     p_predicted: OMatrix<f64, N, N>,
     /// Scratch for Φ P in the prediction.
     phi_p: OMatrix<f64, N, N>,
+    /// The filter's P is symmetric bit for bit: checked once, at the
+    /// start; every P an epoch gives the filter then is too (the time
+    /// update and the Joseph form mirror their lower triangle, the standard
+    /// form symmetrises, a steady phase's P⁺ was computed so).
+    p_symmetric: bool,
 }
 
 impl<N: Dim> BatchModel<'_, N>
@@ -618,9 +634,12 @@ where
     // between the prediction and the update.
     let aside = predict && model.q_symmetric.is_some();
     match &model.q_symmetric {
-        Some(q) if aside => {
-            kf.predict_prechecked_aside(model.phi, q, &mut model.p_predicted, &mut model.phi_p)?
-        }
+        Some(q) if aside => kf.predict_prechecked_aside(
+            model.phi,
+            q,
+            (&mut model.p_predicted, &mut model.phi_p),
+            model.p_symmetric,
+        )?,
         _ if predict => model.predict(kf)?,
         _ => {}
     }
@@ -797,6 +816,7 @@ where
         // Any values: both are written before they are read.
         p_predicted: kf.covariance().clone(),
         phi_p: kf.covariance().clone(),
+        p_symmetric: crate::dense::symmetric_bits(kf.covariance().as_slice(), n),
     };
     // What each update size keeps (its steady state: one set of
     // components each).

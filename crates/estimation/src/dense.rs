@@ -19,6 +19,12 @@
 //!   filter's H touches 3–6 of 15–21 states, so H P costs a third or less. The
 //!   skipped terms are exact zeros (P is finite), so the result is the dense one.
 //!
+//! The batch's fused time and Joseph updates add a third, at the sizes
+//! where n − 1 is a multiple of four (5, 9, 13, 21): the last row of the
+//! symmetric result is computed apart, as a vector over the other factor's
+//! columns (the same terms in the same order), so that the columns of the
+//! leading n − 1 rows fill whole four-lane vectors ([`last_row_apart`]).
+//!
 //! For run-time sized matrices beyond [`SMALL_DYN`] they hand over to
 //! nalgebra, whose `matrixmultiply` backend wins there.
 //!
@@ -56,11 +62,11 @@ pub(crate) fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -
     all_static || r.max(k).max(c) <= SMALL_DYN
 }
 
-/// Columns `cols` of `out = α · a · B + β · out`, rows `row0..r`, for
+/// Columns `cols` of `out = α · a · B + β · out`, rows `rows`, for
 /// column-major a (r × k) and out (r × c), where `b(kk, j)` reads element
 /// (kk, j) of B: B itself, or a transpose. Axpy form: each output column
 /// accumulates scaled columns of a over the inner indices `inner`, in their
-/// order. When r − row0 is a compile-time constant (fixed-size matrices) the
+/// order. When the row count is a compile-time constant (fixed-size matrices) the
 /// compiler keeps the whole output column in registers while the inner index
 /// runs: one load of a's column and one broadcast per column element pair.
 /// With `init` (r × c, column-major) each output column starts from init's
@@ -69,7 +75,7 @@ pub(crate) fn use_kernel<R: Dim, K: Dim, C: Dim>(r: usize, k: usize, c: usize) -
 #[allow(clippy::too_many_arguments)]
 fn columns<I: Iterator<Item = usize> + Clone>(
     r: usize,
-    (row0, cols): (usize, std::ops::Range<usize>),
+    (rows, cols): (std::ops::Range<usize>, std::ops::Range<usize>),
     inner: &I,
     alpha: f64,
     a: &[f64],
@@ -77,7 +83,7 @@ fn columns<I: Iterator<Item = usize> + Clone>(
     (beta, init): (f64, Option<&[f64]>),
     out: &mut [f64],
 ) {
-    let len = r - row0;
+    let (row0, len) = (rows.start, rows.end - rows.start);
     for j in cols {
         let oc = &mut out[j * r + row0..][..len];
         if let Some(init) = init {
@@ -143,16 +149,34 @@ fn kernel_from<I: Iterator<Item = usize> + Clone>(
     lower: bool,
 ) {
     if !lower {
-        columns(r, (0, 0..c), &inner, alpha, a, &b, start, out);
+        columns(r, (0..r, 0..c), &inner, alpha, a, &b, start, out);
         return;
     }
-    let (s1, s2, s3) = lower_block_starts(r);
+    lower_leading(r, r, inner, alpha, a, b, start, out);
+}
+
+/// The lower triangle of the leading `rows` × `rows` block of a square
+/// r × r `out` (see [`kernel_from`], `lower`), in [`LOWER_BLOCKS`] column
+/// blocks.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn lower_leading<I: Iterator<Item = usize> + Clone>(
+    r: usize,
+    rows: usize,
+    inner: I,
+    alpha: f64,
+    a: &[f64],
+    b: impl Fn(usize, usize) -> f64,
+    start: (f64, Option<&[f64]>),
+    out: &mut [f64],
+) {
+    let (s1, s2, s3) = lower_block_starts(rows);
     // Four calls, not a loop or a closure: each inlines with its own
     // constant row count (fixed sizes), which keeps the columns in registers.
-    columns(r, (0, 0..s1), &inner, alpha, a, &b, start, out);
-    columns(r, (s1, s1..s2), &inner, alpha, a, &b, start, out);
-    columns(r, (s2, s2..s3), &inner, alpha, a, &b, start, out);
-    columns(r, (s3, s3..r), &inner, alpha, a, &b, start, out);
+    columns(r, (0..rows, 0..s1), &inner, alpha, a, &b, start, out);
+    columns(r, (s1..rows, s1..s2), &inner, alpha, a, &b, start, out);
+    columns(r, (s2..rows, s2..s3), &inner, alpha, a, &b, start, out);
+    columns(r, (s3..rows, s3..rows), &inner, alpha, a, &b, start, out);
 }
 
 /// First columns (and rows) of blocks 1–3 of the [`LOWER_BLOCKS`] column
@@ -384,7 +408,13 @@ pub(crate) fn add_rank_2k_lower<D: Dim, K: Dim>(
         }
         return;
     }
-    rank_2k_lower_kernel(n, m, (v.as_slice(), k.as_slice()), None, out.as_mut_slice());
+    rank_2k_lower_kernel(
+        (n, n),
+        m,
+        (v.as_slice(), k.as_slice()),
+        None,
+        out.as_mut_slice(),
+    );
 }
 
 /// [`add_rank_2k_lower`] on the column-major slices: `out` (n × n), `a` =
@@ -398,40 +428,47 @@ impl Widened for Rank2kLower {
     #[inline(always)]
     fn run(self, out: &mut [f64], _scratch: &mut [f64], a: &[f64], b: &[f64]) {
         let (n, m) = (self.n, self.m);
-        rank_2k_lower_kernel(n, m, (&a[..n * m], &b[..n * m]), None, &mut out[..n * n]);
+        rank_2k_lower_kernel(
+            (n, n),
+            m,
+            (&a[..n * m], &b[..n * m]),
+            None,
+            &mut out[..n * n],
+        );
     }
 }
 
 /// The kernel of [`add_rank_2k_lower`] on column-major slices (v, k: n × m),
-/// adding onto `prior` (n × n) when given instead of onto out's own values.
+/// adding onto `prior` (n × n) when given instead of onto out's own values:
+/// the lower triangle of the leading `rows` × `rows` block of out (n × n).
 #[inline(always)]
 fn rank_2k_lower_kernel(
-    n: usize,
+    (n, rows): (usize, usize),
     m: usize,
     (vs, ks): (&[f64], &[f64]),
     prior: Option<&[f64]>,
     os: &mut [f64],
 ) {
-    let (s1, s2, s3) = lower_block_starts(n);
-    rank_2k_columns(n, m, (0, 0..s1), (vs, ks), prior, os);
-    rank_2k_columns(n, m, (s1, s1..s2), (vs, ks), prior, os);
-    rank_2k_columns(n, m, (s2, s2..s3), (vs, ks), prior, os);
-    rank_2k_columns(n, m, (s3, s3..n), (vs, ks), prior, os);
+    let (s1, s2, s3) = lower_block_starts(rows);
+    rank_2k_columns(n, m, (0..rows, 0..s1), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s1..rows, s1..s2), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s2..rows, s2..s3), (vs, ks), prior, os);
+    rank_2k_columns(n, m, (s3..rows, s3..rows), (vs, ks), prior, os);
 }
 
-/// Columns `cols`, rows `row0..n`, of [`add_rank_2k_lower`] (the column of
+/// Columns `cols`, rows `rows`, of [`add_rank_2k_lower`] (the column of
 /// out stays in registers for fixed sizes, as in [`columns`]; with `prior`
 /// it starts from prior's column, as in [`columns`]'s `init`).
 #[inline(always)]
 fn rank_2k_columns(
     n: usize,
     m: usize,
-    (row0, cols): (usize, std::ops::Range<usize>),
+    (rows, cols): (std::ops::Range<usize>, std::ops::Range<usize>),
     (vs, ks): (&[f64], &[f64]),
     prior: Option<&[f64]>,
     os: &mut [f64],
 ) {
-    let len = n - row0;
+    let (row0, len) = (rows.start, rows.end - rows.start);
     for j in cols {
         let oc = &mut os[j * n + row0..][..len];
         if let Some(prior) = prior {
@@ -781,6 +818,7 @@ fn congruence<D: Dim>(
             Congruence {
                 n: nd,
                 base: base.map(|q| q.as_slice()),
+                p_symmetric: false,
             },
             out.as_mut_slice(),
             phi_p.as_mut_slice(),
@@ -799,10 +837,14 @@ fn congruence<D: Dim>(
 
 /// [`add_congruence`] on the column-major slices: `out` (n × n), `scratch`
 /// for Φ P (n × n), `a` = Φ, `b` = P; with `base` (n × n, Q) the sum
-/// starts from base's elements instead of out's.
+/// starts from base's elements instead of out's. `p_symmetric`: the caller
+/// knows P to be symmetric bit for bit, so that row n − 1 of Φ P, too, is
+/// a column's worth of vectors (see [`last_row_apart`]; row n − 1 of the
+/// scratch is then left unwritten).
 struct Congruence<'q, D: Dim> {
     n: D,
     base: Option<&'q [f64]>,
+    p_symmetric: bool,
 }
 
 impl<D: Dim> Widened for Congruence<'_, D> {
@@ -814,11 +856,105 @@ impl<D: Dim> Widened for Congruence<'_, D> {
         let base = self.base.map(|q| &q[..nn]);
         // Φ P, as gemm(Φ P): b(kk, j) = P(kk, j).
         let read_p = |kk: usize, j: usize| p[j * n + kk];
-        kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
         // (Φ P) Φᵀ, lower, as gemm_nt_lower: b(kk, j) = Φ(j, kk).
         let read_phi = |kk: usize, j: usize| phi[kk * n + j];
-        kernel_from((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
-        mirror_lower_slice(n, out);
+        if !last_row_apart(n) {
+            kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
+            kernel_from((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
+            mirror_lower_slice(n, out);
+            return;
+        }
+        let last = n - 1;
+        // Row `last` of Φ P: with P symmetric bit for bit, element
+        // (last, j), Σ Φ(last, kk) P(kk, j) from +0 over kk in order, has
+        // the terms of Φ(last, kk) P(j, kk): as a vector over j, P's
+        // column kk scaled (each product commuted, exact); else as the
+        // other rows.
+        let mut phi_p_last = [0.0; SMALL_DYN];
+        let phi_p_last = &mut phi_p_last[..n];
+        if self.p_symmetric {
+            columns(
+                n,
+                (0..last, 0..n),
+                &(0..n),
+                1.0,
+                phi,
+                &read_p,
+                (0.0, None),
+                phi_p,
+            );
+            for kk in 0..n {
+                axpy(phi_p_last, &p[kk * n..][..n], phi[kk * n + last]);
+            }
+        } else {
+            kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
+            for (k, v) in phi_p_last.iter_mut().enumerate() {
+                *v = phi_p[k * n + last];
+            }
+        }
+        lower_leading(n, last, 0..n, 1.0, phi_p, read_phi, (1.0, base), out);
+        // Row `last`, element (last, j) the sum of Φ P(last, k) Φ(j, k) over
+        // k in order, the kernel's terms (each product commuted, exact):
+        // as a vector over j, Φ's column k scaled.
+        let column = last_row_start(n, base, out);
+        for (k, &s) in phi_p_last.iter().enumerate() {
+            axpy(column, &phi[k * n..][..n], s);
+        }
+        mirror_with_last_column(n, out);
+    }
+}
+
+/// Whether the fused kernels ([`Congruence`], [`JosephRank2k`]) compute
+/// the last row of their symmetric n × n result apart: when n − 1 is a
+/// multiple of four (n = 5, 9, 13, 21, …). The columns of the leading
+/// n − 1 rows then fill whole four-lane vectors, where at n = 9 each
+/// column of nine rows took two vectors and a scalar (a third of the
+/// instructions for a ninth of the elements); the last row, element
+/// (n − 1, j) for every j, is one more column's worth of vectors: the same
+/// terms summed in the same order, with the roles of the two factors of
+/// each product swapped (exact: multiplication commutes, and the inputs'
+/// NaN are the one default NaN), kept in the storage of column n − 1 and
+/// mirrored from there ([`mirror_with_last_column`]).
+#[inline(always)]
+fn last_row_apart(n: usize) -> bool {
+    n >= 5 && n % 4 == 1 && n <= SMALL_DYN
+}
+
+/// The start of row n − 1 of a lower-triangle sum onto `base` (or onto
+/// out's own values when None), element (n − 1, j) written at (j, n − 1),
+/// in column n − 1 of out (n × n), which is returned: the storage
+/// [`last_row_apart`]'s sums accumulate in.
+#[inline(always)]
+fn last_row_start<'o>(n: usize, base: Option<&[f64]>, out: &'o mut [f64]) -> &'o mut [f64] {
+    let last = n - 1;
+    let (head, column) = out[..n * n].split_at_mut(last * n);
+    for (j, o) in column[..last].iter_mut().enumerate() {
+        *o = match base {
+            Some(b) => b[j * n + last],
+            None => head[j * n + last],
+        };
+    }
+    if let Some(b) = base {
+        column[last] = b[last * n + last];
+    }
+    column
+}
+
+/// The symmetric n × n matrix from the lower triangle of its leading
+/// n − 1 rows and from its row n − 1 kept in column n − 1 (see
+/// [`last_row_apart`]): the leading block mirrored as by
+/// [`mirror_lower_slice`], then column n − 1 copied onto row n − 1.
+#[inline(always)]
+fn mirror_with_last_column(n: usize, s: &mut [f64]) {
+    let last = n - 1;
+    let s = &mut s[..n * n];
+    for j in 1..last {
+        for i in 0..j {
+            s[j * n + i] = s[i * n + j];
+        }
+    }
+    for j in 0..last {
+        s[j * n + last] = s[last * n + j];
     }
 }
 
@@ -916,8 +1052,24 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<'_, N, M> {
         // V = α K S + β W, as gemm: b(kk, j) = S(kk, j).
         let read_s = |kk: usize, j: usize| s[j * m + kk];
         kernel((n, m), 0..m, self.alpha, gain, read_s, self.beta, v, false);
-        rank_2k_lower_kernel(n, m, (v, gain), prior, p);
-        mirror_lower_slice(n, p);
+        if !last_row_apart(n) {
+            rank_2k_lower_kernel((n, n), m, (v, gain), prior, p);
+            mirror_lower_slice(n, p);
+            return;
+        }
+        let last = n - 1;
+        rank_2k_lower_kernel((n, last), m, (v, gain), prior, p);
+        // Row `last` (see last_row_apart): element (last, j) gets
+        // Σ V(last, l) K(j, l) then Σ K(last, l) V(j, l), as the kernel
+        // sums them.
+        let column = last_row_start(n, prior, p);
+        for l in 0..m {
+            axpy(column, &gain[l * n..][..n], v[l * n + last]);
+        }
+        for l in 0..m {
+            axpy(column, &v[l * n..][..n], gain[l * n + last]);
+        }
+        mirror_with_last_column(n, p);
     }
 }
 
@@ -1056,18 +1208,19 @@ fn accepted_update_body<N: Dim, const M: usize>(
     }
     gain.copy_from_slice(cross);
     GainSolve { n: nd, m: md }.run(gain, &mut [], l, &[]);
-    if !crate::check::all_finite_kernel(gain) {
+    if !crate::check::all_finite_by_exponent(gain) {
         return (f64::NAN, AcceptedStatus::GainNonFinite);
     }
-    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
     // x += K ν: nalgebra's product (K(·, 0) ν₀, then K(·, l) ν_l + y),
-    // then its sum x + y.
+    // then its sum x + y. (Over the residual's slice: skip(1) on
+    // nalgebra's iterator of ν was a call, with the vectors spilled around
+    // it.)
     let mut step = [0.0; MAX_FUSED_STATES];
     let step = &mut step[..n];
     for (o, &k) in step.iter_mut().zip(&gain[..n]) {
-        *o = k * nu[0];
+        *o = k * residual[0];
     }
-    for (l, &nl) in nu.iter().enumerate().skip(1) {
+    for (l, &nl) in residual.iter().enumerate().skip(1) {
         for (o, &k) in step.iter_mut().zip(&gain[l * n..(l + 1) * n]) {
             #[allow(clippy::assign_op_pattern)]
             {
@@ -1092,10 +1245,11 @@ fn accepted_update_body<N: Dim, const M: usize>(
     let mut solved = [0.0; M];
     solved.copy_from_slice(residual);
     cholesky_solve_vector(l, &mut solved);
+    let nu = nalgebra::SVector::<f64, M>::from_column_slice(residual);
     let nis = nu.dot(&nalgebra::SVector::<f64, M>::from_column_slice(&solved));
-    let status = if !crate::check::all_finite_kernel(x) {
+    let status = if !crate::check::all_finite_by_exponent(x) {
         AcceptedStatus::StateNonFinite
-    } else if !crate::check::all_finite_kernel(p) {
+    } else if !crate::check::all_finite_by_exponent(p) {
         AcceptedStatus::CovarianceNonFinite
     } else {
         AcceptedStatus::Applied
@@ -1123,10 +1277,11 @@ pub(crate) enum PredictedStatus {
 /// `check::finite`, in their order, without the two dispatches, the calls
 /// and the copy of x between them. `x` holds x on entry, x⁻ on return;
 /// `predicted` (P⁻) and `phi_p` (scratch for Φ P) are written, their
-/// values on entry unread; n at most [`MAX_FUSED_STATES`].
+/// values on entry unread; n at most [`MAX_FUSED_STATES`]; `p_symmetric`:
+/// P is known to be symmetric bit for bit (see [`Congruence`]).
 #[inline(always)]
 pub(crate) fn predicted_aside<D: Dim>(
-    n: D,
+    (n, p_symmetric): (D, bool),
     x: &mut [f64],
     (phi, q, p): (&[f64], &[f64], &[f64]),
     predicted: &mut [f64],
@@ -1137,16 +1292,16 @@ pub(crate) fn predicted_aside<D: Dim>(
         #[allow(unsafe_code)]
         // SAFETY: `predicted_aside_avx2`'s only requirement is that the
         // CPU executes AVX2 instructions, which was just detected.
-        return unsafe { predicted_aside_avx2(n, x, phi, q, p, predicted, phi_p) };
+        return unsafe { predicted_aside_avx2((n, p_symmetric), x, phi, q, p, predicted, phi_p) };
     }
-    predicted_aside_body(n, x, phi, q, p, predicted, phi_p)
+    predicted_aside_body((n, p_symmetric), x, phi, q, p, predicted, phi_p)
 }
 
 /// [`predicted_aside`] compiled with AVX2.
 #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
 #[target_feature(enable = "avx2")]
 fn predicted_aside_avx2<D: Dim>(
-    n: D,
+    n: (D, bool),
     x: &mut [f64],
     phi: &[f64],
     q: &[f64],
@@ -1160,7 +1315,7 @@ fn predicted_aside_avx2<D: Dim>(
 /// The body of [`predicted_aside`].
 #[inline(always)]
 fn predicted_aside_body<D: Dim>(
-    nd: D,
+    (nd, p_symmetric): (D, bool),
     x: &mut [f64],
     phi: &[f64],
     q: &[f64],
@@ -1174,15 +1329,16 @@ fn predicted_aside_body<D: Dim>(
     MatrixVector { n: nd }.run(x_predicted, &mut [], phi, x);
     let x = &mut x[..n];
     x.copy_from_slice(x_predicted);
-    if !crate::check::all_finite_kernel(x) {
+    if !crate::check::all_finite_by_exponent(x) {
         return PredictedStatus::StateNonFinite;
     }
     Congruence {
         n: nd,
         base: Some(q),
+        p_symmetric,
     }
     .run(predicted, phi_p, phi, p);
-    if crate::check::all_finite_kernel(&predicted[..n * n]) {
+    if crate::check::all_finite_by_exponent(&predicted[..n * n]) {
         PredictedStatus::Applied
     } else {
         PredictedStatus::CovarianceNonFinite
@@ -1620,6 +1776,141 @@ mod tests {
         }
     }
 
+    /// The fused kernels with the last row apart (n − 1 a multiple of
+    /// four) give the full lower triangle's result bit for bit: Φ P Φᵀ + Q
+    /// against gemm, gemm_nt_lower and mirror_lower, the Joseph update
+    /// against gemm, add_rank_2k_lower and mirror_lower, onto the matrix's
+    /// own values and onto a prior, at the fixed sizes 5, 9, 13 and 21 and
+    /// run-time sized; random values, exact zeros in Φ and a Q whose
+    /// mirrored zeros differ in sign, so that order and operands show.
+    #[test]
+    fn the_last_row_apart_equals_the_full_lower_triangle_bit_for_bit() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(29);
+        let bits = |m: &[f64]| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        fn check<D: Dim, M: Dim>(
+            (nd, md): (D, M),
+            rng: &mut rand_chacha::ChaCha8Rng,
+            bits: &impl Fn(&[f64]) -> Vec<u64>,
+        ) where
+            DefaultAllocator: Allocator<D, D> + Allocator<D, M> + Allocator<M, D> + Allocator<M, M>,
+        {
+            let (n, m) = (nd.value(), md.value());
+            assert!(last_row_apart(n), "n = {n}");
+            let square = |values: DMatrix<f64>| {
+                OMatrix::<f64, D, D>::from_iterator_generic(nd, nd, values.iter().copied())
+            };
+            let tall = |values: DMatrix<f64>| {
+                OMatrix::<f64, D, M>::from_iterator_generic(nd, md, values.iter().copied())
+            };
+            let mut phi = random_matrix(rng, n, n) * 0.3 + DMatrix::identity(n, n);
+            phi[(n - 1, 2)] = 0.0;
+            phi[(1, n - 1)] = 0.0;
+            let (phi, p) = (square(phi), square(random_covariance(rng, n)));
+            let mut q = random_covariance(rng, n) * 1e-3;
+            q[(n - 1, 0)] = 0.0;
+            q[(0, n - 1)] = -0.0;
+            let q = square(q);
+            // Time update, onto out's values and onto Q.
+            let mut full = q.clone();
+            let mut phi_p = square(DMatrix::zeros(n, n));
+            gemm(&mut phi_p, 1.0, &phi, &p, 0.0);
+            gemm_nt_lower(&mut full, 1.0, &phi_p, &phi, 1.0);
+            mirror_lower(&mut full);
+            let mut apart = q.clone();
+            add_congruence(&mut apart, &phi, &p);
+            assert_eq!(
+                bits(apart.as_slice()),
+                bits(full.as_slice()),
+                "Φ P Φᵀ + Q, n = {n}"
+            );
+            let mut onto = square(DMatrix::repeat(n, n, f64::NAN));
+            let mut scratch = square(DMatrix::repeat(n, n, f64::NAN));
+            congruence_onto(&mut onto, &q, &phi, &p, &mut scratch);
+            assert_eq!(
+                bits(onto.as_slice()),
+                bits(full.as_slice()),
+                "onto Q, n = {n}"
+            );
+            // P symmetric bit for bit: row n − 1 of Φ P apart too.
+            assert_eq!(bits(p.as_slice()), bits(p.transpose().as_slice()));
+            let mut onto = square(DMatrix::repeat(n, n, f64::NAN));
+            run_widest(
+                Congruence {
+                    n: nd,
+                    base: Some(q.as_slice()),
+                    p_symmetric: true,
+                },
+                onto.as_mut_slice(),
+                scratch.as_mut_slice(),
+                phi.as_slice(),
+                p.as_slice(),
+            );
+            assert_eq!(
+                bits(onto.as_slice()),
+                bits(full.as_slice()),
+                "P symmetric, n = {n}"
+            );
+            // Joseph update, onto P's values and onto a prior.
+            let gain = tall(random_matrix(rng, n, m) * 0.2);
+            let s = OMatrix::<f64, M, M>::from_iterator_generic(
+                md,
+                md,
+                (random_covariance(rng, m) + DMatrix::identity(m, m))
+                    .iter()
+                    .copied(),
+            );
+            let w = tall(random_matrix(rng, n, m));
+            let (mut full, mut v) = (p.clone(), w.clone());
+            gemm(&mut v, 0.5, &gain, &s, -1.0);
+            add_rank_2k_lower(&mut full, &v, &gain);
+            mirror_lower(&mut full);
+            let (mut apart, mut v_apart) = (p.clone(), w.clone());
+            joseph_rank_2k(&mut apart, &mut v_apart, &gain, &s, (0.5, -1.0));
+            assert_eq!(
+                bits(apart.as_slice()),
+                bits(full.as_slice()),
+                "Joseph, {n}×{m}"
+            );
+            let (mut onto, mut v_onto) = (square(DMatrix::repeat(n, n, f64::NAN)), w.clone());
+            joseph_rank_2k_onto(&mut onto, &p, &mut v_onto, &gain, &s, (0.5, -1.0));
+            assert_eq!(
+                bits(onto.as_slice()),
+                bits(full.as_slice()),
+                "Joseph onto P⁻, {n}×{m}"
+            );
+        }
+        for _ in 0..3 {
+            check(
+                (nalgebra::Const::<5>, nalgebra::Const::<2>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<9>, nalgebra::Const::<3>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<9>, nalgebra::Const::<6>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<13>, nalgebra::Const::<4>),
+                &mut rng,
+                &bits,
+            );
+            check(
+                (nalgebra::Const::<21>, nalgebra::Const::<6>),
+                &mut rng,
+                &bits,
+            );
+            check((Dyn(9), Dyn(3)), &mut rng, &bits);
+            check((Dyn(29), Dyn(1)), &mut rng, &bits);
+        }
+    }
+
     /// Seeded Gaussian n × c matrix.
     fn random_matrix(rng: &mut rand_chacha::ChaCha8Rng, n: usize, c: usize) -> DMatrix<f64> {
         use rand_distr::{Distribution, StandardNormal};
@@ -1664,6 +1955,7 @@ mod tests {
                 let work = Congruence {
                     n: Dyn(n),
                     base: None,
+                    p_symmetric: false,
                 };
                 work.run(
                     portable.as_mut_slice(),
@@ -1776,6 +2068,7 @@ mod tests {
             Congruence {
                 n: Dyn(N),
                 base: None,
+                p_symmetric: false,
             }
             .run(
                 portable.as_mut_slice(),

@@ -896,12 +896,15 @@ where
     /// writes P⁺ from `predicted` into the filter, so that neither step
     /// copies P. The same arithmetic and checks, bit for bit; on an error
     /// the filter is as `predict_prechecked` leaves it (x⁻, P unchanged).
+    /// `p_symmetric`: the caller knows the filter's P to be symmetric bit
+    /// for bit (the batch checks it once: every P a step computes is, by
+    /// its mirror or symmetrisation), which saves work at some sizes.
     pub(crate) fn predict_prechecked_aside(
         &mut self,
         phi: &OMatrix<f64, N, N>,
         q_symmetric: &OMatrix<f64, N, N>,
-        predicted: &mut OMatrix<f64, N, N>,
-        phi_p: &mut OMatrix<f64, N, N>,
+        (predicted, phi_p): (&mut OMatrix<f64, N, N>, &mut OMatrix<f64, N, N>),
+        p_symmetric: bool,
     ) -> Result<()> {
         let (nd, _) = phi.shape_generic();
         if nd.value() > dense::MAX_FUSED_STATES {
@@ -911,7 +914,7 @@ where
         }
         // One dispatch for x⁻, P⁻ and their checks (the same operations).
         let matrix = match dense::predicted_aside(
-            nd,
+            (nd, p_symmetric),
             self.x.as_mut_slice(),
             (phi.as_slice(), q_symmetric.as_slice(), self.p.as_slice()),
             predicted.as_mut_slice(),
@@ -1333,7 +1336,9 @@ mod tests {
                 let (mut fused, mut checked) = (prior.clone(), prior);
                 let mut predicted = OMatrix::<f64, N, N>::from_element_generic(nd, nd, f64::NAN);
                 let mut phi_p = predicted.clone();
-                let ours = fused.predict_prechecked_aside(&phi, &q, &mut predicted, &mut phi_p);
+                // P from `new`, symmetrised: symmetric bit for bit.
+                let ours =
+                    fused.predict_prechecked_aside(&phi, &q, (&mut predicted, &mut phi_p), true);
                 let theirs = checked.predict_prechecked(&phi, &q);
                 let what = format!("n {n}, round {round}");
                 assert_eq!(ours, theirs, "{what}");
@@ -1362,8 +1367,11 @@ mod tests {
             }
         }
         case(Const::<3>, &mut next);
+        case(Const::<5>, &mut next);
         case(Const::<9>, &mut next);
+        case(Const::<21>, &mut next);
         case(Const::<24>, &mut next);
+        case(Dyn(9), &mut next);
         case(Dyn(11), &mut next);
         case(Dyn(40), &mut next);
     }

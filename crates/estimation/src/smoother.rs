@@ -460,9 +460,10 @@ pub(crate) fn cholesky_lower_in_place<const N: usize>(m: &mut [f64]) -> bool {
         && (N <= 20 || cholesky_columns::<N>(m, block(20)))
         && (N <= 24 || cholesky_columns::<N>(m, block(24)))
         && (N <= 28 || cholesky_columns::<N>(m, block(28)))
-        && (32..N)
-            .step_by(4)
-            .all(|b| cholesky_columns::<N>(m, block(b)))
+        && (N <= 32
+            || (32..N)
+                .step_by(4)
+                .all(|b| cholesky_columns::<N>(m, block(b))))
 }
 
 /// Columns `cols` of [`cholesky_lower_in_place`], each computed from row
