@@ -38,7 +38,8 @@ const FINITE_LANES: usize = 8;
 /// later addition). A multiply and an add per element, over
 /// eight partial sums the compiler keeps in vector registers (no
 /// reassociation needed, so it vectorises without fast-math), and no branch
-/// until the end.
+/// until the end. (The batch's fused AVX2 kernels test the exponent bits
+/// instead, with the same answer.)
 ///
 /// ```
 /// use aidnav_estimation::all_finite;
@@ -48,13 +49,6 @@ const FINITE_LANES: usize = 8;
 /// ```
 #[inline]
 pub fn all_finite(values: &[f64]) -> bool {
-    all_finite_kernel(values)
-}
-
-/// [`all_finite`]'s body, always inlined (the batch's fused kernels use
-/// [`all_finite_by_exponent`], the same answer).
-#[inline(always)]
-pub(crate) fn all_finite_kernel(values: &[f64]) -> bool {
     let mut partial = [0.0_f64; FINITE_LANES];
     let chunks = values.chunks_exact(FINITE_LANES);
     let rest = chunks.remainder();
