@@ -1126,19 +1126,24 @@ mod tests {
     use super::*;
     use nalgebra::{Const, DMatrix, DVector, SMatrix, SVector};
 
+    /// Values uniform in [−1, 1) from a 64-bit linear congruential stream
+    /// seeded with `seed` (the same values on every platform).
+    fn uniform_stream(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+    }
+
     /// `factor` and `normalised_square` give nalgebra's Cholesky factor
     /// (all of it: the upper triangle too) and NIS bit for bit at every
     /// fixed size they serve and a run-time size, and refuse what
     /// nalgebra refuses (a zero, negative or NaN pivot).
     #[test]
     fn the_fixed_size_factor_and_nis_equal_nalgebras_bit_for_bit() {
-        let mut seed = 977_u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = uniform_stream(977_u64);
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         fn case<const M: usize>(
             next: &mut impl FnMut() -> f64,
@@ -1195,13 +1200,7 @@ mod tests {
     /// size it serves, on fixed-size and run-time sized filters.
     #[test]
     fn the_fused_accepted_update_equals_the_stepwise_update_bit_for_bit() {
-        let mut seed = 4242_u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = uniform_stream(4242_u64);
         fn case<N: Dim, const M: usize>(nd: N, next: &mut impl FnMut() -> f64)
         where
             DefaultAllocator: FilterAllocator<N, Const<M>>,
@@ -1301,13 +1300,7 @@ mod tests {
     /// fixed-size and run-time sized filters.
     #[test]
     fn the_fused_prediction_aside_equals_the_checked_prediction_bit_for_bit() {
-        let mut seed = 99_u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = uniform_stream(99_u64);
         fn case<N: Dim>(nd: N, next: &mut impl FnMut() -> f64)
         where
             DefaultAllocator: Allocator<N> + Allocator<N, N>,
