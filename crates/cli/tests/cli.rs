@@ -115,6 +115,20 @@ fn filter_reproduces_the_hand_checked_example() {
     assert_eq!(summary["command"], "filter");
     assert_eq!(summary["aidnav_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(summary["scenario"]["r"][0][0], 1.0);
+    // Run again into the same directory without smoothing: the first run's
+    // smoothed.csv goes, with a warning saying so.
+    success(&[
+        "filter",
+        "--model",
+        ex.join("model.toml").to_str().unwrap(),
+        "--measurements",
+        ex.join("measurements.csv").to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(!dir.path().join("smoothed.csv").exists());
+    let warnings = read_summary(dir.path())["warnings"].to_string();
+    assert!(warnings.contains("smoothed.csv: removed"), "{warnings}");
 }
 
 #[test]
@@ -879,6 +893,18 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
     let c = dir.path().join("c.toml");
     std::fs::write(&c, config).unwrap();
     let out = dir.path().join("out");
+    // The directory holds an earlier run's optional outputs: this run
+    // writes navresult.txt anew, and removes the smoothed.csv and
+    // outage_drift.svg it does not write (noting each); other files stay.
+    std::fs::create_dir_all(&out).unwrap();
+    for name in [
+        "navresult.txt",
+        "smoothed.csv",
+        "outage_drift.svg",
+        "notes.txt",
+    ] {
+        std::fs::write(out.join(name), "an earlier run's").unwrap();
+    }
     success(&[
         "process",
         c.to_str().unwrap(),
@@ -888,6 +914,18 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
         "--out",
         out.to_str().unwrap(),
     ]);
+    assert!(out.join("notes.txt").exists());
+    assert!(!out.join("outage_drift.svg").exists());
+    let removed: Vec<String> = read_summary(&out)["result"]["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w["message"].as_str().unwrap().to_string())
+        .filter(|m| m.contains("left by an earlier run"))
+        .collect();
+    assert_eq!(removed.len(), 2, "{removed:?}");
+    assert!(removed[0].contains("smoothed.csv"), "{removed:?}");
+    assert!(removed[1].contains("outage_drift.svg"), "{removed:?}");
     let nav = std::fs::read_to_string(out.join("navresult.txt")).unwrap();
     let first: Vec<&str> = nav.lines().next().unwrap().split_whitespace().collect();
     assert_eq!(first.len(), 11);

@@ -39,6 +39,39 @@ pub fn begin_outputs(dir: &Path) -> Result<()> {
     }
 }
 
+/// Remove the files named in `optional` from `dir` unless this run wrote
+/// them (they are in `written`), and return one note per file removed.
+///
+/// A job writes some files only when asked (`smoothed.csv` when smoothing,
+/// `covariance.csv`, the tuning's charts...). Without this, a file an
+/// earlier run left in a reused directory would sit beside this run's
+/// outputs as if this run had written it: `smoothed.csv` of a smoothed run
+/// beside the solution of one that did not smooth. Only the job's own
+/// file names are touched, after its other files are written and before
+/// `summary.json`.
+pub fn remove_stale_outputs(
+    dir: &Path,
+    optional: &[&str],
+    written: &[PathBuf],
+) -> Result<Vec<String>> {
+    let mut notes = Vec::new();
+    for name in optional {
+        let path = dir.join(name);
+        if written.contains(&path) {
+            continue;
+        }
+        match std::fs::remove_file(&path) {
+            Ok(()) => notes.push(format!(
+                "{}: removed, left by an earlier run (this run does not write it)",
+                path.display()
+            )),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(write_err(&path, e)),
+        }
+    }
+    Ok(notes)
+}
+
 /// A file being written under a temporary name beside its final one; removed
 /// when dropped before [`commit`](Self::commit).
 #[derive(Debug)]
@@ -731,6 +764,30 @@ mod tests {
         // A good write gets its final name and leaves no temporary file.
         write_table(&dir.path().join("u.csv"), &["a"], vec![vec![1.0]]).unwrap();
         assert_eq!(names(dir.path()), vec!["t.csv", "u.csv"]);
+    }
+
+    /// Of the optional names, the files this run did not write are removed
+    /// (one note each, in the given order); the ones it wrote, the missing
+    /// ones and every other file stay.
+    #[test]
+    fn stale_optional_outputs_are_removed_and_noted() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["a.csv", "b.svg", "kept.csv", "other.txt"] {
+            std::fs::write(dir.path().join(name), name).unwrap();
+        }
+        let written = [dir.path().join("kept.csv")];
+        let optional = ["b.svg", "missing.csv", "kept.csv", "a.csv"];
+        let notes = remove_stale_outputs(dir.path(), &optional, &written).unwrap();
+        assert_eq!(names(dir.path()), vec!["kept.csv", "other.txt"]);
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert!(notes[0].contains("b.svg: removed"), "{notes:?}");
+        assert!(notes[1].contains("a.csv: removed"), "{notes:?}");
+        // Nothing left to remove: no notes.
+        assert!(
+            remove_stale_outputs(dir.path(), &optional, &written)
+                .unwrap()
+                .is_empty()
+        );
     }
 
     /// The table writer's bytes are the `csv` crate's for the same cells:

@@ -261,6 +261,13 @@ pub fn filter(job: &FilterJob) -> JobResult<FilterReport> {
             &smoothed,
         )?);
     }
+    // `covariance.csv` and `smoothed.csv` are written only when asked: an
+    // earlier run's would otherwise pass for this one's.
+    warnings.extend(aidnav_io::writers::remove_stale_outputs(
+        &job.out,
+        &["covariance.csv", "smoothed.csv"],
+        &files,
+    )?);
     let mean_nis_per_dof = stats.nis.mean_per_dof();
     let final_sigma: Vec<f64> = out
         .final_covariance

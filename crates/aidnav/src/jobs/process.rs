@@ -309,8 +309,9 @@ impl ProcessRun {
     }
 
     /// [`write`](Self::write) after the tables and charts (`files`, with
-    /// their warnings `written`): the tuning's files, the report and
-    /// `summary.json`.
+    /// their warnings `written`): the tuning's files, the removal of the
+    /// optional files an earlier run left ([`export::OPTIONAL_FILES`](crate::process::export::OPTIONAL_FILES),
+    /// noted as warnings), the report and `summary.json`.
     fn finish_writing(
         &self,
         out: &Path,
@@ -325,6 +326,11 @@ impl ProcessRun {
             files.extend(f);
             written.extend(w);
         }
+        written.extend(aidnav_io::writers::remove_stale_outputs(
+            out,
+            &export::OPTIONAL_FILES,
+            &files,
+        )?);
         let mut report = self.report(files, written);
         let path = export::write_summary(out, cfg, &report)?;
         report.files.push(path);

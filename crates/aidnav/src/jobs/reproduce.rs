@@ -216,6 +216,10 @@ pub struct FormationOutcome {
     pub sweep: Vec<SweepCell>,
 }
 
+/// The files of a formation's network sweep, written only with
+/// `[formation.network.sweep]`.
+const NETWORK_SWEEP_FILES: [&str; 2] = ["network_sweep.csv", "network_sweep.svg"];
+
 /// Run the spec-30 formation pipeline (stage-1 INS/GNSS per member, stage-2
 /// group fusion in the paper's and the EKF form) and write `formation.csv`
 /// (per epoch and member: RMS over runs of the 3-D position error of each
@@ -223,7 +227,8 @@ pub struct FormationOutcome {
 /// the group, and the mean of the others) and `summary.json` (list `members`;
 /// `network` with `[formation.network]`) into `out`; with
 /// `[formation.network.sweep]` also `network_sweep.csv`, `network_sweep.svg`
-/// and `summary.json`'s `network_sweep`.
+/// and `summary.json`'s `network_sweep` (without it, the sweep's files an
+/// earlier run left in `out` are removed).
 pub fn formation(
     scenario: &FormationScenario,
     command: &str,
@@ -250,7 +255,11 @@ pub fn formation(
     aidnav_reproduce::figures::formation_figure(scenario, &result, out)?;
     let sweep = aidnav_reproduce::formation::sweep(scenario, &mc)
         .map_err(estimation("formation network sweep"))?;
-    if !sweep.is_empty() {
+    if sweep.is_empty() {
+        // An earlier run's sweep would otherwise pass for this one's
+        // (this summary lists no files to note the removal in).
+        aidnav_io::writers::remove_stale_outputs(out, &NETWORK_SWEEP_FILES, &[])?;
+    } else {
         write_network_sweep(&sweep, scenario.members, out)?;
         aidnav_reproduce::figures::network_sweep_figure(scenario, &sweep, out)?;
     }

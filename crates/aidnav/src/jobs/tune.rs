@@ -71,6 +71,13 @@ pub fn tune(job: &TuneJob) -> JobResult<TuneReport> {
     let mut warnings = inputs.warnings.clone();
     warnings.extend(tuning.notes.iter().cloned());
     warnings.extend(written);
+    // The Allan charts are written only when the log has a standstill
+    // long enough: an earlier tuning's would otherwise pass for this one's.
+    warnings.extend(aidnav_io::writers::remove_stale_outputs(
+        &job.out,
+        &["allan.svg", "allan.csv"],
+        &files,
+    )?);
     let mut report = TuneReport {
         imu_samples: inputs.imu.len(),
         gnss_epochs: inputs.gnss.len(),

@@ -22,6 +22,15 @@ use super::scoring::Scores;
 use super::selection::SelectedEpoch;
 use super::tune::{AxisAllan, ImuAllan, TuneResult, tuned_noise_toml};
 
+/// The files `aidnav process` writes only when asked (`navresult.txt`
+/// with `output.kf_gins_text`, `smoothed.csv` when smoothing,
+/// `outage_drift.svg` when scoring): one an earlier run left in the same
+/// directory is removed when this run does not write it
+/// ([`remove_stale_outputs`](aidnav_io::writers::remove_stale_outputs)).
+/// The tuning's files are not among them: `tuned_noise.toml` is a result
+/// the user pastes into a configuration, kept until a tuning replaces it.
+pub const OPTIONAL_FILES: [&str; 3] = ["navresult.txt", "smoothed.csv", "outage_drift.svg"];
+
 /// Write every file of a result (and of its scores) into `out`, in the
 /// order `aidnav process` lists them; `navresult` adds `navresult.txt`.
 /// Each file is written atomically; returns the files and one warning per
