@@ -6,7 +6,7 @@
 //! information and the update. Memory: per axis the (2M)² covariance plus
 //! about six M² workspace matrices.
 //!
-//! `cargo bench -p aidnav-models --bench group_epoch`; the M = 2000 case takes
+//! `cargo bench -p aidnav-integration --bench group_epoch`; the M = 2000 case takes
 //! a couple of minutes (criterion's minimum of ten samples).
 
 use std::hint::black_box;
