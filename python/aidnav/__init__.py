@@ -206,7 +206,9 @@ class ProcessResult:
     def write(self, directory: PathLike) -> List[str]:
         """Write ``solution.csv``, ``smoothed.csv``, ``instruments.csv``, the
         SVG plots and ``summary.json`` into ``directory`` (as ``aidnav
-        process``); returns the files."""
+        process``, which also removes an earlier run's ``smoothed.csv``,
+        ``navresult.txt`` or ``outage_drift.svg`` when this result has
+        none, with a warning in ``summary.json``); returns the files."""
         return [os.fspath(p) for p in self._native.write(os.fspath(directory))]
 
     def __repr__(self) -> str:
