@@ -84,16 +84,21 @@ fn column(csv_text: &str, name: &str) -> Vec<f64> {
 fn filter_reproduces_the_hand_checked_example() {
     let dir = tempfile::tempdir().unwrap();
     let ex = repo().join("examples/01-scalar-filter");
-    success(&[
-        "filter",
-        "--model",
-        ex.join("model.toml").to_str().unwrap(),
-        "--measurements",
-        ex.join("measurements.csv").to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-        "--smooth",
-    ]);
+    let (model, measurements) = (ex.join("model.toml"), ex.join("measurements.csv"));
+    let filter = |extra: &[&str]| {
+        let mut args = vec![
+            "filter",
+            "--model",
+            model.to_str().unwrap(),
+            "--measurements",
+            measurements.to_str().unwrap(),
+            "--out",
+            dir.path().to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        success(&args)
+    };
+    filter(&["--smooth"]);
     // The values derived by hand in model.toml.
     let est = std::fs::read_to_string(dir.path().join("estimates.csv")).unwrap();
     let x = column(&est, "level");
@@ -117,15 +122,7 @@ fn filter_reproduces_the_hand_checked_example() {
     assert_eq!(summary["scenario"]["r"][0][0], 1.0);
     // Run again into the same directory without smoothing: the first run's
     // smoothed.csv goes, with a warning saying so.
-    success(&[
-        "filter",
-        "--model",
-        ex.join("model.toml").to_str().unwrap(),
-        "--measurements",
-        ex.join("measurements.csv").to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
+    filter(&[]);
     assert!(!dir.path().join("smoothed.csv").exists());
     let warnings = read_summary(dir.path())["warnings"].to_string();
     assert!(warnings.contains("smoothed.csv: removed"), "{warnings}");
