@@ -361,8 +361,10 @@ where
     /// The components present in the run.
     present: Vec<usize>,
     /// P⁺ of the run's last epochs (up to [`MAX_STEADY_PERIOD`]), a ring
-    /// that starts at slot 0 with each run.
-    covariances: Vec<OMatrix<f64, N, N>>,
+    /// that starts at slot 0 with each run: held in place (not behind a
+    /// pointer), so that it sits in the batch's page-aligned work block
+    /// ([`BatchWork`]).
+    covariances: [OMatrix<f64, N, N>; MAX_STEADY_PERIOD],
     /// How many of `covariances` belong to the run: the first `len` slots.
     len: usize,
     /// The slot of the next P⁺.
@@ -373,10 +375,12 @@ impl<N: Dim> Recent<N>
 where
     DefaultAllocator: Allocator<N> + Allocator<N, N>,
 {
-    fn new() -> Self {
+    /// An empty ring of covariances shaped as `p` (their values are
+    /// written before they are read).
+    fn new(p: &OMatrix<f64, N, N>) -> Self {
         Self {
             present: Vec::new(),
-            covariances: Vec::with_capacity(MAX_STEADY_PERIOD),
+            covariances: std::array::from_fn(|_| p.clone()),
             len: 0,
             next: 0,
         }
@@ -406,26 +410,32 @@ where
         let closes = self.covariances[..self.len]
             .iter()
             .any(|c| same_bit_slices(values, c.as_slice()));
-        if self.next == self.covariances.len() {
-            self.covariances.push(p.clone());
-        } else {
-            self.covariances[self.next]
-                .as_mut_slice()
-                .copy_from_slice(values);
-        }
+        self.covariances[self.next]
+            .as_mut_slice()
+            .copy_from_slice(values);
         self.next = (self.next + 1) % MAX_STEADY_PERIOD;
         self.len = (self.len + 1).min(MAX_STEADY_PERIOD);
         closes
     }
 }
 
-/// The model of a batch and what the loop keeps between epochs.
+/// The model of a batch and what the loop keeps between epochs. Laid out
+/// in declaration order (`repr(C)`), the matrices every full step writes
+/// and reads first: in [`BatchWork`] they start at the beginning of a
+/// page, and at 9 states none of them crosses into the next one.
+#[repr(C)]
 struct BatchModel<'a, N: Dim>
 where
     DefaultAllocator: Allocator<N> + Allocator<N, N>,
 {
-    phi: &'a OMatrix<f64, N, N>,
-    q: &'a OMatrix<f64, N, N>,
+    /// Scratch for Φ P in the prediction.
+    phi_p: OMatrix<f64, N, N>,
+    /// P⁻ of the full step with its constants checked once: the
+    /// prediction writes it here and the update P⁺ from it into the
+    /// filter, so that neither copies P.
+    p_predicted: OMatrix<f64, N, N>,
+    /// Φ, copied into the work block.
+    phi: OMatrix<f64, N, N>,
     h: &'a OMatrix<f64, Dyn, N>,
     r: &'a DMatrix<f64>,
     keep: BatchKeep,
@@ -436,20 +446,15 @@ where
     /// then skip the checks of these constants. None: every epoch checks
     /// them, and names the epoch where one fails.
     q_symmetric: Option<OMatrix<f64, N, N>>,
-    /// The current run of full steps (to find a cycle).
-    recent: Recent<N>,
+    q: &'a OMatrix<f64, N, N>,
     /// False once the steady path's arithmetic disagreed with the full
     /// step's (it never has; a change to the step's arithmetic would
     /// switch the steady path off rather than change a result).
     steady_allowed: bool,
     /// Epochs computed in the steady state.
     steady_epochs: usize,
-    /// P⁻ of the full step with its constants checked once: the
-    /// prediction writes it here and the update P⁺ from it into the
-    /// filter, so that neither copies P.
-    p_predicted: OMatrix<f64, N, N>,
-    /// Scratch for Φ P in the prediction.
-    phi_p: OMatrix<f64, N, N>,
+    /// The current run of full steps (to find a cycle).
+    recent: Recent<N>,
     /// The filter's P is symmetric bit for bit: checked once, at the
     /// start; every P an epoch gives the filter then is too (the time
     /// update and the Joseph form mirror their lower triangle, the standard
@@ -465,8 +470,8 @@ where
     /// when they passed once for the batch.
     fn predict(&self, kf: &mut KalmanFilter<N>) -> Result<()> {
         match &self.q_symmetric {
-            Some(q) => kf.predict_prechecked(self.phi, q),
-            None => kf.predict(self.phi, self.q),
+            Some(q) => kf.predict_prechecked(&self.phi, q),
+            None => kf.predict(&self.phi, self.q),
         }
     }
 }
@@ -556,9 +561,9 @@ where
         // The full step's arithmetic on the state (kalman.rs: predict_state,
         // innovation, apply), the covariance work skipped.
         if model.q_symmetric.is_some() {
-            kf.predict_state_prechecked(model.phi)?;
+            kf.predict_state_prechecked(&model.phi)?;
         } else {
-            kf.predict_state(model.phi)?;
+            kf.predict_state(&model.phi)?;
         }
         let predicted = model
             .keep
@@ -600,7 +605,7 @@ where
         // prediction made now (from the same P⁺, so the same P⁻) and the
         // decision already taken replayed.
         st.current = None;
-        kf.predict_covariance(model.phi, model.q)?;
+        kf.predict_covariance(&model.phi, model.q)?;
         let predicted = model
             .keep
             .forward
@@ -635,7 +640,7 @@ where
     let aside = predict && model.q_symmetric.is_some();
     match &model.q_symmetric {
         Some(q) if aside => kf.predict_prechecked_aside(
-            model.phi,
+            &model.phi,
             q,
             (&mut model.p_predicted, &mut model.phi_p),
             model.p_symmetric,
@@ -713,7 +718,7 @@ where
     let mut probe = kf.clone();
     let mut phases: Vec<Phase<N, M>> = Vec::with_capacity(MAX_STEADY_PERIOD);
     while phases.len() < MAX_STEADY_PERIOD {
-        probe.predict_covariance(model.phi, model.q).ok()?;
+        probe.predict_covariance(&model.phi, model.q).ok()?;
         let p_predicted = probe.covariance().clone();
         let innovation = probe.innovation(&z, &hc, &rc).ok()?;
         let step = probe.update(&z, &hc, &rc).ok()?;
@@ -803,21 +808,66 @@ where
         forward: Vec::new(),
         steady_epochs: 0,
     };
-    let mut model = BatchModel {
-        phi,
-        q,
-        h,
-        r,
-        keep,
-        q_symmetric: prechecked(phi, q, h, r, n),
-        recent: Recent::new(),
-        steady_allowed: true,
-        steady_epochs: 0,
-        // Any values: both are written before they are read.
-        p_predicted: kf.covariance().clone(),
-        phi_p: kf.covariance().clone(),
-        p_symmetric: crate::dense::symmetric_bits(kf.covariance().as_slice(), n),
+    let mut work = BatchWork {
+        model: BatchModel {
+            // Any values: both are written before they are read.
+            phi_p: kf.covariance().clone(),
+            p_predicted: kf.covariance().clone(),
+            phi: phi.clone(),
+            h,
+            r,
+            keep,
+            q_symmetric: prechecked(phi, q, h, r, n),
+            q,
+            steady_allowed: true,
+            steady_epochs: 0,
+            recent: Recent::new(kf.covariance()),
+            p_symmetric: crate::dense::symmetric_bits(kf.covariance().as_slice(), n),
+        },
+        kf: kf.clone(),
     };
+    let BatchWork { model, kf: filter } = &mut work;
+    let looped = run_epochs(filter, model, (z, m, predict_first), policy, &mut out);
+    // The caller's filter ends where the epochs left the copy, whether
+    // they ran to the end or stopped at an error.
+    kf.clone_from(filter);
+    looped?;
+    out.steady_epochs = model.steady_epochs;
+    Ok(out)
+}
+
+/// The memory the batch's epochs work in, in one block aligned to a 4 KiB
+/// page: the model's matrices ([`BatchModel`]'s first fields) and a copy
+/// of the filter, whose P and x [`run_batch`] copies back at the end.
+/// Each run otherwise found these matrices wherever the stack and the heap
+/// happened to put them, which ASLR moves from process to process: with
+/// one of them across a page boundary (Φ P or P⁻ at 9 states, one process
+/// in four), every epoch ran 10–20 % slower. Its alignment also aligns
+/// the stack frame that holds it, so the epochs' other stack memory (the
+/// update's innovation and gain, the kernels' vectors) keeps one place
+/// relative to the pages too.
+#[repr(C, align(4096))]
+struct BatchWork<'a, N: Dim>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    model: BatchModel<'a, N>,
+    kf: KalmanFilter<N>,
+}
+
+/// The epochs of [`run_batch`]: `z` in rows of `m`, predicting before the
+/// first with `predict_first`; each epoch's results pushed onto `out`.
+fn run_epochs<N: Dim, P: MeasurementPolicy<Dyn> + ?Sized>(
+    kf: &mut KalmanFilter<N>,
+    model: &mut BatchModel<'_, N>,
+    (z, m, predict_first): (&[f64], usize, bool),
+    policy: &mut BatchPolicy<'_, P>,
+    out: &mut BatchOutput<N>,
+) -> Result<()>
+where
+    DefaultAllocator: FixedBatchAllocator<N>,
+{
+    let keep = model.keep;
     // What each update size keeps (its steady state: one set of
     // components each).
     let mut sized1 = SizeState::new();
@@ -842,7 +892,7 @@ where
                 match policy {
                     BatchPolicy::Accept => update_epoch::<N, Const<$c>, AsDyn<'_, P>>(
                         kf,
-                        &mut model,
+                        model,
                         Const::<$c>,
                         epoch,
                         None,
@@ -851,7 +901,7 @@ where
                     ),
                     BatchPolicy::Given(p) => update_epoch(
                         kf,
-                        &mut model,
+                        model,
                         Const::<$c>,
                         epoch,
                         Some(&mut AsDyn(&mut **p)),
@@ -887,7 +937,7 @@ where
             c => match policy {
                 BatchPolicy::Accept => update_epoch::<N, Dyn, P>(
                     kf,
-                    &mut model,
+                    model,
                     Dyn(c),
                     epoch,
                     None,
@@ -896,7 +946,7 @@ where
                 ),
                 BatchPolicy::Given(p) => update_epoch(
                     kf,
-                    &mut model,
+                    model,
                     Dyn(c),
                     epoch,
                     Some(&mut **p),
@@ -917,7 +967,7 @@ where
         if let Some(prediction) = update.predicted {
             let (x_predicted, p_predicted) = *prediction;
             out.forward.push(ForwardEpoch {
-                phi: phi.clone(),
+                phi: model.phi.clone(),
                 x_predicted,
                 p_predicted,
                 x_filtered: kf.state().clone(),
@@ -925,8 +975,7 @@ where
             });
         }
     }
-    out.steady_epochs = model.steady_epochs;
-    Ok(out)
+    Ok(())
 }
 
 #[cfg(test)]

@@ -1002,7 +1002,12 @@ where
     /// residual z − H x⁻ by nalgebra first as in
     /// [`innovate_into`](Self::innovate_into). None (nothing done) where
     /// the kernels do not serve the size: more than
-    /// [`dense::MAX_FUSED_STATES`] states.
+    /// [`dense::MAX_FUSED_STATES`] states. In line: called (not inlined)
+    /// it returned its result through memory written field by field, which
+    /// the caller then read in wider loads, and a load that spans several
+    /// stores waits for them to be written to the cache, behind the
+    /// kernel's stores of P⁺ (about 2 % of a 9/3 batch epoch).
+    #[inline(always)]
     fn accept_fused<M: Dim, const C: usize>(
         &mut self,
         predicted: &OMatrix<f64, N, N>,
