@@ -32,10 +32,15 @@ pub fn ensure_dir(dir: &Path) -> Result<()> {
 /// that fails leaves no summary of another run beside its outputs.
 pub fn begin_outputs(dir: &Path) -> Result<()> {
     ensure_dir(dir)?;
-    let summary = dir.join("summary.json");
-    match std::fs::remove_file(&summary) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(write_err(&summary, e)),
-        _ => Ok(()),
+    remove_if_present(&dir.join("summary.json")).map(|_| ())
+}
+
+/// Remove the file at `path` if there is one; whether there was.
+fn remove_if_present(path: &Path) -> Result<bool> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(e) => Err(write_err(path, e)),
     }
 }
 
@@ -60,13 +65,11 @@ pub fn remove_stale_outputs(
         if written.contains(&path) {
             continue;
         }
-        match std::fs::remove_file(&path) {
-            Ok(()) => notes.push(format!(
+        if remove_if_present(&path)? {
+            notes.push(format!(
                 "{}: removed, left by an earlier run (this run does not write it)",
                 path.display()
-            )),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => return Err(write_err(&path, e)),
+            ));
         }
     }
     Ok(notes)
