@@ -40,8 +40,9 @@ fn reproduce(experiment: &str, args: &[&str], out: &Path) -> String {
     success(&all)
 }
 
-fn filter_failure(model: &Path, z: &Path, out: &Path) -> String {
-    failure(&[
+/// The arguments of `aidnav filter --model MODEL --measurements Z --out OUT`.
+fn filter_args<'a>(model: &'a Path, z: &'a Path, out: &'a Path) -> Vec<&'a str> {
+    vec![
         "filter",
         "--model",
         model.to_str().unwrap(),
@@ -49,7 +50,11 @@ fn filter_failure(model: &Path, z: &Path, out: &Path) -> String {
         z.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-    ])
+    ]
+}
+
+fn filter_failure(model: &Path, z: &Path, out: &Path) -> String {
+    failure(&filter_args(model, z, out))
 }
 
 fn reproduce_failure(scenario: &Path, out: &Path) -> String {
@@ -86,15 +91,7 @@ fn filter_reproduces_the_hand_checked_example() {
     let ex = repo().join("examples/01-scalar-filter");
     let (model, measurements) = (ex.join("model.toml"), ex.join("measurements.csv"));
     let filter = |extra: &[&str]| {
-        let mut args = vec![
-            "filter",
-            "--model",
-            model.to_str().unwrap(),
-            "--measurements",
-            measurements.to_str().unwrap(),
-            "--out",
-            dir.path().to_str().unwrap(),
-        ];
+        let mut args = filter_args(&model, &measurements, dir.path());
         args.extend_from_slice(extra);
         success(&args)
     };
@@ -995,15 +992,7 @@ fn a_non_finite_nis_is_a_warning_naming_file_column_and_epoch() {
     // 1e200² overflows: the NIS of epoch 1 is inf.
     std::fs::write(&z, "z1\n1\n1e200\n").unwrap();
     let out = dir.path().join("out");
-    let o = aidnav(&[
-        "filter",
-        "--model",
-        model.to_str().unwrap(),
-        "--measurements",
-        z.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = aidnav(&filter_args(&model, &z, &out));
     assert!(o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
