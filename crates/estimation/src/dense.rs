@@ -1301,7 +1301,7 @@ pub(crate) fn predicted_aside<D: Dim>(
 #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
 #[target_feature(enable = "avx2")]
 fn predicted_aside_avx2<D: Dim>(
-    n: (D, bool),
+    size: (D, bool),
     x: &mut [f64],
     phi: &[f64],
     q: &[f64],
@@ -1309,7 +1309,7 @@ fn predicted_aside_avx2<D: Dim>(
     predicted: &mut [f64],
     phi_p: &mut [f64],
 ) -> PredictedStatus {
-    predicted_aside_body(n, x, phi, q, p, predicted, phi_p)
+    predicted_aside_body(size, x, phi, q, p, predicted, phi_p)
 }
 
 /// The body of [`predicted_aside`].
