@@ -3,38 +3,9 @@
 //! since 1970-01-01), and the zero-phase moving average applied to the IMU
 //! before filtering.
 
-use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;
 
-/// One GNSS solution epoch.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GnssFix {
-    /// GPST, seconds since 1970-01-01.
-    pub time_s: f64,
-    /// Antenna position (height as written in the file).
-    pub position: Geodetic,
-    /// Solution quality (RTKLIB Q: 1 fixed, 2 float, 5 single, …).
-    pub quality: u8,
-    /// Number of satellites.
-    pub satellites: u32,
-    /// σ of north, east, up position \[m\].
-    pub position_sigma_neu: Vector3<f64>,
-    /// NED velocity [m/s], when the file has velocity columns.
-    pub velocity_ned: Option<Vector3<f64>>,
-    /// σ of north, east, up velocity [m/s], when present.
-    pub velocity_sigma_neu: Option<Vector3<f64>>,
-}
-
-/// One IMU sample in the sensor frame, SI units.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ImuSample {
-    /// GPST, seconds since 1970-01-01.
-    pub time_s: f64,
-    /// Specific force [m/s²].
-    pub specific_force: Vector3<f64>,
-    /// Angular rate [rad/s].
-    pub angular_rate: Vector3<f64>,
-}
+pub use aidnav_sensors::{GnssFix, ImuSample};
 
 /// Zero-phase centred moving average over 2·half + 1 samples (shrinking at
 /// the ends), by prefix sums (O(n)); offline smoothing of a whole log.
