@@ -9,7 +9,7 @@ use aidnav_models::ned_ins::{POSITION, VELOCITY, Vector21};
 use aidnav_supervisors::outage::{BridgeConfig, OutageBridge, Predictor};
 use nalgebra::Vector3;
 
-use crate::ned::NedFilter;
+use crate::ned::FilterView;
 use crate::ned_loop::{EpochObserver, FixRecord};
 
 /// The predictors bridged, in the order of [`BridgeState::bridged`]'s output.
@@ -129,18 +129,18 @@ impl BridgeObserver {
 }
 
 impl EpochObserver for BridgeObserver {
-    fn before_update(&mut self, filter: &NedFilter) {
-        self.fed_back_before = *filter.fed_back();
+    fn before_update(&mut self, filter: &dyn FilterView) {
+        self.fed_back_before = filter.base_fed_back();
     }
 
-    fn fix(&mut self, filter: &NedFilter, record: &FixRecord) {
+    fn fix(&mut self, filter: &dyn FilterView, record: &FixRecord) {
         let bridged = if record.withheld {
             self.state
                 .bridged(record.row.time_s, &record.row.antenna, &self.cfg)
         } else {
             self.state.record(
                 record.row.time_s,
-                &(filter.fed_back() - self.fed_back_before),
+                &(filter.base_fed_back() - self.fed_back_before),
             );
             None
         };

@@ -16,11 +16,14 @@
 //!   group in information form, and the 3-D fusion of a formation in the
 //!   paper's axis-decoupled form and as an EKF.
 
+pub mod aiding;
 pub mod bridge;
 pub mod group;
 pub mod local_level;
+pub mod measurements;
 pub mod ned;
 pub mod ned_loop;
 pub mod ned_loosely;
 mod recording;
 mod sparse;
+pub mod state;

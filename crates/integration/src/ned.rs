@@ -5,9 +5,11 @@
 //! instrument corrections (`ω = (ω̃ − b_g) / (1 + s_g)`, likewise f), and
 //! any measurement policy of the engine on each update.
 
+use std::any::Any;
+
 use aidnav_estimation::{
-    AcceptAll, EstimationError, FisherInformation, FixedKalmanFilter, MeasurementPolicy, Outcome,
-    RtsRecorder, UpdateRecord,
+    EstimationError, FisherInformation, FixedKalmanFilter, Matrix as ErrorMatrix,
+    MeasurementPolicy, Outcome, RtsRecorder, Step, UpdateRecord,
     adaptive::{AnomalyDetector, InnovationFeedbackNoise},
     nalgebra::{Const, U3},
     recovery::{AgreementConfig, AgreementDetector, Update, Verdict},
@@ -15,12 +17,15 @@ use aidnav_estimation::{
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_models::ned_ins::{
-    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, Matrix3x21, Matrix21, NedErrorModel,
-    POSITION, STATES, VELOCITY, Vector21,
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, Matrix21, NedErrorModel, POSITION,
+    STATES, VELOCITY, Vector21,
 };
-use nalgebra::{Matrix3, SMatrix, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState};
+
+use crate::measurements::{Linearized, Measurement, Nominal, on_layout};
+use crate::state::StateLayout;
 
 /// The instrument corrections in use, per sensor axis (the body axes).
 /// Biases and scale factors stay raw: a scale factor is no vector, and the
@@ -58,7 +63,7 @@ impl InstrumentEstimate {
 /// A navigation state with an error estimate x removed: δr, δv subtracted,
 /// the attitude turned by φ (`C = (I + [φ×]) Ĉ`). Feedback, the open-loop
 /// output and the smoothed states all apply an estimate this way.
-fn corrected(state: &NedState, x: &Vector21) -> NedState {
+fn corrected<const N: usize>(state: &NedState, x: &SVector<f64, N>) -> NedState {
     // The navigation error states are NED vectors (δr, δv, φ).
     let v3 = |o: usize| Vec3::<Ned>::new(x[o], x[o + 1], x[o + 2]);
     NedState {
@@ -69,7 +74,7 @@ fn corrected(state: &NedState, x: &Vector21) -> NedState {
 }
 
 /// Record of one GNSS update.
-pub type GnssUpdate = UpdateRecord<Const<STATES>, U3>;
+pub type GnssUpdate<const N: usize = STATES> = UpdateRecord<Const<N>, U3>;
 
 /// The columns of [`NedErrorModel::position_measurement`]'s H that are not
 /// +0.0 by construction (the IMU position and the attitude error), in
@@ -97,7 +102,10 @@ const ANTENNA_COLUMNS: [usize; 6] = [
 /// differ at most in the sign of a zero result. So an element of either
 /// product that ends at ±0, or a P that is not finite (∞ · 0 is NaN), takes
 /// nalgebra's formula.
-fn antenna_covariance(lever_nav: &Vector3<f64>, p: &Matrix21) -> Matrix3<f64> {
+fn antenna_covariance<const N: usize>(
+    lever_nav: &Vector3<f64>,
+    p: &SMatrix<f64, N, N>,
+) -> Matrix3<f64> {
     if !aidnav_estimation::all_finite(p.as_slice()) {
         return antenna_covariance_by_nalgebra(lever_nav, p);
     }
@@ -133,8 +141,11 @@ fn antenna_covariance(lever_nav: &Vector3<f64>, p: &Matrix21) -> Matrix3<f64> {
 
 /// [`antenna_covariance`] by nalgebra's dense products over all 21 columns:
 /// its fallback, and the reference its test compares with.
-fn antenna_covariance_by_nalgebra(lever_nav: &Vector3<f64>, p: &Matrix21) -> Matrix3<f64> {
-    let h = NedErrorModel::position_measurement(lever_nav);
+fn antenna_covariance_by_nalgebra<const N: usize>(
+    lever_nav: &Vector3<f64>,
+    p: &SMatrix<f64, N, N>,
+) -> Matrix3<f64> {
+    let h: SMatrix<f64, 3, N> = on_layout(&NedErrorModel::position_measurement(lever_nav));
     let s = h * p * h.transpose();
     (s + s.transpose()) * 0.5
 }
@@ -156,8 +167,8 @@ pub const BYTES_PER_SMOOTHED_EPOCH: usize = RtsRecorder::<STATES>::BYTES_PER_MAR
 /// epochs (the GNSS epochs of the epoch loop); it runs on a worker thread
 /// beside the filter (`recording`: same calls, same numbers).
 #[derive(Debug, Clone)]
-struct ForwardRecord {
-    rts: crate::recording::Recording<STATES>,
+struct ForwardRecord<const N: usize> {
+    rts: crate::recording::Recording<N>,
     /// The open epoch's nominal state (after its feedback so far).
     open_state: NedState,
     /// The nominal state of every marked epoch.
@@ -168,8 +179,8 @@ struct ForwardRecord {
 /// against the engine's stored-pass smoother on this filter.
 #[cfg(test)]
 #[derive(Debug, Clone, Default)]
-struct FullRecord {
-    epochs: Vec<aidnav_estimation::ForwardEpoch<Const<STATES>>>,
+struct FullRecord<const N: usize> {
+    epochs: Vec<aidnav_estimation::ForwardEpoch<Const<N>>>,
     states: Vec<NedState>,
 }
 
@@ -197,7 +208,7 @@ struct FullRecord {
 /// // Prior σ: 1 m, 0.1 m/s, 10 mrad; the instrument states from the model.
 /// let model = NedErrorModel::default();
 /// let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
-/// let mut sigmas = Vector21::zeros();
+/// let mut sigmas = SVector::zeros();
 /// for (block, sigma) in [(POSITION, 1.0), (VELOCITY, 0.1), (ATTITUDE, 0.01)] {
 ///     sigmas.fixed_rows_mut::<3>(block).fill(sigma);
 /// }
@@ -240,10 +251,10 @@ struct FullRecord {
 /// # }
 /// ```
 #[derive(Debug, Clone)]
-pub struct NedFilter {
+pub struct NedFilter<const N: usize = STATES> {
     model: NedErrorModel,
     ins: NedMechanization,
-    kf: FixedKalmanFilter<STATES>,
+    kf: FixedKalmanFilter<N>,
     instruments: InstrumentEstimate,
     lever_arm: Vec3<Body>,
     rate: Vec3<Body>,
@@ -251,17 +262,25 @@ pub struct NedFilter {
     pending_angle: Vec3<Body>,
     pending_dt: f64,
     covariance_interval_s: f64,
-    record: Option<ForwardRecord>,
+    record: Option<ForwardRecord<N>>,
     #[cfg(test)]
-    full_record: Option<FullRecord>,
+    full_record: Option<FullRecord<N>>,
     open_loop: bool,
     monitor: Option<ConvergenceMonitor>,
-    fed_back: Vector21,
-    adaptive: Option<InnovationFeedbackNoise<Const<STATES>, U3>>,
-    recovery: Option<Box<Recovery>>,
+    fed_back: SVector<f64, N>,
+    adaptive: Option<InnovationFeedbackNoise<Const<N>, U3>>,
+    recovery: Option<Box<Recovery<N>>>,
     /// Φ and Q of the last covariance flush: buffers the model writes into.
-    phi: Matrix21,
-    q: Matrix21,
+    phi: SMatrix<f64, N, N>,
+    q: SMatrix<f64, N, N>,
+    /// The base model's Φ and Q when the layout adds states (the model
+    /// writes 21 × 21; None for the base layout, whose Φ and Q it writes
+    /// directly).
+    base_transition: Option<Box<(Matrix21, Matrix21)>>,
+    /// Where the added states sit, and their dynamics.
+    layout: StateLayout,
+    /// Nominal values of the added states (the base entries stay 0).
+    parameters: SVector<f64, N>,
 }
 
 /// The reset recovery of the GNSS updates: when a run of refused (rejected
@@ -292,60 +311,64 @@ pub struct RecoveryConfig {
 
 /// One detector per GNSS stream.
 #[derive(Debug, Clone)]
-struct Recovery {
+struct Recovery<const N: usize> {
     config: RecoveryConfig,
-    position: AgreementDetector<Const<STATES>, U3>,
-    velocity: AgreementDetector<Const<STATES>, U3>,
+    position: AgreementDetector<Const<N>, U3>,
+    velocity: AgreementDetector<Const<N>, U3>,
 }
 
-impl Recovery {
+impl<const N: usize> Recovery<N> {
     /// Every detector sees another update (gain K, matrix H), but `except`.
     fn updated<M: nalgebra::Dim>(
         &mut self,
-        gain: &nalgebra::OMatrix<f64, Const<STATES>, M>,
-        h: &nalgebra::OMatrix<f64, M, Const<STATES>>,
-        except: Option<Stream>,
+        gain: &nalgebra::OMatrix<f64, Const<N>, M>,
+        h: &nalgebra::OMatrix<f64, M, Const<N>>,
+        except: Option<GnssStream>,
     ) where
-        nalgebra::DefaultAllocator: aidnav_estimation::FilterAllocator<Const<STATES>, M>
-            + nalgebra::allocator::Allocator<M, U3>,
+        nalgebra::DefaultAllocator:
+            aidnav_estimation::FilterAllocator<Const<N>, M> + nalgebra::allocator::Allocator<M, U3>,
     {
-        if except != Some(Stream::Position) {
+        if except != Some(GnssStream::Position) {
             self.position.updated(gain, h);
         }
-        if except != Some(Stream::Velocity) {
+        if except != Some(GnssStream::Velocity) {
             self.velocity.updated(gain, h);
         }
     }
 
-    fn detector(&mut self, stream: Stream) -> &mut AgreementDetector<Const<STATES>, U3> {
+    fn detector(&mut self, stream: GnssStream) -> &mut AgreementDetector<Const<N>, U3> {
         match stream {
-            Stream::Position => &mut self.position,
-            Stream::Velocity => &mut self.velocity,
+            GnssStream::Position => &mut self.position,
+            GnssStream::Velocity => &mut self.velocity,
         }
     }
 }
 
-/// A GNSS measurement stream of the filter.
+/// A GNSS measurement stream of the filter: the recovery keeps one
+/// agreement detector per stream, and the adaptive process noise acts on
+/// the position stream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Stream {
+pub enum GnssStream {
+    /// The antenna position.
     Position,
+    /// The antenna velocity.
     Velocity,
 }
 
-impl Stream {
+impl GnssStream {
     /// The other stream.
     fn other(self) -> Self {
         match self {
-            Stream::Position => Stream::Velocity,
-            Stream::Velocity => Stream::Position,
+            GnssStream::Position => GnssStream::Velocity,
+            GnssStream::Velocity => GnssStream::Position,
         }
     }
 
     /// First index of the error states it measures.
     fn block(self) -> usize {
         match self {
-            Stream::Position => POSITION,
-            Stream::Velocity => VELOCITY,
+            GnssStream::Position => POSITION,
+            GnssStream::Velocity => VELOCITY,
         }
     }
 }
@@ -361,24 +384,215 @@ struct ConvergenceMonitor {
     before: f64,
 }
 
+/// The navigation solution of an INS state: itself in closed loop, the INS
+/// corrected by the estimate x in open loop.
+fn solution_of<const N: usize>(ins: &NedState, open_loop: bool, x: &SVector<f64, N>) -> NedState {
+    if !open_loop {
+        return *ins;
+    }
+    corrected(ins, x)
+}
+
+/// The antenna position and NED velocity of a solution, lever arm `l`
+/// (body) and body rate ω: `r ⊕ C l`, `v + C (ω × l)`.
+fn antenna_of_solution(
+    s: &NedState,
+    lever_arm: Vec3<Body>,
+    rate: Vec3<Body>,
+) -> (Geodetic, Vec3<Ned>) {
+    let c = s.attitude.matrix();
+    let arm = c * lever_arm;
+    (
+        s.position.offset_by(&arm),
+        s.velocity + c * rate.cross(&lever_arm),
+    )
+}
+
+/// A read-only view of a NED filter, whatever its layout: what the loop's
+/// observers and the solution rows read.
+pub trait FilterView {
+    /// The INS's own navigation state (uncorrected in open loop).
+    fn state(&self) -> &NedState;
+    /// The navigation solution (the INS, corrected by the estimate in open
+    /// loop).
+    fn solution(&self) -> NedState;
+    /// The instrument corrections.
+    fn instruments(&self) -> &InstrumentEstimate;
+    /// The antenna position and NED velocity implied by the solution.
+    fn antenna(&self) -> (Geodetic, Vec3<Ned>);
+    /// Covariance of the antenna position error (NED) \[m²\].
+    fn antenna_position_covariance(&self) -> Matrix3<f64>;
+    /// σ of the base 21 error states.
+    fn base_sigmas(&self) -> Vector21;
+    /// Sum of the base 21 error estimates fed back so far.
+    fn base_fed_back(&self) -> Vector21;
+    /// A copy of the INS that coasts on raw increments from here on (no
+    /// instrument corrections, no updates, the covariance frozen): the
+    /// free INS of an outage score.
+    fn free_inertial(&self) -> FreeInertial;
+}
+
+/// The first 21 entries of a vector of a layout's states.
+fn base_of<const N: usize>(v: &SVector<f64, N>) -> Vector21 {
+    Vector21::from_fn(|i, _| v[i])
+}
+
+impl<const N: usize> FilterView for NedFilter<N> {
+    fn state(&self) -> &NedState {
+        self.ins.state()
+    }
+
+    fn solution(&self) -> NedState {
+        NedFilter::solution(self)
+    }
+
+    fn instruments(&self) -> &InstrumentEstimate {
+        &self.instruments
+    }
+
+    fn antenna(&self) -> (Geodetic, Vec3<Ned>) {
+        NedFilter::antenna(self)
+    }
+
+    fn antenna_position_covariance(&self) -> Matrix3<f64> {
+        NedFilter::antenna_position_covariance(self)
+    }
+
+    fn base_sigmas(&self) -> Vector21 {
+        base_of(&self.sigmas())
+    }
+
+    fn base_fed_back(&self) -> Vector21 {
+        base_of(&self.fed_back)
+    }
+
+    fn free_inertial(&self) -> FreeInertial {
+        let p = self.kf.covariance();
+        FreeInertial {
+            ins: self.ins.clone(),
+            instruments: self.instruments,
+            lever_arm: self.lever_arm,
+            rate: self.rate,
+            open_loop: self.open_loop,
+            x: base_of(self.kf.state()),
+            p: Matrix21::from_fn(|i, j| p[(i, j)]),
+            fed_back: base_of(&self.fed_back),
+        }
+    }
+}
+
+/// A free INS: a filter's INS, instruments and covariance as they were,
+/// mechanized from raw increments ([`FilterView::free_inertial`]).
+#[derive(Debug, Clone)]
+pub struct FreeInertial {
+    ins: NedMechanization,
+    instruments: InstrumentEstimate,
+    lever_arm: Vec3<Body>,
+    rate: Vec3<Body>,
+    open_loop: bool,
+    x: Vector21,
+    p: Matrix21,
+    fed_back: Vector21,
+}
+
+impl FreeInertial {
+    /// Mechanize one raw increment without the instrument corrections and
+    /// without touching the covariance.
+    pub fn coast_uncorrected(&mut self, raw: &ImuIncrement) {
+        if raw.dt_s > 0.0 {
+            self.ins.update(raw);
+        }
+    }
+}
+
+impl FilterView for FreeInertial {
+    fn state(&self) -> &NedState {
+        self.ins.state()
+    }
+
+    fn solution(&self) -> NedState {
+        solution_of(self.ins.state(), self.open_loop, &self.x)
+    }
+
+    fn instruments(&self) -> &InstrumentEstimate {
+        &self.instruments
+    }
+
+    fn antenna(&self) -> (Geodetic, Vec3<Ned>) {
+        antenna_of_solution(&self.solution(), self.lever_arm, self.rate)
+    }
+
+    fn antenna_position_covariance(&self) -> Matrix3<f64> {
+        let c = self.solution().attitude.matrix();
+        antenna_covariance((c * self.lever_arm).as_raw(), &self.p)
+    }
+
+    fn base_sigmas(&self) -> Vector21 {
+        self.p.diagonal().map(f64::sqrt)
+    }
+
+    fn base_fed_back(&self) -> Vector21 {
+        self.fed_back
+    }
+
+    fn free_inertial(&self) -> FreeInertial {
+        self.clone()
+    }
+}
+
+/// `m` as a matrix of another const shape with the same number of rows and
+/// columns (None when they differ): how the generic update hands a
+/// three-component measurement to the GNSS streams' three-typed detectors.
+fn reshape<const R1: usize, const C1: usize, const R2: usize, const C2: usize>(
+    m: &SMatrix<f64, R1, C1>,
+) -> Option<SMatrix<f64, R2, C2>> {
+    (R1 == R2 && C1 == C2).then(|| SMatrix::from_column_slice(m.as_slice()))
+}
+
 /// A smoothed navigation state and the covariance of its antenna position
 /// error (NED, m²).
 pub type SmoothedAntenna = (NedState, Matrix3<f64>);
 
-impl NedFilter {
+impl<const N: usize> NedFilter<N> {
     /// Start at `state` with the prior σ of every error state and the
-    /// antenna lever arm (body frame, from the IMU to the antenna).
+    /// antenna lever arm (body frame, from the IMU to the antenna), on the
+    /// base 21 states (an error unless `N` is 21: see
+    /// [`with_layout`](Self::with_layout)).
     pub fn new(
         model: NedErrorModel,
         state: NedState,
-        prior_sigmas: &Vector21,
+        prior_sigmas: &SVector<f64, N>,
         lever_arm: Vec3<Body>,
     ) -> Result<Self, EstimationError> {
-        let p0 = SMatrix::<f64, STATES, STATES>::from_diagonal(&prior_sigmas.map(|s| s * s));
+        Self::with_layout(model, state, prior_sigmas, lever_arm, StateLayout::base())
+    }
+
+    /// [`new`](Self::new) on a layout with added states: `N` must be the
+    /// layout's length; `prior_sigmas` holds every state's prior σ (the
+    /// added blocks' too: [`BlockDynamics::prior_sigma`](crate::state::BlockDynamics)
+    /// is where a caller usually takes them from).
+    pub fn with_layout(
+        model: NedErrorModel,
+        state: NedState,
+        prior_sigmas: &SVector<f64, N>,
+        lever_arm: Vec3<Body>,
+        layout: StateLayout,
+    ) -> Result<Self, EstimationError> {
+        if layout.len() != N || layout.blocks().iter().any(|b| !b.dynamics.is_valid()) {
+            return Err(EstimationError::DimensionMismatch {
+                step: Step::Initialise,
+                matrix: ErrorMatrix::P,
+                rows: N,
+                cols: N,
+                expected_rows: layout.len(),
+                expected_cols: layout.len(),
+            });
+        }
+        let p0 = SMatrix::<f64, N, N>::from_diagonal(&prior_sigmas.map(|s| s * s));
         Ok(Self {
             model,
             ins: NedMechanization::new(state),
-            kf: FixedKalmanFilter::new(Vector21::zeros(), p0)?,
+            kf: FixedKalmanFilter::new(SVector::zeros(), p0)?,
             instruments: InstrumentEstimate::default(),
             lever_arm,
             rate: Vec3::zeros(),
@@ -391,12 +605,40 @@ impl NedFilter {
             full_record: None,
             open_loop: false,
             monitor: None,
-            fed_back: Vector21::zeros(),
+            fed_back: SVector::zeros(),
             adaptive: None,
             recovery: None,
-            phi: Matrix21::zeros(),
-            q: Matrix21::zeros(),
+            phi: SMatrix::zeros(),
+            q: SMatrix::zeros(),
+            base_transition: (N != STATES)
+                .then(|| Box::new((Matrix21::zeros(), Matrix21::zeros()))),
+            layout,
+            parameters: SVector::zeros(),
         })
+    }
+
+    /// Where the added states sit.
+    pub fn layout(&self) -> &StateLayout {
+        &self.layout
+    }
+
+    /// Nominal values of the added states, by state index (the base
+    /// entries are 0): the value an added block's estimate has been fed
+    /// back into (e.g. the odometer's scale-factor error).
+    pub fn parameters(&self) -> &SVector<f64, N> {
+        &self.parameters
+    }
+
+    /// What a measurement model sees of the filter.
+    pub fn nominal(&self) -> Nominal<'_, N> {
+        Nominal {
+            state: self.ins.state(),
+            body_rate: self.rate,
+            antenna_lever_arm: self.lever_arm,
+            instruments: &self.instruments,
+            parameters: &self.parameters,
+            layout: &self.layout,
+        }
     }
 
     /// Turn on the reset recovery of the GNSS updates (see
@@ -449,11 +691,7 @@ impl NedFilter {
     /// The navigation solution: the INS, corrected by the error estimate in
     /// open loop.
     pub fn solution(&self) -> NedState {
-        let s = *self.ins.state();
-        if !self.open_loop {
-            return s;
-        }
-        corrected(&s, self.kf.state())
+        solution_of(self.ins.state(), self.open_loop, self.kf.state())
     }
 
     /// The instrument corrections.
@@ -475,7 +713,7 @@ impl NedFilter {
     }
 
     /// σ of every error state (as of the last covariance propagation).
-    pub fn sigmas(&self) -> Vector21 {
+    pub fn sigmas(&self) -> SVector<f64, N> {
         self.kf.covariance().diagonal().map(f64::sqrt)
     }
 
@@ -491,13 +729,7 @@ impl NedFilter {
 
     /// The antenna position and NED velocity implied by the INS.
     pub fn antenna(&self) -> (Geodetic, Vec3<Ned>) {
-        let s = &self.solution();
-        let c = s.attitude.matrix();
-        let arm = c * self.lever_arm;
-        (
-            s.position.offset_by(&arm),
-            s.velocity + c * self.rate.cross(&self.lever_arm),
-        )
+        antenna_of_solution(&self.solution(), self.lever_arm, self.rate)
     }
 
     /// Mechanize one raw increment and propagate the covariance.
@@ -552,22 +784,45 @@ impl NedFilter {
             earth_rate_ned(s.position.latitude_rad).raw(),
             transport_rate_ned(&s.position, &s.velocity).raw(),
         ];
-        // Into the filter's own buffers (no 21 × 21 copies on the way).
-        let (phi, q) = (&mut self.phi, &mut self.q);
-        self.model.transition_into(
-            c.as_raw(),
-            [&rates[0], &rates[1], &rates[2], &rates[3]],
-            s.position.latitude_rad,
-            dt,
-            (phi, q),
-        );
+        let rates = [&rates[0], &rates[1], &rates[2], &rates[3]];
+        // On the base layout straight into the filter's own buffers (no
+        // 21 × 21 copies on the way: the downcast is to the type `N = 21`
+        // already is); with added states the model's 21 × 21 go into the
+        // top left, each added state its own step (Φ stays diagonal from
+        // the gyro bias on, the structure the prediction is told).
+        let base = (&mut self.phi as &mut dyn Any)
+            .downcast_mut::<Matrix21>()
+            .zip((&mut self.q as &mut dyn Any).downcast_mut::<Matrix21>());
+        if let Some((phi, q)) = base {
+            let latitude = s.position.latitude_rad;
+            self.model
+                .transition_into(c.as_raw(), rates, latitude, dt, (phi, q));
+        } else if let Some(b) = self.base_transition.as_deref_mut() {
+            let (phi21, q21) = (&mut b.0, &mut b.1);
+            let latitude = s.position.latitude_rad;
+            self.model
+                .transition_into(c.as_raw(), rates, latitude, dt, (phi21, q21));
+            self.phi
+                .fixed_view_mut::<STATES, STATES>(0, 0)
+                .copy_from(phi21);
+            self.q.fixed_view_mut::<STATES, STATES>(0, 0).copy_from(q21);
+            for block in self.layout.blocks() {
+                let (phi, q) = block.dynamics.discrete(dt);
+                for i in block.offset..block.offset + block.kind.len() {
+                    self.phi[(i, i)] = phi;
+                    self.q[(i, i)] = q;
+                }
+            }
+        }
         let (phi, q) = (&self.phi, &self.q);
         self.pending_force = Vec3::zeros();
         self.pending_angle = Vec3::zeros();
         self.pending_dt = 0.0;
         self.kf
             .predict_structured(phi, q, NedErrorModel::TRANSITION)?;
-        if let Some(m) = self.monitor.as_mut() {
+        if let Some(m) = self.monitor.as_mut()
+            && let Some(phi) = (phi as &dyn Any).downcast_ref::<Matrix21>()
+        {
             m.fisher.propagate(phi)?;
         }
         if let Some(r) = self.recovery.as_mut() {
@@ -575,7 +830,7 @@ impl NedFilter {
             r.velocity.propagate(phi, dt);
         }
         if let Some(r) = self.record.as_mut() {
-            r.rts.predict(phi, &Vector21::zeros(), self.kf.covariance());
+            r.rts.predict(phi, &SVector::zeros(), self.kf.covariance());
             r.open_state = *self.ins.state();
         }
         #[cfg(test)]
@@ -583,9 +838,9 @@ impl NedFilter {
             let p = *self.kf.covariance();
             r.epochs.push(aidnav_estimation::ForwardEpoch {
                 phi: *phi,
-                x_predicted: Vector21::zeros(),
+                x_predicted: SVector::zeros(),
                 p_predicted: p,
-                x_filtered: Vector21::zeros(),
+                x_filtered: SVector::zeros(),
                 p_filtered: p,
             });
             r.states.push(*self.ins.state());
@@ -601,7 +856,7 @@ impl NedFilter {
     pub fn start_recording(&mut self, max_epochs: usize) {
         let p = *self.kf.covariance();
         self.record = Some(ForwardRecord {
-            rts: crate::recording::Recording::new(&Vector21::zeros(), &p, max_epochs.max(1)),
+            rts: crate::recording::Recording::new(&SVector::zeros(), &p, max_epochs.max(1)),
             open_state: *self.ins.state(),
             states: Vec::new(),
         });
@@ -610,9 +865,9 @@ impl NedFilter {
             self.full_record = Some(FullRecord {
                 epochs: vec![aidnav_estimation::ForwardEpoch {
                     phi: SMatrix::identity(),
-                    x_predicted: Vector21::zeros(),
+                    x_predicted: SVector::zeros(),
                     p_predicted: p,
-                    x_filtered: Vector21::zeros(),
+                    x_filtered: SVector::zeros(),
                     p_filtered: p,
                 }],
                 states: vec![*self.ins.state()],
@@ -686,9 +941,19 @@ impl NedFilter {
     }
 
     /// Start the Cramér–Rao convergence monitor of the instrument states
-    /// (spec 10's δ(n), see [`instrument_convergence`](Self::instrument_convergence)).
+    /// (spec 10's δ(n), see [`instrument_convergence`](Self::instrument_convergence)),
+    /// on the base 21 states (an error with added states).
     pub fn start_convergence_monitor(&mut self) -> Result<(), EstimationError> {
-        let p = *self.kf.covariance();
+        let Some(&p) = (self.kf.covariance() as &dyn Any).downcast_ref::<Matrix21>() else {
+            return Err(EstimationError::DimensionMismatch {
+                step: Step::Initialise,
+                matrix: ErrorMatrix::Information,
+                rows: N,
+                cols: N,
+                expected_rows: STATES,
+                expected_cols: STATES,
+            });
+        };
         self.monitor = Some(ConvergenceMonitor {
             fisher: FisherInformation::from_prior_covariance(&p)?,
             prior: p.diagonal(),
@@ -698,7 +963,7 @@ impl NedFilter {
     }
 
     /// Normalised trace of the instrument block of P.
-    fn instrument_trace(&self, p: &SMatrix<f64, STATES, STATES>) -> f64 {
+    fn instrument_trace(&self, p: &SMatrix<f64, N, N>) -> f64 {
         self.monitor.as_ref().map_or(0.0, |m| {
             (GYRO_BIAS..STATES).map(|i| p[(i, i)] / m.prior[i]).sum()
         })
@@ -730,17 +995,15 @@ impl NedFilter {
         Some((m.before - after) / bound_trace)
     }
 
-    fn add_information<M: nalgebra::Dim>(
+    fn add_information<const M: usize>(
         &mut self,
-        h: &nalgebra::OMatrix<f64, M, Const<STATES>>,
-        r: &nalgebra::OMatrix<f64, M, M>,
+        h: &SMatrix<f64, M, N>,
+        r: &SMatrix<f64, M, M>,
         outcome: Outcome,
-    ) -> Result<(), EstimationError>
-    where
-        nalgebra::DefaultAllocator: aidnav_estimation::FilterAllocator<Const<STATES>, M>,
-    {
+    ) -> Result<(), EstimationError> {
         if let Some(m) = self.monitor.as_mut()
             && !matches!(outcome, Outcome::Rejected | Outcome::Reset)
+            && let Some(h) = (h as &dyn Any).downcast_ref::<SMatrix<f64, M, STATES>>()
         {
             m.fisher.add_measurement(h, r)?;
         }
@@ -784,7 +1047,7 @@ impl NedFilter {
     /// Sum of every error estimate fed back so far (closed loop): its
     /// position and velocity parts are the corrections the INS has needed,
     /// whose history the outage predictors extrapolate.
-    pub fn fed_back(&self) -> &Vector21 {
+    pub fn fed_back(&self) -> &SVector<f64, N> {
         &self.fed_back
     }
 
@@ -793,61 +1056,118 @@ impl NedFilter {
         self.covariance_interval_s = seconds.max(0.0);
     }
 
-    /// GNSS antenna position fix with σ (north, east, down) under a policy.
-    pub fn update_position_with<P: MeasurementPolicy<U3> + ?Sized>(
+    /// The one measurement update, for every measurement model alike: the
+    /// covariance propagated to now, the model linearised at the nominal
+    /// state ([`nominal`](Self::nominal)), the update under `policy`, the
+    /// recovery (see [`RecoveryConfig`]: a GNSS stream's detector takes its
+    /// stream's refused fixes and may reset the stream; every detector sees
+    /// every other update), the Fisher information of the convergence
+    /// monitor, and the feedback. The adaptive process noise
+    /// ([`set_adaptive_noise`](Self::set_adaptive_noise)) acts before and
+    /// after the GNSS position updates. Returns the update's record
+    /// (innovation, S, gain, NIS, outcome).
+    ///
+    /// ```
+    /// # use aidnav_frames::{Ned, Rotation, Vec3, earth::Geodetic};
+    /// # use aidnav_ins::ned::{NedMechanization, NedState};
+    /// use aidnav_estimation::AcceptAll;
+    /// use aidnav_integration::measurements::ZeroVelocity;
+    /// use aidnav_integration::ned::NedFilter;
+    /// use aidnav_models::ned_ins::{NedErrorModel, Vector21};
+    /// # let start = NedState {
+    /// #     position: Geodetic { latitude_rad: 0.5, longitude_rad: 0.2, height_m: 10.0 },
+    /// #     velocity: Vec3::<Ned>::zeros(),
+    /// #     attitude: Rotation::from_euler_angles(0.0, 0.0, 0.3),
+    /// # };
+    /// let mut f = NedFilter::new(NedErrorModel::default(), start, &Vector21::repeat(0.1), Vec3::zeros())
+    ///     .unwrap();
+    /// let rec = f.fuse(&ZeroVelocity { sigma_mps: 0.01 }, None, &mut AcceptAll).unwrap();
+    /// assert_eq!(rec.nis, 0.0); // at rest the INS already says 0
+    /// assert!(f.sigmas()[3] < 0.011);
+    /// ```
+    pub fn fuse<const M: usize, Meas, P>(
         &mut self,
-        fix: &Geodetic,
-        sigma_ned: &Vector3<f64>,
+        measurement: &Meas,
+        stream: Option<GnssStream>,
         policy: &mut P,
-    ) -> Result<GnssUpdate, EstimationError> {
-        let s = *self.ins.state();
-        let c = s.attitude.matrix();
-        // The INS's own antenna: in open loop the estimate x is part of H x.
-        let antenna = s.position.offset_by(&(c * self.lever_arm));
-        let z = fix.ned_to(&antenna).raw();
-        let h = NedErrorModel::position_measurement((c * self.lever_arm).as_raw());
-        let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
+    ) -> Result<UpdateRecord<Const<N>, Const<M>>, EstimationError>
+    where
+        Meas: Measurement<M, N> + ?Sized,
+        P: MeasurementPolicy<Const<M>> + ?Sized,
+    {
         self.flush_covariance_for_update()?;
-        if let Some(a) = self.adaptive.as_mut() {
-            let innovation = self.kf.innovation(&z, &h, &r)?;
-            let q = a.process_noise(&innovation.residual, &innovation.s);
-            self.kf.set_covariance(self.kf.covariance() + q)?;
+        let lin = measurement.linearize(&self.nominal());
+        let adapts = stream == Some(GnssStream::Position);
+        if adapts {
+            self.adapt_process_noise(&lin)?;
         }
-        let rec = self.update_stream(Stream::Position, &z, &h, &r, policy)?;
-        if let Some(a) = self.adaptive.as_mut() {
-            // K_{k−1} of eq. 3 is the gain of the previous *update*: a
-            // rejected fix made none and leaves it (recording its zero gain
-            // would switch the feedback off at the next fix, P would
-            // shrink, and one rejection would lead to the next). After a
-            // reset the next fix feeds nothing back.
-            match rec.outcome {
-                Outcome::Rejected => {}
-                Outcome::Reset => a.record_gain(&SMatrix::zeros()),
-                _ => a.record_gain(&rec.gain),
-            }
+        let rec = self.update_stream(stream, &lin, policy)?;
+        if adapts {
+            self.record_adaptive_gain(&rec);
         }
-        self.add_information(&h, &r, rec.outcome)?;
+        self.add_information(&lin.h, &lin.r, rec.outcome)?;
         self.feedback()?;
         Ok(rec)
     }
 
-    /// A GNSS update of one stream under a policy, followed by the
-    /// recovery (see [`RecoveryConfig`]): a refused (rejected or limited)
-    /// fix goes to the stream's agreement detector, and when it completes an
-    /// agreeing run the stream's states are reset to it (outcome
-    /// [`Outcome::Reset`]); an accepted one ends the stream's runs. Every
-    /// other detector sees the update.
-    fn update_stream<P: MeasurementPolicy<U3> + ?Sized>(
+    /// Eq. 3's term added to P before a GNSS position update (see
+    /// [`set_adaptive_noise`](Self::set_adaptive_noise)); nothing without it.
+    fn adapt_process_noise<const M: usize>(
         &mut self,
-        stream: Stream,
-        z: &Vector3<f64>,
-        h: &Matrix3x21,
-        r: &Matrix3<f64>,
+        lin: &Linearized<M, N>,
+    ) -> Result<(), EstimationError> {
+        let Some(a) = self.adaptive.as_mut() else {
+            return Ok(());
+        };
+        let (Some(z), Some(h), Some(r)) = (reshape(&lin.z), reshape(&lin.h), reshape(&lin.r))
+        else {
+            return Ok(());
+        };
+        let innovation = self.kf.innovation(&z, &h, &r)?;
+        let q = a.process_noise(&innovation.residual, &innovation.s);
+        self.kf.set_covariance(self.kf.covariance() + q)
+    }
+
+    /// The adaptive noise's gain memory after a GNSS position update.
+    fn record_adaptive_gain<const M: usize>(&mut self, rec: &UpdateRecord<Const<N>, Const<M>>) {
+        let (Some(a), Some(gain)) = (self.adaptive.as_mut(), reshape(&rec.gain)) else {
+            return;
+        };
+        // K_{k−1} of eq. 3 is the gain of the previous *update*: a
+        // rejected fix made none and leaves it (recording its zero gain
+        // would switch the feedback off at the next fix, P would
+        // shrink, and one rejection would lead to the next). After a
+        // reset the next fix feeds nothing back.
+        match rec.outcome {
+            Outcome::Rejected => {}
+            Outcome::Reset => a.record_gain(&SMatrix::zeros()),
+            _ => a.record_gain(&gain),
+        }
+    }
+
+    /// An update under a policy, followed by the recovery (see
+    /// [`RecoveryConfig`]): every detector sees an update that is not of
+    /// its stream; a refused (rejected or limited) fix of a GNSS stream
+    /// goes to the stream's agreement detector, and when it completes an
+    /// agreeing run the stream's states are reset to it (outcome
+    /// [`Outcome::Reset`]); an accepted one ends the stream's runs.
+    fn update_stream<const M: usize, P: MeasurementPolicy<Const<M>> + ?Sized>(
+        &mut self,
+        stream: Option<GnssStream>,
+        lin: &Linearized<M, N>,
         policy: &mut P,
-    ) -> Result<GnssUpdate, EstimationError> {
+    ) -> Result<UpdateRecord<Const<N>, Const<M>>, EstimationError> {
+        let (z, h, r) = (&lin.z, &lin.h, &lin.r);
         if self.recovery.is_none() {
             return self.kf.update_with(z, h, r, policy);
         }
+        let Some(stream) = stream else {
+            let rec = self.kf.update_with(z, h, r, policy)?;
+            if let Some(recovery) = self.recovery.as_mut() {
+                recovery.updated(&rec.gain, h, None);
+            }
+            return Ok(rec);
+        };
         let (x_prior, p_prior) = (*self.kf.state(), *self.kf.covariance());
         let mut rec = self.kf.update_with(z, h, r, policy)?;
         let Some(recovery) = self.recovery.as_mut() else {
@@ -858,18 +1178,28 @@ impl NedFilter {
             recovery.detector(stream).accepted();
             return Ok(rec);
         }
+        // A GNSS stream's measurement has three components.
+        let (Some(z3), Some(h3), Some(r3), Some(residual), Some(gain)) = (
+            reshape(z),
+            reshape(h),
+            reshape(r),
+            reshape(&rec.residual),
+            reshape(&rec.gain),
+        ) else {
+            return Ok(rec);
+        };
         let state_change = self.kf.state() - x_prior;
         let verdict = recovery.detector(stream).refused(&Update {
-            residual: &rec.residual,
+            residual: &residual,
             state_change: &state_change,
-            r,
-            h,
+            r: &r3,
+            h: &h3,
             prior_covariance: &p_prior,
-            gain: &rec.gain,
+            gain: &gain,
             posterior_covariance: self.kf.covariance(),
         });
         if let Verdict::Recover { .. } = verdict {
-            self.reset_stream(stream, z, h, r)?;
+            self.reset_stream(stream, &z3, &h3, &r3)?;
             rec.outcome = Outcome::Reset;
         }
         Ok(rec)
@@ -883,9 +1213,9 @@ impl NedFilter {
     /// feedback here.
     fn reset_stream(
         &mut self,
-        stream: Stream,
+        stream: GnssStream,
         z: &Vector3<f64>,
-        h: &Matrix3x21,
+        h: &SMatrix<f64, 3, N>,
         r: &Matrix3<f64>,
     ) -> Result<(), EstimationError> {
         let margin = self.recovery.as_ref().map_or(0.0, |rc| rc.config.margin);
@@ -913,122 +1243,20 @@ impl NedFilter {
         Ok(())
     }
 
-    /// Reset the velocity to a GNSS antenna velocity fix (NED) with σ
-    /// (north, east, down): the velocity error states take the whole
-    /// innovation, their P rows and columns are zeroed and their block set
-    /// to `(1 + margin) R` (see [`RecoveryConfig`]); fed back as any update.
-    /// The epoch loop calls it after a position fix ended in
+    /// Reset the states of a GNSS stream to a measurement of it (a
+    /// position or a velocity fix): they take the whole innovation, their P
+    /// rows and columns are zeroed and their block set to `(1 + margin) R`
+    /// (see [`RecoveryConfig`]); fed back as any update. The GNSS source
+    /// calls it for the velocity after a position fix ended in
     /// [`Outcome::Reset`], so position and velocity restart together.
-    pub fn reset_velocity_to(
+    pub fn reset_to<Meas: Measurement<3, N> + ?Sized>(
         &mut self,
-        velocity_ned: &Vec3<Ned>,
-        sigma_ned: &Vector3<f64>,
-    ) -> Result<(), EstimationError> {
-        let (z, h, r) = self.velocity_measurement(velocity_ned, sigma_ned);
-        self.flush_covariance_for_update()?;
-        self.reset_stream(Stream::Velocity, &z, &h, &r)?;
-        self.feedback()
-    }
-
-    /// z = v_antenna(INS) − v_fix, H and R of a velocity fix.
-    fn velocity_measurement(
-        &self,
-        velocity_ned: &Vec3<Ned>,
-        sigma_ned: &Vector3<f64>,
-    ) -> (Vector3<f64>, Matrix3x21, Matrix3<f64>) {
-        let s = *self.ins.state();
-        let c = s.attitude.matrix();
-        let v_ant = s.velocity + c * self.rate.cross(&self.lever_arm);
-        let z = (v_ant - *velocity_ned).raw();
-        let h =
-            NedErrorModel::velocity_measurement((c * self.rate.cross(&self.lever_arm)).as_raw());
-        let r = Matrix3::from_diagonal(&sigma_ned.map(|v| v * v));
-        (z, h, r)
-    }
-
-    /// GNSS antenna position fix, accepted.
-    pub fn update_position(
-        &mut self,
-        fix: &Geodetic,
-        sigma_ned: &Vector3<f64>,
-    ) -> Result<GnssUpdate, EstimationError> {
-        self.update_position_with(fix, sigma_ned, &mut AcceptAll)
-    }
-
-    /// GNSS antenna velocity fix (NED) with σ (north, east, down).
-    pub fn update_velocity_with<P: MeasurementPolicy<U3> + ?Sized>(
-        &mut self,
-        velocity_ned: &Vec3<Ned>,
-        sigma_ned: &Vector3<f64>,
-        policy: &mut P,
-    ) -> Result<GnssUpdate, EstimationError> {
-        let (z, h, r) = self.velocity_measurement(velocity_ned, sigma_ned);
-        self.flush_covariance_for_update()?;
-        let rec = self.update_stream(Stream::Velocity, &z, &h, &r, policy)?;
-        self.add_information(&h, &r, rec.outcome)?;
-        self.feedback()?;
-        Ok(rec)
-    }
-
-    /// Non-holonomic constraint: zero lateral and vertical body velocity
-    /// with σ `sigma_mps` (a land vehicle on its wheels).
-    pub fn update_non_holonomic(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
-        self.flush_covariance_for_update()?;
-        let s = *self.ins.state();
-        let c = s.attitude.matrix();
-        let body = c.transpose() * s.velocity;
-        let z = nalgebra::Vector2::new(body.y(), body.z());
-        let h = NedErrorModel::non_holonomic_measurement(c.as_raw(), s.velocity.as_raw());
-        let r = nalgebra::Matrix2::identity() * (sigma_mps * sigma_mps);
-        let rec = self.kf.update(&z, &h, &r)?;
-        if let Some(recovery) = self.recovery.as_mut() {
-            recovery.updated(&rec.gain, &h, None);
-        }
-        self.add_information(&h, &r, Outcome::Accepted)?;
-        self.feedback()
-    }
-
-    /// Zero-velocity update at a standstill: the IMU's velocity is zero,
-    /// σ `sigma_mps` per axis.
-    pub fn update_zero_velocity(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
-        self.flush_covariance_for_update()?;
-        let z = self.ins.state().velocity.raw();
-        let mut h = SMatrix::<f64, 3, STATES>::zeros();
-        h.fixed_view_mut::<3, 3>(0, VELOCITY)
-            .copy_from(&Matrix3::identity());
-        let r = Matrix3::identity() * (sigma_mps * sigma_mps);
-        self.kf.update(&z, &h, &r)?;
-        self.add_information(&h, &r, Outcome::Accepted)?;
-        self.feedback()
-    }
-
-    /// Zero-angular-rate update at a standstill: the body turns with the
-    /// Earth only, so the corrected mean gyro output of the window
-    /// (`mean_raw_rate`, raw body-frame rates averaged over the standstill)
-    /// less the Earth rate in the body frame is the remaining gyro bias
-    /// error; σ per axis `sigma_rad_s` (the window's noise of the mean).
-    pub fn update_zero_angular_rate(
-        &mut self,
-        mean_raw_rate: &Vector3<f64>,
-        sigma_rad_s: &Vector3<f64>,
+        measurement: &Meas,
+        stream: GnssStream,
     ) -> Result<(), EstimationError> {
         self.flush_covariance_for_update()?;
-        let s = *self.ins.state();
-        let one = Vector3::repeat(1.0);
-        let corrected = (mean_raw_rate - self.instruments.gyro_bias)
-            .component_div(&(one + self.instruments.gyro_scale));
-        let earth_body = s.attitude.matrix().transpose() * earth_rate_ned(s.position.latitude_rad);
-        let z = corrected - earth_body.raw();
-        // ω = (ω̃ − b)/(1 + s): ∂ω/∂b = −1/(1 + s); the error state is the
-        // excess of the corrected rate, fed back as b += δb.
-        let mut h = SMatrix::<f64, 3, STATES>::zeros();
-        h.fixed_view_mut::<3, 3>(0, GYRO_BIAS)
-            .copy_from(&Matrix3::from_diagonal(
-                &(one + self.instruments.gyro_scale).map(|v| 1.0 / v),
-            ));
-        let r = Matrix3::from_diagonal(&sigma_rad_s.map(|v| v * v));
-        self.kf.update(&z, &h, &r)?;
-        self.add_information(&h, &r, Outcome::Accepted)?;
+        let lin = measurement.linearize(&self.nominal());
+        self.reset_stream(stream, &lin.z, &lin.h, &lin.r)?;
         self.feedback()
     }
 
@@ -1045,13 +1273,16 @@ impl NedFilter {
         self.instruments.accel_bias += v3(ACCEL_BIAS);
         self.instruments.gyro_scale += v3(GYRO_SCALE);
         self.instruments.accel_scale += v3(ACCEL_SCALE);
+        for i in STATES..N {
+            self.parameters[i] += x[i];
+        }
         // P by reference: a copy of it per update is a 3.5 kB memory copy.
         let (p, state) = (self.kf.covariance(), *self.ins.state());
         if let Some(r) = self.record.as_mut() {
             // Errors relative to the post-feedback nominal: the prediction
             // sat the feedback δ away from it.
             let x_predicted = r.rts.x_predicted() - x;
-            r.rts.filtered(&x_predicted, &Vector21::zeros(), p);
+            r.rts.filtered(&x_predicted, &SVector::zeros(), p);
             r.open_state = state;
             if r.rts.open_mark().is_some()
                 && let Some(st) = r.states.last_mut()
@@ -1067,7 +1298,7 @@ impl NedFilter {
             e.p_filtered = *p;
             *st = state;
         }
-        self.kf.set_state(Vector21::zeros())
+        self.kf.set_state(SVector::zeros())
     }
 }
 
@@ -1642,7 +1873,9 @@ mod tests {
         );
         let r = Matrix3::from_diagonal(&sigma.map(|v| v * v));
         filter.flush_covariance().unwrap();
-        filter.reset_stream(Stream::Position, &z, &h, &r).unwrap();
+        filter
+            .reset_stream(GnssStream::Position, &z, &h, &r)
+            .unwrap();
         let x = *filter.kf.state();
         assert!((h * x - z).norm() < 1e-12);
         let p = *filter.kf.covariance();

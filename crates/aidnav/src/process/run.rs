@@ -9,11 +9,15 @@ use aidnav_frames::earth::Geodetic;
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::standstill::StandstillThresholds;
+use aidnav_integration::aiding::{
+    AidSource, GnssConfig, GnssPolicies, GnssSource, NonHolonomic, NonHolonomicSource,
+    StandstillSource, StandstillUpdates,
+};
 use aidnav_integration::bridge::BridgeObserver;
+use aidnav_integration::ned::FilterView;
 use aidnav_integration::ned::NedFilter;
 use aidnav_integration::ned_loop::{
-    AidingFix, Collector, EpochObserver, FixRecord, FreeInsObserver, LoopConfig, LoopPolicies,
-    NonHolonomic, StandstillUpdates, run_loop,
+    AidingFix, Collector, EpochObserver, FixRecord, FreeInsObserver, run_loop,
 };
 use aidnav_io::rtklib::GnssFix;
 use aidnav_models::ned_ins::{
@@ -359,36 +363,46 @@ fn smoothing(cfg: &ProcessConfig, plan: &RunPlan) -> bool {
     plan.smooth && !plan.free_ins_in_windows && cfg.filter.feedback == Feedback::Closed
 }
 
-/// The loop's parameters from the configuration.
-fn loop_config(cfg: &ProcessConfig, plan: &RunPlan, interval_s: f64) -> LoopConfig {
-    let nhc = &cfg.constraints;
-    LoopConfig {
+/// The GNSS source's parameters from the configuration.
+fn gnss_config(cfg: &ProcessConfig, plan: &RunPlan) -> GnssConfig {
+    GnssConfig {
         min_position_sigma_m: cfg.gnss.min_position_sigma_m * cfg.gnss.sigma_scale,
         use_velocity: cfg.gnss.use_velocity,
         min_velocity_sigma_mps: cfg.gnss.min_velocity_sigma_mps * cfg.gnss.sigma_scale,
-        non_holonomic: cfg.non_holonomic().then_some(NonHolonomic {
-            rate_hz: nhc.non_holonomic_rate_hz,
-            sigma_mps: nhc.non_holonomic_sigma_mps,
-            min_speed_mps: nhc.min_speed_mps,
-        }),
-        standstill: cfg.zero_velocity().then(|| {
-            let (accel, gyro) = cfg.standstill_thresholds();
-            StandstillUpdates {
-                rate_hz: nhc.zero_velocity_rate_hz,
-                window_s: cfg.standstill.window_s,
-                max_speed_mps: cfg.standstill.max_speed_mps,
-                thresholds: StandstillThresholds {
-                    accel_std_mps2: accel,
-                    gyro_std_rad_s: gyro,
-                },
-                velocity_sigma_mps: nhc.zero_velocity_sigma_mps,
-                angular_rate_sigma_rad_s: nhc.zero_angular_rate_sigma_deg_s.to_radians(),
-            }
-        }),
-        row_interval_s: interval_s,
         convergence_monitor: plan.monitor,
         sigma_gnss_m: cfg.efficiency.sigma_gnss_m,
     }
+}
+
+/// The non-holonomic constraint's source (None: off).
+fn non_holonomic_source(cfg: &ProcessConfig) -> Option<NonHolonomicSource> {
+    let nhc = &cfg.constraints;
+    cfg.non_holonomic().then(|| {
+        NonHolonomicSource::new(NonHolonomic {
+            rate_hz: nhc.non_holonomic_rate_hz,
+            sigma_mps: nhc.non_holonomic_sigma_mps,
+            min_speed_mps: nhc.min_speed_mps,
+        })
+    })
+}
+
+/// The standstill updates' source (None: off).
+fn standstill_source(cfg: &ProcessConfig) -> Option<StandstillSource> {
+    let nhc = &cfg.constraints;
+    cfg.zero_velocity().then(|| {
+        let (accel, gyro) = cfg.standstill_thresholds();
+        StandstillSource::new(StandstillUpdates {
+            rate_hz: nhc.zero_velocity_rate_hz,
+            window_s: cfg.standstill.window_s,
+            max_speed_mps: cfg.standstill.max_speed_mps,
+            thresholds: StandstillThresholds {
+                accel_std_mps2: accel,
+                gyro_std_rad_s: gyro,
+            },
+            velocity_sigma_mps: nhc.zero_velocity_sigma_mps,
+            angular_rate_sigma_rad_s: nhc.zero_angular_rate_sigma_deg_s.to_radians(),
+        })
+    })
 }
 
 /// Stops the loop (see [`Cancel`]) at the first IMU increment after the
@@ -396,11 +410,11 @@ fn loop_config(cfg: &ProcessConfig, plan: &RunPlan, interval_s: f64) -> LoopConf
 struct CancelWatch<'a>(&'a Cancel);
 
 impl EpochObserver for CancelWatch<'_> {
-    fn increment(&mut self, _filter: &NedFilter, _inc: &ImuIncrement, _t_end_s: f64) {
+    fn increment(&mut self, _filter: &dyn FilterView, _inc: &ImuIncrement, _t_end_s: f64) {
         self.0.stop_if_cancelled();
     }
 
-    fn fix(&mut self, _filter: &NedFilter, _record: &FixRecord) {}
+    fn fix(&mut self, _filter: &dyn FilterView, _record: &FixRecord) {}
 }
 
 /// [`run_filter`], also writing a [`SolutionRow`] every `interval_s` (at
@@ -532,16 +546,32 @@ pub(crate) fn run_filter_forward(
     if let Some(b) = bridge.as_mut() {
         observers.push(b);
     }
+    let mut gnss_source = GnssSource::new(
+        &fixes,
+        gnss_config(cfg, plan),
+        GnssPolicies {
+            position: &mut position_policy,
+            velocity: &mut velocity_policy,
+        },
+    );
+    let mut nhc = non_holonomic_source(cfg);
+    let mut standstill = standstill_source(cfg);
+    // The order of today's loop: the constraint, the standstill check,
+    // then the fix.
+    let mut sources: Vec<&mut dyn AidSource<{ aidnav_models::ned_ins::STATES }>> = Vec::new();
+    if let Some(s) = nhc.as_mut() {
+        sources.push(s);
+    }
+    if let Some(s) = standstill.as_mut() {
+        sources.push(s);
+    }
+    sources.push(&mut gnss_source);
     run_loop(
         &mut filter,
         imu,
         start,
-        &fixes,
-        &loop_config(cfg, plan, interval_s),
-        &mut LoopPolicies {
-            position: &mut position_policy,
-            velocity: &mut velocity_policy,
-        },
+        &mut sources,
+        interval_s,
         &mut observers,
     )
     .map_err(|e| {
@@ -553,6 +583,7 @@ pub(crate) fn run_filter_forward(
         ))
     })?;
     drop(observers);
+    drop(sources);
     let mut epochs: Vec<Epoch> = collector
         .fixes
         .iter()

@@ -1,0 +1,35 @@
+//! A GNSS antenna velocity fix: `z = v̂_ant − v_fix`, with
+//! `v_ant = v + Ĉ (ω × l)`.
+
+use aidnav_frames::{Ned, Vec3};
+use aidnav_models::ned_ins::NedErrorModel;
+use nalgebra::Vector3;
+
+use super::{Linearized, Measurement, Nominal, diagonal_r, on_layout};
+
+/// A GNSS antenna NED velocity with σ (north, east, down) \[m/s\].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GnssVelocity {
+    /// The fix's NED velocity \[m/s\].
+    pub velocity_ned_mps: Vec3<Ned>,
+    /// σ north, east, down \[m/s\].
+    pub sigma_ned_mps: Vector3<f64>,
+}
+
+impl<const N: usize> Measurement<3, N> for GnssVelocity {
+    const NAME: &'static str = "gnss_velocity";
+
+    fn linearize(&self, nominal: &Nominal<'_, N>) -> Linearized<3, N> {
+        let s = nominal.state;
+        let c = s.attitude.matrix();
+        let lever_velocity = c * nominal.body_rate.cross(&nominal.antenna_lever_arm);
+        let v_ant = s.velocity + lever_velocity;
+        Linearized {
+            z: (v_ant - self.velocity_ned_mps).raw(),
+            h: on_layout(&NedErrorModel::velocity_measurement(
+                lever_velocity.as_raw(),
+            )),
+            r: diagonal_r(&self.sigma_ned_mps),
+        }
+    }
+}
