@@ -560,3 +560,72 @@ mod tests {
         );
     }
 }
+
+#[cfg(test)]
+mod scenario_file_tests {
+    use super::*;
+    use crate::ground::Segment;
+
+    /// A scenario as the future `aidnav simulate` will read it: every
+    /// section optional, unknown keys rejected.
+    const SCENARIO: &str = r#"
+start_time_s = 1700000000.0
+
+[route]
+start_latitude_deg = 48.1
+start_heading_deg = 90.0
+segments = [
+    { kind = "cruise", duration_s = 10.0 },
+    { kind = "accelerate", speed_mps = 15.0, accel_mps2 = 1.5 },
+    { kind = "turn", angle_deg = -45.0, rate_deg_s = 8.0 },
+    { kind = "stop", duration_s = 5.0, decel_mps2 = 2.0 },
+]
+hills = [{ start_m = 20.0, length_m = 300.0, max_pitch_deg = 3.0 }]
+
+[imu.gyro]
+bias_instability_deg_h = [1.0, 1.0, 2.0]
+
+[gnss]
+rate_hz = 5.0
+outages_s = [[20.0, 30.0]]
+
+[baro]
+bias_m = -3.0
+"#;
+
+    #[test]
+    fn a_toml_scenario_maps_onto_the_structs_with_defaults() {
+        let s: CarScenario = toml::from_str(SCENARIO).unwrap();
+        assert_eq!(s.route.start_latitude_deg, 48.1);
+        assert_eq!(s.route.start_longitude_deg, 114.3); // default
+        assert_eq!(
+            s.route.segments[2],
+            Segment::Turn {
+                angle_deg: -45.0,
+                rate_deg_s: 8.0
+            }
+        );
+        assert_eq!(s.imu.gyro.bias_instability_deg_h, [1.0, 1.0, 2.0]);
+        assert_eq!(s.imu.gyro.angle_random_walk_deg_sqrt_h, [0.2; 3]); // default
+        assert_eq!(s.gnss.outages_s, vec![[20.0, 30.0]]);
+        assert_eq!(s.wheel_speed, WheelSpeedSpec::default());
+        let log = simulate_car(&s, 1).unwrap();
+        let t0 = s.start_time_s;
+        assert!(
+            log.gnss
+                .iter()
+                .all(|f| !(20.0..30.0).contains(&(f.time_s - t0)))
+        );
+        // The default scenario round-trips.
+        let text = toml::to_string(&CarScenario::default()).unwrap();
+        assert_eq!(
+            toml::from_str::<CarScenario>(&text).unwrap(),
+            CarScenario::default()
+        );
+        // Unknown keys are errors.
+        assert!(toml::from_str::<CarScenario>("[gnss]\nrate = 1.0\n").is_err());
+        assert!(
+            toml::from_str::<CarScenario>("[route]\nsegments = [{ kind = \"fly\" }]\n").is_err()
+        );
+    }
+}
