@@ -161,19 +161,14 @@ mod tests {
     use super::*;
     use aidnav_frames::{Body, Vec3};
     use aidnav_ins::increments::{Rates, trapezoid};
-    use aidnav_ins::ned::{NedMechanization, NedState};
+    use aidnav_ins::ned::NedMechanization;
     use nalgebra::Vector3;
 
     /// Mechanize `imu[from..=to]` through the loop's trapezoid increments
     /// from the true state at `from`; (position, velocity, attitude) error
     /// against the truth at `to` [m, m/s, rad].
     fn mechanize(log: &CarLog, from: usize, to: usize) -> (f64, f64, f64) {
-        let t0 = &log.truth[from];
-        let mut ins = NedMechanization::new(NedState {
-            position: t0.position,
-            velocity: t0.velocity_ned,
-            attitude: t0.attitude,
-        });
+        let mut ins = NedMechanization::new(log.truth[from].nav_state());
         for k in from + 1..=to {
             let (a, b) = (&log.imu[k - 1], &log.imu[k]);
             ins.update(&trapezoid(
@@ -222,7 +217,9 @@ mod tests {
 
     #[test]
     fn the_default_drive_is_a_car_drive() {
-        let log = simulate_car(&ideal_scenario(), 0).unwrap();
+        let scenario = ideal_scenario();
+        let log = simulate_car(&scenario, 0).unwrap();
+        assert_eq!(log.truth[0].position, scenario.route.start_position());
         let last = log.truth.last().unwrap();
         let duration = last.time_s - log.truth[0].time_s;
         let (mut max_lat, mut max_dh, mut max_speed) = (0.0f64, 0.0f64, 0.0f64);

@@ -245,6 +245,17 @@ impl Default for CarRoute {
     }
 }
 
+impl CarRoute {
+    /// The start position (from the degree fields; height in metres).
+    pub fn start_position(&self) -> Geodetic {
+        Geodetic {
+            latitude_rad: self.start_latitude_deg.to_radians(),
+            longitude_rad: self.start_longitude_deg.to_radians(),
+            height_m: self.start_height_m,
+        }
+    }
+}
+
 /// A raised-cosine pulse: rises from 0 to `peak` over `rise_s`, holds,
 /// falls back over `rise_s`; `duration_s` ≥ 2 `rise_s` in all.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -595,10 +606,11 @@ pub fn drive(
     let plan = Plan::new(route)?;
     let dt = 1.0 / rate_hz;
     let steps = (plan.duration_s * rate_hz + 1e-9).floor() as usize;
+    let start = route.start_position();
     let mut y = Integrated {
-        latitude_rad: route.start_latitude_deg.to_radians(),
-        longitude_rad: route.start_longitude_deg.to_radians(),
-        height_m: route.start_height_m,
+        latitude_rad: start.latitude_rad,
+        longitude_rad: start.longitude_rad,
+        height_m: start.height_m,
         distance_m: 0.0,
     };
     let mut out = Vec::with_capacity(steps + 1);

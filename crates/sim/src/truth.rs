@@ -13,6 +13,7 @@
 
 use aidnav_frames::earth::{Geodetic, earth_rate_ned};
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
+use aidnav_ins::ned::NedState;
 use aidnav_sensors::ImuSample;
 
 /// The true state at one instant (all of the IMU point, body = vehicle
@@ -40,6 +41,16 @@ pub struct TruthSample {
 }
 
 impl TruthSample {
+    /// The navigation state of the NED mechanization (position, velocity,
+    /// attitude) — e.g. the true start of an INS.
+    pub fn nav_state(&self) -> NedState {
+        NedState {
+            position: self.position,
+            velocity: self.velocity_ned,
+            attitude: self.attitude,
+        }
+    }
+
     /// Velocity in body axes \[m/s\] (for a car without sideslip:
     /// (speed, 0, 0)).
     pub fn velocity_body(&self) -> Vec3<Body> {
