@@ -6,6 +6,13 @@
 //! models ([`linear`]), measurement faults and outages ([`faults`]) and launch trajectories
 //! ([`trajectory`]). The experiments built on them live in `aidnav-reproduce`.
 //!
+//! A land vehicle with known truth ([`car::simulate_car`]): the truth
+//! trajectory of a car on WGS-84 ([`ground`], [`truth`]), IMU samples
+//! consistent with the NED mechanization of `aidnav-ins` and their errors
+//! ([`imu`]), GNSS fixes ([`gnss`]), wheel speed and barometric height
+//! ([`aiding`]), the Gauss–Markov processes they share ([`processes`]),
+//! each error process seeded from its own stream ([`rng::Stream`]).
+//!
 //! ```
 //! use aidnav_sim::{MonteCarlo, rng::RngExt};
 //! // The mean of 1000 seeded uniform draws, one per run, in parallel.
@@ -17,11 +24,21 @@
 //! assert_eq!(draws, mc.run(|_run, rng| rng.random::<f64>()));
 //! ```
 
+pub mod aiding;
+pub mod car;
+pub mod error;
 pub mod faults;
+pub mod gnss;
+pub mod ground;
+pub mod imu;
 pub mod linear;
 pub mod monte_carlo;
+pub mod processes;
 pub mod rng;
 pub mod trajectory;
+pub mod truth;
 
+pub use car::{CarLog, CarScenario, simulate_car, simulate_car_run};
+pub use error::SimError;
 pub use monte_carlo::{Cancel, Cancelled, MonteCarlo, Progress};
 pub use rng::{RunRng, run_rng};
