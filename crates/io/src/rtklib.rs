@@ -18,7 +18,7 @@ use nalgebra::Vector3;
 
 use crate::error::{IoError, Result};
 
-pub use aidnav_ins::samples::{GnssFix, ImuSample};
+pub use aidnav_sensors::{GnssFix, ImuSample};
 
 /// Standard gravity, the unit of the data set's accelerometer columns.
 const G0: f64 = 9.806_65;
