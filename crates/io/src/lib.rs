@@ -14,6 +14,8 @@
 //! - [`generic_gnss`]: aidnav's generic GNSS CSV (named columns, several time,
 //!   position, σ and velocity forms).
 //! - [`generic_aiding`]: aidnav's generic wheel-speed and barometer CSVs.
+//! - [`formats`]: the format registry, one enum per stream kind, each
+//!   format's reader one `read` arm.
 //! - [`text`]: UTF-8 decoding with line and byte, BOM, line splitting, excerpts.
 //! - [`limits`]: the physical bounds every reader checks values against.
 //!
@@ -22,6 +24,7 @@
 
 pub mod config;
 pub mod error;
+pub mod formats;
 pub mod generic_aiding;
 pub mod generic_gnss;
 pub mod kfgins;
