@@ -45,8 +45,8 @@
 //!   quantity, and the time errors of the generic GNSS CSV.
 //!
 //! Memory grows with the file only (one record and one line reference a
-//! row); the reader never panics on any input (fuzzed as
-//! `wheel_speed_csv` and `baro_csv`).
+//! row, as in the other readers); no input makes a reader panic (fuzz
+//! targets `generic_wheel_speed` and `generic_baro`).
 
 use std::path::Path;
 
@@ -330,6 +330,14 @@ mod tests {
         baro(text).unwrap_err().to_string()
     }
 
+    /// Each input's error message begins with its expected text.
+    fn errors_begin_with(error: fn(&str) -> String, cases: &[(&str, &str)]) {
+        for (input, expected) in cases {
+            let e = error(input);
+            assert!(e.starts_with(expected), "{input:?}: {e}");
+        }
+    }
+
     #[test]
     fn wheel_speed_in_mps_and_kmh() {
         let (w, warnings) = wheel(
@@ -376,116 +384,105 @@ mod tests {
 
     #[test]
     fn wheel_speed_errors_name_line_column_and_value() {
-        let e = wheel_error("time_s,speed_mps\n1,10\n2,1e4\n");
-        assert!(
-            e.starts_with(
-                "wheel.csv:3: column `speed_mps`: 10000 m/s is outside [-170, 170] m/s (faster"
-            ),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_kmh\n1,700\n");
-        assert!(
-            e.starts_with("wheel.csv:2: column `speed_kmh`: 700 km/h is outside [-612, 612] km/h"),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_mps,sigma_mps\n1,10,0\n");
-        assert!(
-            e.starts_with("wheel.csv:2: column `sigma_mps`: σ = 0 m/s: must be > 0 and ≤ 170 m/s"),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_mps,sigma_mps\n1,10,-0.1\n");
-        assert!(e.contains("column `sigma_mps`: σ = -0.1 m/s"), "{e}");
-        let e = wheel_error("time_s,speed_mps\n1,ten\n");
-        assert!(
-            e.starts_with("wheel.csv:2: column `speed_mps`: `ten` is not a number"),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_mps\n1,NaN\n");
-        assert!(
-            e.starts_with("wheel.csv:2: column `speed_mps`: `NaN` is not finite"),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_mps\ninf,1\n");
-        assert!(
-            e.starts_with("wheel.csv:2: column `time_s`: `inf` is not finite"),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_mps\n1,\n");
-        assert!(
-            e.starts_with("wheel.csv:2: column `speed_mps`: empty: a value is needed"),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_mps\n1,1\n2,1,3\n");
-        assert!(
-            e.starts_with("wheel.csv:3: column `(line)`: 3 cells, the header (line 1) has 2"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn time_must_increase_strictly() {
-        let e = wheel_error("time_s,speed_mps\n1.5,1\n1.5,1\n");
-        assert_eq!(
-            e,
-            "wheel.csv:3: column `time_s`: time 1.5 s does not increase (previous row 1.5 s)"
-        );
-        let e = baro_error("gpst_s,height_m\n1724716800,1\n1724716799.5,1\n");
-        assert_eq!(
-            e,
-            "baro.csv:3: column `gpst_s`: time 2024-08-26 23:59:59.500 GPST does not increase (previous row 2024-08-27 00:00:00.000 GPST)"
+        errors_begin_with(
+            wheel_error,
+            &[
+                (
+                    "time_s,speed_mps\n1,10\n2,1e4\n",
+                    "wheel.csv:3: column `speed_mps`: 10000 m/s is outside [-170, 170] m/s (faster",
+                ),
+                (
+                    "time_s,speed_kmh\n1,700\n",
+                    "wheel.csv:2: column `speed_kmh`: 700 km/h is outside [-612, 612] km/h",
+                ),
+                (
+                    "time_s,speed_mps,sigma_mps\n1,10,0\n",
+                    "wheel.csv:2: column `sigma_mps`: σ = 0 m/s: must be > 0 and ≤ 170 m/s",
+                ),
+                (
+                    "time_s,speed_mps,sigma_mps\n1,10,-0.1\n",
+                    "wheel.csv:2: column `sigma_mps`: σ = -0.1 m/s: must be > 0",
+                ),
+                (
+                    "time_s,speed_mps\n1,ten\n",
+                    "wheel.csv:2: column `speed_mps`: `ten` is not a number",
+                ),
+                (
+                    "time_s,speed_mps\n1,NaN\n",
+                    "wheel.csv:2: column `speed_mps`: `NaN` is not finite",
+                ),
+                (
+                    "time_s,speed_mps\ninf,1\n",
+                    "wheel.csv:2: column `time_s`: `inf` is not finite",
+                ),
+                (
+                    "time_s,speed_mps\n1,\n",
+                    "wheel.csv:2: column `speed_mps`: empty: a value is needed",
+                ),
+                (
+                    "time_s,speed_mps\n1,1\n2,1,3\n",
+                    "wheel.csv:3: column `(line)`: 3 cells, the header (line 1) has 2",
+                ),
+                // Time must increase strictly: a repeat is an error.
+                (
+                    "time_s,speed_mps\n1.5,1\n1.5,1\n",
+                    "wheel.csv:3: column `time_s`: time 1.5 s does not increase (previous row 1.5 s)",
+                ),
+            ],
         );
     }
 
     #[test]
     fn headers_are_checked() {
-        let e = wheel_error("time_s,speed_mps,speed_kmh\n1,1,3.6\n");
-        assert_eq!(
-            e,
-            "wheel.csv:1: column `(header)`: the speed given twice (speed_mps and speed_kmh): keep one form"
+        errors_begin_with(
+            wheel_error,
+            &[
+                (
+                    "time_s,speed_mps,speed_kmh\n1,1,3.6\n",
+                    "wheel.csv:1: column `(header)`: the speed given twice (speed_mps and speed_kmh): keep one form",
+                ),
+                (
+                    "time_s,sigma_mps\n1,1\n",
+                    "wheel.csv:1: column `(speed)`: no speed column: give one of speed_mps, speed_kmh",
+                ),
+                (
+                    "speed_mps\n1\n",
+                    "wheel.csv:1: column `(time)`: no time column: give time_s, gpst_s, or gps_week and tow_s, or utc",
+                ),
+                (
+                    "time_s,gpst_s,speed_mps\n1,1,1\n",
+                    "wheel.csv:1: column `(header)`: the time given twice (time_s and gpst_s)",
+                ),
+                (
+                    "time_s,speed_mps,odometer_m\n1,1,1\n",
+                    "wheel.csv:1: column `odometer_m`: unknown column (column 3); the known columns are: time_s, gpst_s",
+                ),
+            ],
         );
-        let e = wheel_error("time_s,sigma_mps\n1,1\n");
-        assert!(
-            e.starts_with(
-                "wheel.csv:1: column `(speed)`: no speed column: give one of speed_mps, speed_kmh"
-            ),
-            "{e}"
-        );
-        let e = wheel_error("speed_mps\n1\n");
-        assert!(
-            e.starts_with(
-                "wheel.csv:1: column `(time)`: no time column: give time_s, gpst_s, or gps_week and tow_s, or utc"
-            ),
-            "{e}"
-        );
-        let e = wheel_error("time_s,gpst_s,speed_mps\n1,1,1\n");
-        assert!(
-            e.contains("the time given twice (time_s and gpst_s)"),
-            "{e}"
-        );
-        let e = wheel_error("time_s,speed_mps,odometer_m\n1,1,1\n");
-        assert!(
-            e.starts_with("wheel.csv:1: column `odometer_m`: unknown column (column 3); the known columns are: time_s, gpst_s"),
-            "{e}"
-        );
-        let e = baro_error("time_s,height_m,time_s\n1,1,1\n");
-        assert!(
-            e.starts_with("baro.csv:1: column `time_s`: named twice (column 3)"),
-            "{e}"
-        );
-        let e = baro_error("gps_week,height_m\n2329,1\n");
-        assert!(
-            e.contains("column `tow_s`: column missing: GPS week time needs gps_week, tow_s"),
-            "{e}"
-        );
-        let e = baro_error("\n# nothing\n");
-        assert!(
-            e.starts_with("baro.csv:0: column `(header)`: no header row"),
-            "{e}"
-        );
-        let e = baro_error("time_s,height_m\n");
-        assert_eq!(
-            e,
-            "baro.csv:1: column `(file)`: no data rows after the header"
+        errors_begin_with(
+            baro_error,
+            &[
+                (
+                    "time_s,height_m,time_s\n1,1,1\n",
+                    "baro.csv:1: column `time_s`: named twice (column 3)",
+                ),
+                (
+                    "gps_week,height_m\n2329,1\n",
+                    "baro.csv:1: column `tow_s`: column missing: GPS week time needs gps_week, tow_s",
+                ),
+                (
+                    "\n# nothing\n",
+                    "baro.csv:0: column `(header)`: no header row",
+                ),
+                (
+                    "time_s,height_m\n",
+                    "baro.csv:1: column `(file)`: no data rows after the header",
+                ),
+                (
+                    "gpst_s,height_m\n1724716800,1\n1724716799.5,1\n",
+                    "baro.csv:3: column `gpst_s`: time 2024-08-26 23:59:59.500 GPST does not increase (previous row 2024-08-27 00:00:00.000 GPST)",
+                ),
+            ],
         );
     }
 
@@ -524,17 +521,31 @@ mod tests {
 
     #[test]
     fn baro_errors_name_line_column_and_value() {
-        let e = baro_error("time_s,height_m\n1,0\n2,-5000\n");
-        assert!(
-            e.starts_with(
-                "baro.csv:3: column `height_m`: -5000 m is outside [-1000, 100000] m (below the lowest land"
-            ),
-            "{e}"
-        );
-        let e = baro_error("time_s,pressure_pa\n1,0\n");
-        assert_eq!(
-            e,
-            "baro.csv:2: column `pressure_pa`: 0 Pa: a pressure must be > 0"
+        errors_begin_with(
+            baro_error,
+            &[
+                (
+                    "time_s,height_m\n1,0\n2,-5000\n",
+                    "baro.csv:3: column `height_m`: -5000 m is outside [-1000, 100000] m (below the lowest land",
+                ),
+                (
+                    "time_s,pressure_pa\n1,0\n",
+                    "baro.csv:2: column `pressure_pa`: 0 Pa: a pressure must be > 0",
+                ),
+                // Kilopascals written as pascals: above the layers.
+                (
+                    "time_s,pressure_pa\n1,101.3\n",
+                    "baro.csv:2: column `pressure_pa`: 101.3 Pa is an ISA pressure height of ",
+                ),
+                (
+                    "time_s,height_m,sigma_m\n1,10,2000\n",
+                    "baro.csv:2: column `sigma_m`: σ = 2000 m: must be > 0 and ≤ 1000 m",
+                ),
+                (
+                    "time_s,height_m,pressure_pa\n1,10,100000\n",
+                    "baro.csv:1: column `(header)`: the height given twice (height_m and pressure_pa)",
+                ),
+            ],
         );
         // Pascals written as hectopascals: far below the lowest land.
         let e = baro_error("time_s,pressure_hpa\n1,101325\n");
@@ -542,24 +553,6 @@ mod tests {
             e.starts_with(
                 "baro.csv:2: column `pressure_hpa`: 101325 hPa is an ISA pressure height of "
             ) && e.contains("m is outside [-1000, 20000] m (the ISA layers converted"),
-            "{e}"
-        );
-        // Kilopascals written as pascals: above the layers.
-        let e = baro_error("time_s,pressure_pa\n1,101.3\n");
-        assert!(
-            e.starts_with(
-                "baro.csv:2: column `pressure_pa`: 101.3 Pa is an ISA pressure height of "
-            ),
-            "{e}"
-        );
-        let e = baro_error("time_s,height_m,sigma_m\n1,10,2000\n");
-        assert!(
-            e.starts_with("baro.csv:2: column `sigma_m`: σ = 2000 m: must be > 0 and ≤ 1000 m"),
-            "{e}"
-        );
-        let e = baro_error("time_s,height_m,pressure_pa\n1,10,100000\n");
-        assert!(
-            e.contains("the height given twice (height_m and pressure_pa)"),
             "{e}"
         );
         let e = read_baro_from(b"time_s,height_m\n1,\xFF\n", Path::new("baro.csv"))

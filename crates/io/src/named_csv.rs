@@ -10,7 +10,7 @@ use std::path::Path;
 use aidnav_sensors::Timed;
 
 use crate::error::{IoError, Result};
-use crate::rtklib::data_error;
+use crate::rtklib::{data_error, truncated_last_line};
 use crate::text::{GPS_EPOCH_1970_S, WEEK_S, decode, excerpt, gps_minus_utc_s, num};
 
 /// Latest GPST accepted, seconds since 1970 (2200-01-01): a larger value is
@@ -345,24 +345,15 @@ pub(crate) fn read_table<L, T: Timed>(
     let mut warnings = Vec::new();
     for (k, &(line, row)) in rows.iter().enumerate() {
         let cells: Vec<&str> = row.split(',').map(str::trim).collect();
-        if cells.len() != width {
-            if k + 1 == rows.len() && cells.len() < width {
-                warnings.push(format!(
-                    "{}:{line}: truncated last line skipped ({} of {width} cells)",
-                    path.display(),
-                    cells.len(),
-                ));
+        let n = cells.len();
+        if n != width {
+            if k + 1 == rows.len() && n < width {
+                let what = format_args!("{n} of {width} cells");
+                warnings.push(truncated_last_line(path, line, what));
                 continue;
             }
-            return Err(data_error(
-                path,
-                line,
-                "(line)",
-                format!(
-                    "{} cells, the header (line {header_line}) has {width}",
-                    cells.len(),
-                ),
-            ));
+            let message = format!("{n} cells, the header (line {header_line}) has {width}");
+            return Err(data_error(path, line, "(line)", message));
         }
         let row = Row {
             path,

@@ -61,6 +61,15 @@ pub(crate) fn in_range(
     }
 }
 
+/// The warning for a truncated last line skipped (`what`: how many fields
+/// it has), as every text reader words it.
+pub(crate) fn truncated_last_line(path: &Path, line: usize, what: std::fmt::Arguments) -> String {
+    format!(
+        "{}:{line}: truncated last line skipped ({what})",
+        path.display()
+    )
+}
+
 /// Check latitude, longitude and height of a position against
 /// [`crate::limits`].
 pub(crate) fn check_position(
@@ -306,10 +315,10 @@ pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<Str
         let is_last = k + 1 == lines.len();
         if tokens.len() < 2 + 13 {
             if is_last {
-                warnings.push(format!(
-                    "{}:{line}: truncated last line skipped ({} fields)",
-                    path.display(),
-                    tokens.len()
+                warnings.push(truncated_last_line(
+                    path,
+                    line,
+                    format_args!("{} fields", tokens.len()),
                 ));
                 continue;
             }

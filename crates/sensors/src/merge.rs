@@ -25,29 +25,18 @@ pub trait Timed {
     fn time_s(&self) -> f64;
 }
 
-impl Timed for ImuSample {
-    fn time_s(&self) -> f64 {
-        self.time_s
-    }
+/// `Timed` for records whose time is their `time_s` field.
+macro_rules! timed_by_field {
+    ($($record:ty),*) => {
+        $(impl Timed for $record {
+            fn time_s(&self) -> f64 {
+                self.time_s
+            }
+        })*
+    };
 }
 
-impl Timed for GnssFix {
-    fn time_s(&self) -> f64 {
-        self.time_s
-    }
-}
-
-impl Timed for WheelSpeedSample {
-    fn time_s(&self) -> f64 {
-        self.time_s
-    }
-}
-
-impl Timed for BaroSample {
-    fn time_s(&self) -> f64 {
-        self.time_s
-    }
-}
+timed_by_field!(ImuSample, GnssFix, WheelSpeedSample, BaroSample);
 
 /// A sequence of timed records, seen only through its length and the time
 /// of each record: what [`merge`] needs, whatever the record type (so
