@@ -128,6 +128,26 @@ for name, d, pos in [("drive", drive, "gnss_1934_sf.pos"), ("walk", walk, "gnss_
     put("generic_gnss", f"{name}-geodetic", ("\n".join(geo) + "\n").encode())
     put("generic_gnss", f"{name}-week-ecef", ("\n".join(week) + "\n").encode())
     put("generic_gnss", f"{name}-utc-no-sigma", ("\n".join(utc) + "\n").encode())
+    # Wheel speed and barometer CSVs from the same epochs: the ground speed
+    # as the odometer's, the height (and its ISA pressure) as the
+    # barometer's, in each column form.
+    wheel_mps, wheel_kmh = ["gpst_s,speed_mps,sigma_mps"], ["gps_week,tow_s,speed_kmh"]
+    baro_m, baro_hpa = ["utc,height_m,sigma_m"], ["time_s,pressure_hpa"]
+    for k, r in enumerate(rows):
+        t = gps_time(r[0], r[1])
+        v = [float(x) for x in r[2:]]
+        speed = math.hypot(v[13], v[14])
+        w, tow = divmod(t - 315964800.0, 604800.0)
+        wheel_mps.append(f"{t:.3f},{speed:.3f},{'0.05' if k % 3 else ''}")
+        wheel_kmh.append(f"{int(w)},{tow:.3f},{speed * 3.6:.2f}")
+        u = datetime.datetime(1970, 1, 1) + datetime.timedelta(seconds=t - 18.0)
+        baro_m.append(f"{u.isoformat(timespec='milliseconds')}Z,{v[2] - 21.4:.2f},0.5")
+        p = 1013.25 * (1 - 0.0065 * (v[2] - 21.4) / 288.15) ** 5.255876
+        baro_hpa.append(f"{1000.0 + 0.25 * k:.2f},{p:.3f}")
+    put("generic_wheel_speed", f"{name}-gpst", ("\n".join(wheel_mps) + "\n").encode())
+    put("generic_wheel_speed", f"{name}-week-kmh", ("\n".join(wheel_kmh) + "\n").encode())
+    put("generic_baro", f"{name}-utc-height", ("\n".join(baro_m) + "\n").encode())
+    put("generic_baro", f"{name}-pressure", ("\n".join(baro_hpa) + "\n").encode())
 
 ex = top / "examples"
 put("generic_gnss", "example", (ex / "data/gnss_generic_example.csv").read_bytes())

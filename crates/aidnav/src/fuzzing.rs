@@ -12,14 +12,14 @@
 use std::path::Path;
 
 use aidnav_io::config::parse_toml;
-use aidnav_io::{generic_gnss, kfgins, measurements, nmea, rtklib, ubx};
+use aidnav_io::{generic_aiding, generic_gnss, kfgins, measurements, nmea, rtklib, ubx};
 
 /// A fuzz target: its name (the cargo-fuzz binary and corpus folder) and
 /// its body.
 pub type Target = (&'static str, fn(&[u8]));
 
 /// Every target, by name.
-pub const TARGETS: [Target; 12] = [
+pub const TARGETS: [Target; 14] = [
     ("rtklib_pos", rtklib_pos),
     ("rtklib_tagged_imu", rtklib_tagged_imu),
     ("kfgins_imu", kfgins_imu),
@@ -28,6 +28,8 @@ pub const TARGETS: [Target; 12] = [
     ("nmea", nmea_sentences),
     ("ubx", ubx_log),
     ("generic_gnss", generic_gnss_csv),
+    ("generic_wheel_speed", generic_wheel_speed),
+    ("generic_baro", generic_baro),
     ("filter_measurements", filter_measurements),
     ("filter_model", filter_model),
     ("process_config", process_config),
@@ -104,6 +106,16 @@ pub fn generic_gnss_csv(data: &[u8]) {
             default_sigma_m: Some([0.5, 1.0]),
         },
     );
+}
+
+/// The generic wheel-speed CSV.
+pub fn generic_wheel_speed(data: &[u8]) {
+    let _ = generic_aiding::read_wheel_speed_from(data, Path::new("fuzz-wheel.csv"));
+}
+
+/// The generic barometer CSV (heights or pressures).
+pub fn generic_baro(data: &[u8]) {
+    let _ = generic_aiding::read_baro_from(data, Path::new("fuzz-baro.csv"));
 }
 
 /// `aidnav filter`'s measurement CSV (columns `z1`, `z2`).

@@ -54,10 +54,9 @@ use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;
 
 use crate::error::Result;
-use crate::rtklib::{GnssFix, data_error};
-use crate::text::{
-    GPS_EPOCH_1970_S, WEEK_S, days_from_civil, decode, excerpt, gps_minus_utc_s, num, read_bytes,
-};
+use crate::named_csv::{Header, Row, TimeForm, read_table};
+use crate::rtklib::GnssFix;
+use crate::text::{days_from_civil, excerpt, num, read_bytes};
 
 /// Options of the reader that come from the configuration.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -116,18 +115,6 @@ const MAX_VELOCITY_SIGMA_MPS: f64 = 1e4;
 /// −107…+86 m).
 const MAX_GEOID_SEPARATION_M: f64 = 200.0;
 
-/// Latest GPST accepted, seconds since 1970 (2200-01-01): a larger value is
-/// milliseconds or another epoch.
-const MAX_GPST_S: f64 = 7_258_118_400.0;
-
-/// How the time is given.
-#[derive(Debug, Clone, Copy)]
-enum TimeForm {
-    Gpst(usize),
-    WeekTow(usize, usize),
-    Utc(usize),
-}
-
 /// How the position is given.
 #[derive(Debug, Clone, Copy)]
 enum PositionForm {
@@ -154,8 +141,6 @@ enum VelocityForm {
 /// The header resolved into forms (column indices).
 #[derive(Debug, Clone)]
 struct Layout {
-    names: Vec<String>,
-    time: TimeForm,
     position: PositionForm,
     sigma: SigmaForm,
     velocity: Option<VelocityForm>,
@@ -194,79 +179,17 @@ pub fn read_generic_gnss_from(
     path: &Path,
     options: GenericGnssOptions,
 ) -> Result<(Vec<GnssFix>, Vec<String>)> {
-    let text = decode(bytes, path)?;
-    let mut lines = crate::text::lines(text)
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let Some((header_line, header)) = lines.next() else {
-        return Err(data_error(
-            path,
-            0,
-            "(header)",
-            format!(
-                "no header row: the first line must name the columns ({})",
-                KNOWN_COLUMNS.join(", ")
-            ),
-        ));
-    };
-    let layout = Layout::parse(path, header_line, header, options)?;
-    let rows: Vec<(usize, &str)> = lines.collect();
-    let mut fixes: Vec<GnssFix> = Vec::with_capacity(rows.len());
-    let mut warnings = Vec::new();
     let (mut no_sigma_vel, mut no_vertical) = (0usize, 0usize);
-    for (k, &(line, row)) in rows.iter().enumerate() {
-        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
-        if cells.len() != layout.names.len() {
-            if k + 1 == rows.len() && cells.len() < layout.names.len() {
-                warnings.push(format!(
-                    "{}:{line}: truncated last line skipped ({} of {} cells)",
-                    path.display(),
-                    cells.len(),
-                    layout.names.len()
-                ));
-                continue;
-            }
-            return Err(data_error(
-                path,
-                line,
-                "(line)",
-                format!(
-                    "{} cells, the header (line {header_line}) has {}",
-                    cells.len(),
-                    layout.names.len()
-                ),
-            ));
-        }
-        let row = Row {
-            path,
-            line,
-            cells: &cells,
-            names: &layout.names,
-        };
-        let fix = layout.fix(&row, &mut no_sigma_vel, &mut no_vertical)?;
-        if let Some(prev) = fixes.last()
-            && fix.time_s <= prev.time_s
-        {
-            return Err(row.error(
-                layout.time_column(),
-                format!(
-                    "time {} GPST does not increase (previous row {} GPST)",
-                    crate::text::date_time(fix.time_s),
-                    crate::text::date_time(prev.time_s)
-                ),
-            ));
-        }
-        fixes.push(fix);
-    }
-    if fixes.is_empty() {
-        return Err(data_error(
-            path,
-            header_line,
-            "(file)",
-            "no data rows after the header",
-        ));
-    }
+    let (fixes, mut warnings) = read_table(
+        bytes,
+        path,
+        &KNOWN_COLUMNS,
+        |h| {
+            let time = TimeForm::parse(h, false)?;
+            Ok((Layout::parse(h, options)?, time))
+        },
+        |layout, row, time_s| layout.fix(row, time_s, &mut no_sigma_vel, &mut no_vertical),
+    )?;
     let p = path.display();
     if no_sigma_vel > 0 {
         warnings.push(format!(
@@ -281,160 +204,16 @@ pub fn read_generic_gnss_from(
     Ok((fixes, warnings))
 }
 
-/// One data row's cells and where they are.
-struct Row<'a> {
-    path: &'a Path,
-    line: usize,
-    cells: &'a [&'a str],
-    names: &'a [String],
-}
-
-impl Row<'_> {
-    fn name(&self, c: usize) -> &str {
-        self.names.get(c).map_or("(column)", String::as_str)
-    }
-
-    fn error(&self, c: usize, message: impl Into<String>) -> crate::IoError {
-        data_error(self.path, self.line, self.name(c), message)
-    }
-
-    fn cell(&self, c: usize) -> &str {
-        self.cells.get(c).copied().unwrap_or("")
-    }
-
-    /// The finite number in column `c`.
-    fn number(&self, c: usize) -> Result<f64> {
-        let s = self.cell(c);
-        if s.is_empty() {
-            return Err(self.error(c, "empty: a value is needed"));
-        }
-        let v: f64 = s
-            .parse()
-            .map_err(|_| self.error(c, format!("`{}` is not a number", excerpt(s))))?;
-        if !v.is_finite() {
-            return Err(self.error(c, format!("`{}` is not finite", excerpt(s))));
-        }
-        Ok(v)
-    }
-
-    /// The number in column `c`, within `[lo, hi]`.
-    fn bounded(&self, c: usize, lo: f64, hi: f64, unit: &str, why: &str) -> Result<f64> {
-        let v = self.number(c)?;
-        match crate::limits::outside(v, lo, hi, unit, why) {
-            Some(m) => Err(self.error(c, m)),
-            None => Ok(v),
-        }
-    }
-
-    /// A σ in column `c`: > 0 and at most `max`.
-    fn sigma(&self, c: usize, max: f64, unit: &str) -> Result<f64> {
-        let v = self.number(c)?;
-        if v <= 0.0 || v > max {
-            return Err(self.error(
-                c,
-                format!(
-                    "σ = {} {unit}: must be > 0 and ≤ {} {unit}",
-                    num(v),
-                    num(max)
-                ),
-            ));
-        }
-        Ok(v)
-    }
-}
-
 impl Layout {
-    /// Resolve the header: every name known, once, and complete forms.
-    fn parse(path: &Path, line: usize, header: &str, options: GenericGnssOptions) -> Result<Self> {
-        let names: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
-        let err = |column: &str, message: String| data_error(path, line, column, message);
-        for (i, n) in names.iter().enumerate() {
-            if !KNOWN_COLUMNS.contains(&n.as_str()) {
-                return Err(err(
-                    &excerpt(n),
-                    format!(
-                        "unknown column{} (column {}); the known columns are: {}",
-                        if n.is_empty() {
-                            " with an empty name (a trailing comma?)"
-                        } else {
-                            ""
-                        },
-                        i + 1,
-                        KNOWN_COLUMNS.join(", ")
-                    ),
-                ));
-            }
-            if names[..i].contains(n) {
-                return Err(err(n, format!("named twice (column {})", i + 1)));
-            }
-        }
-        let find = |n: &str| names.iter().position(|x| x == n);
-        // The columns of a form: all present (Some), none (None), or an
-        // error naming the missing ones.
-        let group = |what: &str, cols: &[&str]| -> Result<Option<Vec<usize>>> {
-            let found: Vec<Option<usize>> = cols.iter().map(|c| find(c)).collect();
-            if found.iter().all(Option::is_none) {
-                return Ok(None);
-            }
-            let missing: Vec<&str> = cols
-                .iter()
-                .zip(&found)
-                .filter(|(_, f)| f.is_none())
-                .map(|(c, _)| *c)
-                .collect();
-            if let Some(first) = missing.first() {
-                return Err(err(
-                    first,
-                    format!(
-                        "column missing: {what} needs {} (missing: {})",
-                        cols.join(", "),
-                        missing.join(", ")
-                    ),
-                ));
-            }
-            Ok(Some(found.into_iter().flatten().collect()))
-        };
-        let one_of = |quantity: &str, forms: &[(&str, Option<&Vec<usize>>)]| -> Result<()> {
-            let given: Vec<&str> = forms
-                .iter()
-                .filter(|(_, f)| f.is_some())
-                .map(|(n, _)| *n)
-                .collect();
-            if given.len() > 1 {
-                return Err(err(
-                    "(header)",
-                    format!(
-                        "{quantity} given twice ({}): keep one form",
-                        given.join(" and ")
-                    ),
-                ));
-            }
-            Ok(())
-        };
-
-        let gpst = group("GPST time", &["gpst_s"])?;
-        let week_tow = group("GPS week time", &["gps_week", "tow_s"])?;
-        let utc = group("UTC time", &["utc"])?;
-        one_of(
-            "the time",
-            &[
-                ("gpst_s", gpst.as_ref()),
-                ("gps_week + tow_s", week_tow.as_ref()),
-                ("utc", utc.as_ref()),
-            ],
-        )?;
+    /// Resolve the header (its names known, each once) into complete
+    /// forms; the time form is [`TimeForm::parse`]'s.
+    fn parse(h: &Header, options: GenericGnssOptions) -> Result<Self> {
+        let find = |n: &str| h.find(n);
+        let group = |what: &str, cols: &[&str]| h.group(what, cols);
+        let one_of =
+            |quantity: &str, forms: &[(&str, Option<&Vec<usize>>)]| h.one_of(quantity, forms);
+        let err = |column: &str, message: String| h.error(column, message);
         let at = |v: &[usize], k: usize| v.get(k).copied().unwrap_or(0);
-        let time = match (&gpst, &week_tow, &utc) {
-            (Some(g), _, _) => TimeForm::Gpst(at(g, 0)),
-            (_, Some(w), _) => TimeForm::WeekTow(at(w, 0), at(w, 1)),
-            (_, _, Some(u)) => TimeForm::Utc(at(u, 0)),
-            _ => {
-                return Err(err(
-                    "(time)",
-                    "no time column: give gpst_s, or gps_week and tow_s, or utc".into(),
-                ));
-            }
-        };
 
         let has_msl = find("height_msl_m").is_some() || find("geoid_sep_m").is_some();
         let geodetic = group("a geodetic position", &["lat_deg", "lon_deg"])?;
@@ -531,27 +310,23 @@ impl Layout {
             ));
         }
         Ok(Self {
-            time,
             position,
             sigma,
             velocity,
             sigma_vel,
             quality: find("quality"),
             satellites: find("satellites"),
-            names,
         })
     }
 
-    /// The column reported for a time error.
-    fn time_column(&self) -> usize {
-        match self.time {
-            TimeForm::Gpst(c) | TimeForm::Utc(c) | TimeForm::WeekTow(c, _) => c,
-        }
-    }
-
-    /// One row as a fix.
-    fn fix(&self, row: &Row, no_sigma_vel: &mut usize, no_vertical: &mut usize) -> Result<GnssFix> {
-        let time_s = self.time(row)?;
+    /// One row, whose time is `time_s`, as a fix.
+    fn fix(
+        &self,
+        row: &Row,
+        time_s: f64,
+        no_sigma_vel: &mut usize,
+        no_vertical: &mut usize,
+    ) -> Result<GnssFix> {
         let position = self.position(row)?;
         let position_sigma_neu = match self.sigma {
             SigmaForm::Neu(c) => Vector3::new(
@@ -593,38 +368,6 @@ impl Layout {
             velocity_ned,
             velocity_sigma_neu,
         })
-    }
-
-    /// GPST seconds since 1970.
-    fn time(&self, row: &Row) -> Result<f64> {
-        match self.time {
-            TimeForm::Gpst(c) => row.bounded(
-                c,
-                GPS_EPOCH_1970_S,
-                MAX_GPST_S,
-                "s",
-                "GPST seconds since 1970 from 1980-01-06 (GPS time began) to 2200; seconds of week go in tow_s with gps_week",
-            ),
-            TimeForm::WeekTow(w, t) => {
-                let week = row.bounded(w, 0.0, 9999.0, "", "GPS weeks since 1980-01-06")?;
-                if week.fract() != 0.0 {
-                    return Err(row.error(w, format!("{} is not a whole week", num(week))));
-                }
-                let tow = row.number(t)?;
-                if !(0.0..WEEK_S).contains(&tow) {
-                    return Err(row.error(
-                        t,
-                        format!("{} s is outside a week's [0, 604800) s", num(tow)),
-                    ));
-                }
-                Ok(GPS_EPOCH_1970_S + week * WEEK_S + tow)
-            }
-            TimeForm::Utc(c) => {
-                let s = row.cell(c);
-                let (utc_s, days) = parse_iso8601(s).map_err(|m| row.error(c, m))?;
-                Ok(utc_s + gps_minus_utc_s(days))
-            }
-        }
     }
 
     fn position(&self, row: &Row) -> Result<Geodetic> {

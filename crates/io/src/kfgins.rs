@@ -91,10 +91,10 @@ fn parse_rows(path: &Path, lines: Vec<(usize, String)>, layouts: &[&[&str]]) -> 
             .filter(|f| !f.is_empty())
             .collect();
         if fields.len() < min && k + 1 == lines.len() {
-            warnings.push(format!(
-                "{}:{line}: truncated last line skipped ({} fields)",
-                path.display(),
-                fields.len()
+            warnings.push(crate::rtklib::truncated_last_line(
+                path,
+                line,
+                format_args!("{} fields", fields.len()),
             ));
             continue;
         }

@@ -13,6 +13,9 @@
 //! - [`ubx`]: u-blox UBX binary logs (NAV-PVT).
 //! - [`generic_gnss`]: aidnav's generic GNSS CSV (named columns, several time,
 //!   position, σ and velocity forms).
+//! - [`generic_aiding`]: aidnav's generic wheel-speed and barometer CSVs.
+//! - [`formats`]: the format registry, one enum per stream kind, each
+//!   format's reader one `read` arm.
 //! - [`text`]: UTF-8 decoding with line and byte, BOM, line splitting, excerpts.
 //! - [`limits`]: the physical bounds every reader checks values against.
 //!
@@ -21,11 +24,14 @@
 
 pub mod config;
 pub mod error;
+pub mod formats;
+pub mod generic_aiding;
 pub mod generic_gnss;
 pub mod kfgins;
 pub mod limits;
 pub mod measurements;
 pub mod model_file;
+mod named_csv;
 pub mod nmea;
 pub mod plot;
 pub mod rtklib;

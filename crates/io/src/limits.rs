@@ -37,6 +37,13 @@ pub const MAX_HEIGHT_M: f64 = 100_000.0;
 /// knots ×1000, mm/s).
 pub const MAX_SPEED_M_S: f64 = 1_000.0;
 
+/// Largest wheel (odometer) speed magnitude accepted \[m/s\] (612 km/h):
+/// above the fastest wheeled vehicles an odometer-aided INS rides on — the
+/// rail speed record (TGV, 574.8 km/h ≈ 160 m/s, 2007) and production cars
+/// (≈ 140 m/s); a larger value is a unit mistake (mm/s, or a wheel's
+/// angular rate in rpm).
+pub const MAX_WHEEL_SPEED_M_S: f64 = 170.0;
+
 /// The message for a value outside `[lo, hi]`, or `None` when inside.
 pub(crate) fn outside(value: f64, lo: f64, hi: f64, unit: &str, why: &str) -> Option<String> {
     use crate::text::num;

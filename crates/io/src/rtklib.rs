@@ -18,7 +18,7 @@ use nalgebra::Vector3;
 
 use crate::error::{IoError, Result};
 
-pub use aidnav_ins::samples::{GnssFix, ImuSample};
+pub use aidnav_sensors::{GnssFix, ImuSample};
 
 /// Standard gravity, the unit of the data set's accelerometer columns.
 const G0: f64 = 9.806_65;
@@ -59,6 +59,15 @@ pub(crate) fn in_range(
         Some(m) => Err(data_error(path, line, column, m)),
         None => Ok(()),
     }
+}
+
+/// The warning for a truncated last line skipped (`what`: how many fields
+/// it has), as every text reader words it.
+pub(crate) fn truncated_last_line(path: &Path, line: usize, what: std::fmt::Arguments) -> String {
+    format!(
+        "{}:{line}: truncated last line skipped ({what})",
+        path.display()
+    )
 }
 
 /// Check latitude, longitude and height of a position against
@@ -306,10 +315,10 @@ pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<Str
         let is_last = k + 1 == lines.len();
         if tokens.len() < 2 + 13 {
             if is_last {
-                warnings.push(format!(
-                    "{}:{line}: truncated last line skipped ({} fields)",
-                    path.display(),
-                    tokens.len()
+                warnings.push(truncated_last_line(
+                    path,
+                    line,
+                    format_args!("{} fields", tokens.len()),
                 ));
                 continue;
             }

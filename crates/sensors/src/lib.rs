@@ -4,6 +4,13 @@
 //! GPST seconds since 1970-01-01, as the readers of `aidnav-io` produce
 //! them and the simulator writes them: no sensor knows the filter, and the
 //! readers need not know the mechanization.
+//!
+//! Every record is [`Timed`]; [`merge()`] walks any number of time-sorted
+//! streams of them in time order ([`merge`](mod@merge) module).
+
+pub mod merge;
+
+pub use merge::{Merge, Timed, Timeline, merge};
 
 use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;

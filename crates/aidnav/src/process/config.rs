@@ -24,37 +24,7 @@ fn exact_array_option<'de, D: Deserializer<'de>, const N: usize>(
     exact_array(d).map(Some)
 }
 
-/// Format of the IMU file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ImuFormat {
-    /// Raw CSV (g, deg/s, tick ms) with an RTKLIB `.tag` file (`imu_tags`).
-    #[default]
-    RtklibTagged,
-    /// KF-GINS text: time, angle and velocity increments, body frame.
-    KfGins,
-    /// aidnav's generic CSV (see `aidnav_io::kfgins`).
-    GenericCsv,
-}
-
-/// Format of the GNSS file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GnssFormat {
-    /// RTKLIB `.pos` (latitude/longitude/height).
-    #[default]
-    RtklibPos,
-    /// KF-GINS text: time, lat, lon, h, σN σE σD [, velocity and σ].
-    KfGins,
-    /// NMEA 0183: GGA + RMC (+ GST for σ), see `aidnav_io::nmea`.
-    Nmea,
-    /// u-blox UBX binary log: NAV-PVT epochs, ellipsoidal heights, see
-    /// `aidnav_io::ubx`.
-    Ubx,
-    /// aidnav's generic GNSS CSV (named columns; σ from its columns or
-    /// `data.gnss_sigma_m`), see `aidnav_io::generic_gnss`.
-    GenericCsv,
-}
+pub use aidnav_io::formats::{GnssFormat, ImuFormat};
 
 /// Where the data are.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -59,7 +59,7 @@ use std::path::Path;
 use aidnav_estimation::EstimationError;
 use aidnav_ins::alignment::course;
 use aidnav_ins::samples::moving_average_in_place;
-use aidnav_io::rtklib::{GnssFix, ImuSample, read_pos, read_tagged_imu};
+use aidnav_io::rtklib::{GnssFix, ImuSample};
 use nalgebra::Vector3;
 
 /// Anything processing can fail with.
@@ -208,19 +208,12 @@ pub fn read_imu(
     tags: Option<&Path>,
     units: Option<aidnav_io::kfgins::ImuUnits>,
 ) -> Result<(Vec<ImuSample>, Vec<String>), ProcessError> {
-    Ok(match format {
-        ImuFormat::RtklibTagged => {
-            let tags = tags.ok_or_else(|| {
-                ProcessError::Data("data.imu_tags is needed for imu_format = rtklib_tagged".into())
-            })?;
-            read_tagged_imu(path, tags)?
-        }
-        ImuFormat::KfGins => aidnav_io::kfgins::read_kfgins_imu(path)?,
-        ImuFormat::GenericCsv => aidnav_io::kfgins::read_generic_imu_with(
-            path,
-            aidnav_io::kfgins::GenericImuOptions { units },
-        )?,
-    })
+    if format == ImuFormat::RtklibTagged && tags.is_none() {
+        return Err(ProcessError::Data(
+            "data.imu_tags is needed for imu_format = rtklib_tagged".into(),
+        ));
+    }
+    Ok(format.read(path, tags, units)?)
 }
 
 /// Read a GNSS file of `format`: the fixes and the reader's warnings.
@@ -231,16 +224,7 @@ pub fn read_gnss(
     path: &Path,
     default_sigma_m: Option<[f64; 2]>,
 ) -> Result<(Vec<GnssFix>, Vec<String>), ProcessError> {
-    Ok(match format {
-        GnssFormat::RtklibPos => read_pos(path)?,
-        GnssFormat::KfGins => aidnav_io::kfgins::read_kfgins_gnss(path)?,
-        GnssFormat::Nmea => aidnav_io::nmea::read_nmea(path)?,
-        GnssFormat::Ubx => aidnav_io::ubx::read_ubx(path)?,
-        GnssFormat::GenericCsv => aidnav_io::generic_gnss::read_generic_gnss(
-            path,
-            aidnav_io::generic_gnss::GenericGnssOptions { default_sigma_m },
-        )?,
-    })
+    Ok(format.read(path, default_sigma_m)?)
 }
 
 impl Inputs {
