@@ -193,7 +193,9 @@ struct FullRecord<const N: usize> {
 /// ```
 /// use aidnav_frames::{Body, Ned, Rotation, Vec3, earth::Geodetic};
 /// use aidnav_ins::ned::{NedMechanization, NedState};
-/// use aidnav_integration::ned::NedFilter;
+/// use aidnav_estimation::AcceptAll;
+/// use aidnav_integration::measurements::GnssPosition;
+/// use aidnav_integration::ned::{GnssStream, NedFilter};
 /// use aidnav_models::ned_ins::{
 ///     ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION,
 ///     VELOCITY, Vector21,
@@ -208,7 +210,7 @@ struct FullRecord<const N: usize> {
 /// // Prior σ: 1 m, 0.1 m/s, 10 mrad; the instrument states from the model.
 /// let model = NedErrorModel::default();
 /// let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
-/// let mut sigmas = SVector::zeros();
+/// let mut sigmas = Vector21::zeros();
 /// for (block, sigma) in [(POSITION, 1.0), (VELOCITY, 0.1), (ATTITUDE, 0.01)] {
 ///     sigmas.fixed_rows_mut::<3>(block).fill(sigma);
 /// }
@@ -227,7 +229,10 @@ struct FullRecord<const N: usize> {
 /// }
 /// let (antenna, _) = filter.antenna();
 /// let fix = antenna.offset_by(&Vec3::new(0.3, 0.0, 0.0));
-/// let record = filter.update_position(&fix, &Vector3::repeat(0.1)).unwrap();
+/// let measurement = GnssPosition { fix, sigma_ned_m: Vector3::repeat(0.1) };
+/// let record = filter
+///     .fuse(&measurement, Some(GnssStream::Position), &mut AcceptAll)
+///     .unwrap();
 /// assert!(record.nis > 0.0);
 ///
 /// // The solution moved most of the way towards the fix.
@@ -1305,6 +1310,82 @@ impl<const N: usize> NedFilter<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::measurements::{
+        GnssPosition, GnssVelocity, NonHolonomicConstraint, ZeroAngularRate, ZeroVelocity,
+    };
+    use aidnav_estimation::AcceptAll;
+
+    /// The updates the tests make, each through the one update sequence.
+    impl<const N: usize> NedFilter<N> {
+        fn update_position(
+            &mut self,
+            fix: &Geodetic,
+            sigma_ned: &Vector3<f64>,
+        ) -> Result<GnssUpdate<N>, EstimationError> {
+            self.update_position_with(fix, sigma_ned, &mut AcceptAll)
+        }
+
+        fn update_position_with<P: MeasurementPolicy<U3> + ?Sized>(
+            &mut self,
+            fix: &Geodetic,
+            sigma_ned: &Vector3<f64>,
+            policy: &mut P,
+        ) -> Result<GnssUpdate<N>, EstimationError> {
+            let m = GnssPosition {
+                fix: *fix,
+                sigma_ned_m: *sigma_ned,
+            };
+            self.fuse(&m, Some(GnssStream::Position), policy)
+        }
+
+        fn update_velocity_with<P: MeasurementPolicy<U3> + ?Sized>(
+            &mut self,
+            velocity_ned: &Vec3<Ned>,
+            sigma_ned: &Vector3<f64>,
+            policy: &mut P,
+        ) -> Result<GnssUpdate<N>, EstimationError> {
+            let m = GnssVelocity {
+                velocity_ned_mps: *velocity_ned,
+                sigma_ned_mps: *sigma_ned,
+            };
+            self.fuse(&m, Some(GnssStream::Velocity), policy)
+        }
+
+        fn reset_velocity_to(
+            &mut self,
+            velocity_ned: &Vec3<Ned>,
+            sigma_ned: &Vector3<f64>,
+        ) -> Result<(), EstimationError> {
+            let m = GnssVelocity {
+                velocity_ned_mps: *velocity_ned,
+                sigma_ned_mps: *sigma_ned,
+            };
+            self.reset_to(&m, GnssStream::Velocity)
+        }
+
+        fn update_non_holonomic(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
+            let m = NonHolonomicConstraint { sigma_mps };
+            self.fuse(&m, None, &mut AcceptAll).map(|_| ())
+        }
+
+        fn update_zero_velocity(&mut self, sigma_mps: f64) -> Result<(), EstimationError> {
+            self.fuse(&ZeroVelocity { sigma_mps }, None, &mut AcceptAll)
+                .map(|_| ())
+        }
+
+        fn update_zero_angular_rate(
+            &mut self,
+            mean_raw_rate: &Vector3<f64>,
+            sigma_rad_s: &Vector3<f64>,
+        ) -> Result<(), EstimationError> {
+            let m = ZeroAngularRate {
+                mean_raw_rate_rad_s: *mean_raw_rate,
+                sigma_rad_s: *sigma_rad_s,
+            };
+            self.fuse(&m, None, &mut AcceptAll).map(|_| ())
+        }
+    }
+
     use aidnav_models::ned_ins::ImuNoise;
 
     /// The structured antenna covariance equals nalgebra's formula to the

@@ -144,13 +144,25 @@ fn outage_errors<const N: usize>(
     }
     let mut collector = Collector::default();
     let mut observers: Vec<&mut dyn EpochObserver> = vec![&mut collector];
-    run_loop(&mut filter, &log.imu, start, &mut sources, 0.5, &mut observers).unwrap();
+    run_loop(
+        &mut filter,
+        &log.imu,
+        start,
+        &mut sources,
+        0.5,
+        &mut observers,
+    )
+    .unwrap();
     drop(observers);
     let log_start = log.imu[0].time_s;
     let (a, b) = (log_start + OUTAGE_S[0], log_start + OUTAGE_S[1]);
     let (mut horizontal, mut vertical) = (0.0f64, 0.0f64);
     let mut rows = 0;
-    for row in collector.rows.iter().filter(|r| r.time_s > a && r.time_s < b) {
+    for row in collector
+        .rows
+        .iter()
+        .filter(|r| r.time_s > a && r.time_s < b)
+    {
         let truth = log.truth_at(row.time_s).unwrap();
         let e = truth.position.ned_to(&row.imu);
         horizontal = horizontal.max(e.x().hypot(e.y()));
@@ -194,7 +206,12 @@ fn the_odometer_shrinks_the_outage_drift_fivefold() {
 
 #[test]
 fn the_barometer_bounds_the_vertical_error_in_an_outage() {
-    let s = scenario();
+    // A consumer-grade accelerometer, whose bias wanders enough in a
+    // minute to move the free vertical channel by metres.
+    let mut s = scenario();
+    s.imu.accel.turn_on_bias_sigma_mg = [5.0; 3];
+    s.imu.accel.bias_instability_mg = [1.0; 3];
+    s.imu.accel.bias_correlation_time_s = [60.0; 3];
     let log = simulate_car(&s, 33).unwrap();
     let (_, free) = outage_errors::<STATES>(&s, &log, StateLayout::base(), GNSS);
     let drift = s.baro.drift_sigma_m;
@@ -209,6 +226,7 @@ fn the_barometer_bounds_the_vertical_error_in_an_outage() {
         ..GNSS
     };
     let (_, aided) = outage_errors::<{ STATES + 1 }>(&s, &log, layout, baro);
+    assert!(aided * 2.0 < free, "{aided} against {free}");
     // Its own noise plus its bias's drift, at three σ.
     let bound = 3.0 * (s.baro.noise_sigma_m + drift);
     println!(
