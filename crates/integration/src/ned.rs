@@ -474,7 +474,7 @@ impl<const N: usize> FilterView for NedFilter<N> {
     fn free_inertial(&self) -> FreeInertial {
         let p = self.kf.covariance();
         FreeInertial {
-            ins: self.ins.clone(),
+            ins: self.ins,
             instruments: self.instruments,
             lever_arm: self.lever_arm,
             rate: self.rate,
@@ -813,7 +813,7 @@ impl<const N: usize> NedFilter<N> {
             self.q.fixed_view_mut::<STATES, STATES>(0, 0).copy_from(q21);
             for block in self.layout.blocks() {
                 let (phi, q) = block.dynamics.discrete(dt);
-                for i in block.offset..block.offset + block.kind.len() {
+                for i in block.offset..block.offset + block.kind.states() {
                     self.phi[(i, i)] = phi;
                     self.q[(i, i)] = q;
                 }

@@ -41,7 +41,7 @@ pub enum Augmented {
 
 impl Augmented {
     /// Number of states in the block.
-    pub const fn len(self) -> usize {
+    pub const fn states(self) -> usize {
         match self {
             Augmented::WheelSpeedScale | Augmented::BaroBias | Augmented::GnssLatency => 1,
             Augmented::Mounting | Augmented::LeverArm => 3,
@@ -160,7 +160,7 @@ impl StateLayout {
 
     /// Number of states.
     pub fn len(&self) -> usize {
-        STATES + self.blocks.iter().map(|b| b.kind.len()).sum::<usize>()
+        STATES + self.blocks.iter().map(|b| b.kind.states()).sum::<usize>()
     }
 
     /// Never empty: the base states are always there.
@@ -213,8 +213,8 @@ impl StateLayout {
         let b = self
             .blocks
             .iter()
-            .find(|b| i >= b.offset && i < b.offset + b.kind.len())?;
-        Some(if b.kind.len() == 1 {
+            .find(|b| i >= b.offset && i < b.offset + b.kind.states())?;
+        Some(if b.kind.states() == 1 {
             b.kind.name().to_string()
         } else {
             format!("{}_{}", b.kind.name(), i - b.offset)

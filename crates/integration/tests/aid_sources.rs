@@ -76,7 +76,7 @@ fn outage_errors<const N: usize>(
         sig[ACCEL_SCALE + i] = ka[i];
     }
     for b in layout.blocks() {
-        for i in b.offset..b.offset + b.kind.len() {
+        for i in b.offset..b.offset + b.kind.states() {
             sig[i] = b.dynamics.prior_sigma;
         }
     }
