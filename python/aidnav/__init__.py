@@ -39,6 +39,7 @@ from ._aidnav import (
     Update,
     experiment_names,
     rts_smooth,
+    scheme_defaults,
     scheme_names,
 )
 from ._tables import columns_of, have_pandas, records, table
@@ -70,19 +71,22 @@ __all__ = [
     "reproduce",
     "rts_smooth",
     "scheme",
+    "scheme_defaults",
     "scheme_names",
 ]
 
 
-def chi2_gate(probability: float = 0.999) -> Policy:
+def chi2_gate(probability: Optional[float] = None) -> Policy:
     """χ² gate: reject an update whose NIS exceeds the χ²(m) quantile of
-    ``probability``."""
+    ``probability`` (``None``: the engine's default,
+    ``scheme_defaults()["chi2_probability"]``)."""
     return Policy.chi2_gate(probability)
 
 
-def huber(k: float = 1.345) -> Policy:
-    """Huber re-weighting: R inflated by √NIS / k above k (k = 1.345: 95 %
-    efficiency at the normal)."""
+def huber(k: Optional[float] = None) -> Policy:
+    """Huber re-weighting: R inflated by √NIS / k above k (``None``: the
+    engine's default, ``scheme_defaults()["huber_k"]``, 95 % efficiency at
+    the normal)."""
     return Policy.huber(k)
 
 
@@ -92,7 +96,10 @@ def scheme(name: str, **parameters: Any) -> Policy:
     ``huber``, ``rejection``, ``limiting``, ``adaptive_gain``,
     ``limited_adaptive_gain``, ``developed``, ``robust``); keyword
     parameters ``chi2_probability``, ``recovering_after``, ``huber_k``,
-    ``anomaly_gamma``, ``adaptive_window``."""
+    ``anomaly_gamma``, ``adaptive_window``, ``adaptive_diagonal_rule``
+    (``"all"`` or ``"any"``), each defaulting to the engine's
+    (:func:`scheme_defaults`) and checked against the engine's range
+    (``ValueError`` naming the parameter, its value and the range)."""
     return Policy.scheme(name, **parameters)
 
 

@@ -121,6 +121,36 @@ def test_policies_decide_and_say_so():
         aidnav.scheme("nope")
 
 
+def test_scheme_defaults_and_ranges_are_the_engines():
+    defaults = aidnav.scheme_defaults()
+    assert set(defaults) == {
+        "chi2_probability",
+        "recovering_after",
+        "huber_k",
+        "anomaly_gamma",
+        "adaptive_window",
+        "adaptive_diagonal_rule",
+    }
+    # A constant not given is the engine's default, whatever the constructor.
+    for policy in (aidnav.chi2_gate(), aidnav.huber(), aidnav.scheme("robust"), aidnav.Policy.huber()):
+        assert policy.parameters == defaults
+    # The old calls still set what they set (positional, keyword).
+    assert aidnav.chi2_gate(0.99).parameters == {**defaults, "chi2_probability": 0.99}
+    assert aidnav.huber(k=2.0).parameters == {**defaults, "huber_k": 2.0}
+    # The new keyword: eq. 4's diagonal rule.
+    gain = aidnav.scheme("adaptive_gain", adaptive_diagonal_rule="any", adaptive_window=5)
+    assert gain.parameters == {**defaults, "adaptive_diagonal_rule": "any", "adaptive_window": 5}
+    # Out of range: the engine's check, naming the parameter, its value and the range.
+    with pytest.raises(ValueError, match=r"^huber_k = 0 is out of range: allowed 0\.1 ≤ huber_k ≤ 100$"):
+        aidnav.huber(0.0)
+    with pytest.raises(ValueError, match=r"^chi2_probability = 1\.5 is out of range: allowed 0 < chi2_probability < 1$"):
+        aidnav.chi2_gate(1.5)
+    with pytest.raises(ValueError, match=r"^recovering_after = 0 is out of range"):
+        aidnav.scheme("recovering_gate", recovering_after=0)
+    with pytest.raises(ValueError, match="adaptive_diagonal_rule = \"most\""):
+        aidnav.scheme("adaptive_gain", adaptive_diagonal_rule="most")
+
+
 def test_engine_errors_name_the_step_and_the_matrix():
     with pytest.raises(aidnav.FilterError, match="P .*not symmetric"):
         aidnav.KalmanFilter(np.zeros(2), np.array([[1.0, 0.5], [0.0, 1.0]]))

@@ -65,6 +65,11 @@ def test_a_config_dict_is_checked_as_a_file_is(tmp_path):
     with pytest.raises(aidnav.ConfigError) as err:
         aidnav.process({"data": DATA, "imu": {"smoothing_s": -1.0}})
     assert "<config dict>:" in str(err.value) and "imu.smoothing_s" in str(err.value)
+    # The scheme keys of [gnss] are the engine's, with its ranges.
+    with pytest.raises(aidnav.ConfigError, match=r"gnss\.huber_k: 0 is out of range: allowed 0\.1 ≤ huber_k ≤ 100"):
+        aidnav.process({"data": DATA, "gnss": {"huber_k": 0.0}})
+    with pytest.raises(aidnav.ConfigError, match=r"gnss\.chi2_probability: 1 is out of range"):
+        aidnav.process({"data": DATA, "gnss": {"chi2_probability": 1.0}})
     with pytest.raises(aidnav.ConfigError, match="unknown field `colour`"):
         aidnav.process({"data": DATA, "colour": 1})
     with pytest.raises(aidnav.DataError, match="cannot read"):

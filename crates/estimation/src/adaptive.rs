@@ -249,6 +249,11 @@ where
         })
     }
 
+    /// How the diagonals are compared.
+    pub fn rule(&self) -> DiagonalRule {
+        self.rule
+    }
+
     /// The empirical innovation covariance M̂ (None until the window is full).
     pub fn empirical_covariance(&self) -> Option<OMatrix<f64, M, M>> {
         if !self.window.is_full() {

@@ -178,6 +178,18 @@ pub enum EstimationError {
         /// Iterations made.
         iterations: usize,
     },
+    /// A tuning parameter outside its allowed range (a field of
+    /// [`SchemeParameters`](crate::scheme::SchemeParameters), by its name
+    /// in configuration files).
+    #[error("{parameter} = {value} is out of range: allowed {allowed}")]
+    OutOfRange {
+        /// The parameter, by its configuration name (`huber_k`).
+        parameter: &'static str,
+        /// The offending value, as text.
+        value: String,
+        /// The allowed range, as text (`0.1 ≤ huber_k ≤ 100`).
+        allowed: String,
+    },
     /// An error at a given epoch of a filter run (wraps the error of that epoch).
     ///
     /// The wrapped error is part of the message and deliberately not also

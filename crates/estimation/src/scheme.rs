@@ -27,6 +27,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::adaptive::{AdaptiveGain, AnomalyDetector, DiagonalRule, LimitedAdaptiveGain};
 use crate::adaptive::{Limiting, ReacquiringLimiting, Rejection};
+use crate::error::EstimationError;
 use crate::policy::{
     AcceptAll, Chi2Gate, Decision, Huber, InnovationView, MeasurementPolicy, RecoveringChi2Gate,
 };
@@ -80,24 +81,53 @@ pub enum NoiseRule {
     },
 }
 
-/// The tuning constants the schemes read.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The tuning constants the schemes read — their one home: the defaults
+/// ([`Default`]) and the allowed ranges ([`SchemeParameters::validate`])
+/// that the navigation application's `[gnss]` keys, the CLI's
+/// `--print-config` and the Python binding all take from here.
+///
+/// Read from TOML or JSON by its field names; a missing field takes its
+/// default, an unknown one is an error.
+///
+/// ```
+/// use aidnav_estimation::scheme::SchemeParameters;
+/// use aidnav_estimation::EstimationError;
+///
+/// let p = SchemeParameters { huber_k: 0.0, ..SchemeParameters::default() };
+/// let EstimationError::OutOfRange { parameter, .. } = p.validate().unwrap_err() else {
+///     unreachable!()
+/// };
+/// assert_eq!(parameter, "huber_k");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct SchemeParameters {
-    /// Probability of the χ² gates' quantile, in (0, 1).
+    /// Probability of the χ² gates' quantile (`chi2_gate`,
+    /// `recovering_gate`), 0 < p < 1. Default 0.999.
     pub chi2_probability: f64,
-    /// Rejections in a row after which the recovering gate accepts again.
+    /// Rejections in a row after which `recovering_gate` accepts again,
+    /// 1 … 100 000. Default 20 (5 s of fixes at 4 Hz).
     pub recovering_after: usize,
-    /// Huber threshold on √NIS, > 0.
+    /// Huber threshold k on √NIS (`huber`), 0.1 … 100. Default 1.345: 95 %
+    /// efficiency at the normal (Huber 1964).
     pub huber_k: f64,
-    /// Eq. 5's γ: an innovation with νᵀν > γ tr S is anomalous.
+    /// Eq. 5's γ: an innovation with νᵀν > γ tr S is anomalous
+    /// (`rejection`, `limiting`, `limited_adaptive_gain`, `developed`,
+    /// `robust`), 1 … 10 000. Default 9 (spec 20).
     pub anomaly_gamma: f64,
-    /// Eq. 4's sliding window, innovations (≥ 1).
+    /// Eq. 4's sliding window (`adaptive_gain`, `limited_adaptive_gain`),
+    /// innovations, 1 … 10 000. Default 20.
     pub adaptive_window: usize,
+    /// How eq. 4 compares the diagonals of M̂ and H P⁻ Hᵀ for vector
+    /// measurements (`adaptive_gain`, `limited_adaptive_gain`): `all` or
+    /// `any`. Default `all`.
+    pub adaptive_diagonal_rule: DiagonalRule,
 }
 
 impl Default for SchemeParameters {
     /// χ² 0.999, recovery after 20 rejections, Huber k = 1.345 (95 %
-    /// efficiency at the normal, Huber 1964), γ = 9 (spec 20), window 20.
+    /// efficiency at the normal, Huber 1964), γ = 9 (spec 20), window 20
+    /// compared on all diagonal elements.
     fn default() -> Self {
         Self {
             chi2_probability: 0.999,
@@ -105,7 +135,71 @@ impl Default for SchemeParameters {
             huber_k: 1.345,
             anomaly_gamma: 9.0,
             adaptive_window: 20,
+            adaptive_diagonal_rule: DiagonalRule::All,
         }
+    }
+}
+
+/// Allowed `huber_k`, inclusive: below 0.1 every innovation is re-weighted,
+/// above 100 none is.
+const HUBER_K_RANGE: (f64, f64) = (0.1, 100.0);
+/// Allowed `anomaly_gamma`, inclusive: below 1 an innovation of ordinary
+/// size is anomalous.
+const ANOMALY_GAMMA_RANGE: (f64, f64) = (1.0, 1e4);
+/// Allowed `recovering_after`, inclusive (0 would never reject).
+const RECOVERING_AFTER_RANGE: (usize, usize) = (1, 100_000);
+/// Allowed `adaptive_window`, inclusive.
+const ADAPTIVE_WINDOW_RANGE: (usize, usize) = (1, 10_000);
+
+/// `Err` naming `parameter` unless `lo ≤ value ≤ hi` (and finite).
+fn real_in(parameter: &'static str, value: f64, (lo, hi): (f64, f64)) -> crate::Result<()> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        return Ok(());
+    }
+    Err(EstimationError::OutOfRange {
+        parameter,
+        value: value.to_string(),
+        allowed: format!("{lo} ≤ {parameter} ≤ {hi}"),
+    })
+}
+
+/// `Err` naming `parameter` unless `lo ≤ value ≤ hi`.
+fn count_in(parameter: &'static str, value: usize, (lo, hi): (usize, usize)) -> crate::Result<()> {
+    if (lo..=hi).contains(&value) {
+        return Ok(());
+    }
+    Err(EstimationError::OutOfRange {
+        parameter,
+        value: value.to_string(),
+        allowed: format!("{lo} ≤ {parameter} ≤ {hi}"),
+    })
+}
+
+impl SchemeParameters {
+    /// `Ok` when every parameter is in its allowed range, else
+    /// [`EstimationError::OutOfRange`] naming the first one out, its value
+    /// and the range (the ranges are on the fields' docs).
+    pub fn validate(&self) -> crate::Result<()> {
+        let p = self.chi2_probability;
+        if !(p > 0.0 && p < 1.0) {
+            return Err(EstimationError::OutOfRange {
+                parameter: "chi2_probability",
+                value: p.to_string(),
+                allowed: "0 < chi2_probability < 1".into(),
+            });
+        }
+        count_in(
+            "recovering_after",
+            self.recovering_after,
+            RECOVERING_AFTER_RANGE,
+        )?;
+        real_in("huber_k", self.huber_k, HUBER_K_RANGE)?;
+        real_in("anomaly_gamma", self.anomaly_gamma, ANOMALY_GAMMA_RANGE)?;
+        count_in(
+            "adaptive_window",
+            self.adaptive_window,
+            ADAPTIVE_WINDOW_RANGE,
+        )
     }
 }
 
@@ -144,7 +238,8 @@ impl Scheme {
     /// windows allocated once, here).
     ///
     /// # Panics
-    /// If `adaptive_window` is 0 for the eq. 4 schemes: callers validate it.
+    /// If `adaptive_window` is 0 for the eq. 4 schemes: callers validate
+    /// the parameters ([`SchemeParameters::validate`]).
     pub fn policy<M: Dim>(self, p: &SchemeParameters) -> SchemePolicy<M>
     where
         DefaultAllocator: Allocator<M> + Allocator<M, M>,
@@ -153,7 +248,7 @@ impl Scheme {
             gamma: p.anomaly_gamma,
         };
         let window = || {
-            AdaptiveGain::new(p.adaptive_window, DiagonalRule::All)
+            AdaptiveGain::new(p.adaptive_window, p.adaptive_diagonal_rule)
                 .unwrap_or_else(|| panic!("adaptive_window = 0: validate it (≥ 1)"))
         };
         match self {
@@ -263,6 +358,89 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The defaults pass; each parameter just out of its range is refused,
+    /// the error naming it, its value and its range.
+    #[test]
+    fn validate_names_the_parameter_its_value_and_its_range() {
+        let d = SchemeParameters::default();
+        assert_eq!(d.validate(), Ok(()));
+        let cases: [(SchemeParameters, &str, &str); 6] = [
+            (
+                SchemeParameters {
+                    chi2_probability: 1.0,
+                    ..d
+                },
+                "chi2_probability",
+                "0 < chi2_probability < 1",
+            ),
+            (
+                SchemeParameters {
+                    recovering_after: 0,
+                    ..d
+                },
+                "recovering_after",
+                "1 ≤ recovering_after ≤ 100000",
+            ),
+            (
+                SchemeParameters {
+                    huber_k: f64::NAN,
+                    ..d
+                },
+                "huber_k",
+                "0.1 ≤ huber_k ≤ 100",
+            ),
+            (
+                SchemeParameters {
+                    anomaly_gamma: 0.5,
+                    ..d
+                },
+                "anomaly_gamma",
+                "1 ≤ anomaly_gamma ≤ 10000",
+            ),
+            (
+                SchemeParameters {
+                    adaptive_window: 0,
+                    ..d
+                },
+                "adaptive_window",
+                "1 ≤ adaptive_window ≤ 10000",
+            ),
+            (
+                SchemeParameters {
+                    adaptive_window: 10_001,
+                    ..d
+                },
+                "adaptive_window",
+                "1 ≤ adaptive_window ≤ 10000",
+            ),
+        ];
+        for (p, name, range) in cases {
+            let e = p.validate().unwrap_err();
+            let EstimationError::OutOfRange {
+                parameter, allowed, ..
+            } = &e
+            else {
+                panic!("{e}");
+            };
+            assert_eq!((*parameter, allowed.as_str()), (name, range));
+            assert!(e.to_string().starts_with(&format!("{name} = ")), "{e}");
+        }
+    }
+
+    /// The eq. 4 schemes compare the diagonals by the configured rule.
+    #[test]
+    fn the_adaptive_schemes_take_the_diagonal_rule() {
+        use nalgebra::U2;
+        let p = SchemeParameters {
+            adaptive_diagonal_rule: DiagonalRule::Any,
+            ..SchemeParameters::default()
+        };
+        let SchemePolicy::AdaptiveGain(gain) = Scheme::AdaptiveGain.policy::<U2>(&p) else {
+            panic!("adaptive_gain is not an AdaptiveGain");
+        };
+        assert_eq!(gain.rule(), DiagonalRule::Any);
+    }
 
     /// `name()` is the serde name: reading each name back through serde
     /// and through `FromStr` gives the same scheme.

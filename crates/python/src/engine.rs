@@ -16,7 +16,7 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString};
 
-use crate::convert::{matrix, to_array1, to_array2, vector};
+use crate::convert::{matrix, py_of_json, to_array1, to_array2, vector};
 use crate::errors;
 
 /// Add the engine's classes and functions to the module.
@@ -26,6 +26,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Policy>()?;
     m.add_function(wrap_pyfunction!(rts_smooth, m)?)?;
     m.add_function(wrap_pyfunction!(scheme_names, m)?)?;
+    m.add_function(wrap_pyfunction!(scheme_defaults, m)?)?;
     Ok(())
 }
 
@@ -46,63 +47,55 @@ impl Policy {
     /// A scheme of the registry by name (`accept`, `chi2_gate`,
     /// `recovering_gate`, `huber`, `rejection`, `limiting`,
     /// `adaptive_gain`, `limited_adaptive_gain`, `developed`, `robust`)
-    /// with its tuning constants.
+    /// with its tuning constants; a constant left `None` takes the
+    /// engine's default (`scheme_defaults()`), and each is checked against
+    /// the engine's range.
     #[staticmethod]
-    #[pyo3(signature = (name, *, chi2_probability=0.999, recovering_after=20, huber_k=1.345, anomaly_gamma=9.0, adaptive_window=20))]
+    #[pyo3(signature = (name, *, chi2_probability=None, recovering_after=None, huber_k=None, anomaly_gamma=None, adaptive_window=None, adaptive_diagonal_rule=None))]
     fn scheme(
         name: &str,
-        chi2_probability: f64,
-        recovering_after: usize,
-        huber_k: f64,
-        anomaly_gamma: f64,
-        adaptive_window: usize,
+        chi2_probability: Option<f64>,
+        recovering_after: Option<usize>,
+        huber_k: Option<f64>,
+        anomaly_gamma: Option<f64>,
+        adaptive_window: Option<usize>,
+        adaptive_diagonal_rule: Option<&str>,
     ) -> PyResult<Self> {
         let scheme: RustScheme = name.parse().map_err(PyValueError::new_err)?;
-        if !(chi2_probability > 0.0 && chi2_probability < 1.0) {
-            return Err(PyValueError::new_err(format!(
-                "chi2_probability = {chi2_probability}: allowed (0, 1)"
-            )));
-        }
-        if !(huber_k > 0.0 && huber_k.is_finite()) {
-            return Err(PyValueError::new_err(format!(
-                "huber_k = {huber_k}: allowed > 0"
-            )));
-        }
-        if !(anomaly_gamma > 0.0 && anomaly_gamma.is_finite()) {
-            return Err(PyValueError::new_err(format!(
-                "anomaly_gamma = {anomaly_gamma}: allowed > 0"
-            )));
-        }
-        if adaptive_window == 0 {
-            return Err(PyValueError::new_err("adaptive_window = 0: allowed ≥ 1"));
-        }
-        let parameters = SchemeParameters {
-            chi2_probability,
-            recovering_after,
-            huber_k,
-            anomaly_gamma,
-            adaptive_window,
+        let d = SchemeParameters::default();
+        let adaptive_diagonal_rule = match adaptive_diagonal_rule {
+            None => d.adaptive_diagonal_rule,
+            Some(rule) => serde_json::from_value(rule.into()).map_err(|e| {
+                PyValueError::new_err(format!("adaptive_diagonal_rule = {rule:?}: {e}"))
+            })?,
         };
-        Ok(Self {
+        Self::new(
             scheme,
-            parameters,
-            policy: scheme.policy(&parameters),
-        })
+            SchemeParameters {
+                chi2_probability: chi2_probability.unwrap_or(d.chi2_probability),
+                recovering_after: recovering_after.unwrap_or(d.recovering_after),
+                huber_k: huber_k.unwrap_or(d.huber_k),
+                anomaly_gamma: anomaly_gamma.unwrap_or(d.anomaly_gamma),
+                adaptive_window: adaptive_window.unwrap_or(d.adaptive_window),
+                adaptive_diagonal_rule,
+            },
+        )
     }
 
     /// χ² gate: reject when the NIS exceeds the χ²(m) quantile of
-    /// `probability`.
+    /// `probability` (`None`: the engine's default).
     #[staticmethod]
-    #[pyo3(signature = (probability=0.999))]
-    fn chi2_gate(probability: f64) -> PyResult<Self> {
-        Self::scheme("chi2_gate", probability, 20, 1.345, 9.0, 20)
+    #[pyo3(signature = (probability=None))]
+    fn chi2_gate(probability: Option<f64>) -> PyResult<Self> {
+        Self::scheme("chi2_gate", probability, None, None, None, None, None)
     }
 
-    /// Huber re-weighting: R inflated by √NIS / k above k.
+    /// Huber re-weighting: R inflated by √NIS / k above k (`None`: the
+    /// engine's default k).
     #[staticmethod]
-    #[pyo3(signature = (k=1.345))]
-    fn huber(k: f64) -> PyResult<Self> {
-        Self::scheme("huber", 0.999, 20, k, 9.0, 20)
+    #[pyo3(signature = (k=None))]
+    fn huber(k: Option<f64>) -> PyResult<Self> {
+        Self::scheme("huber", None, None, k, None, None, None)
     }
 
     /// The scheme's name in the registry.
@@ -122,17 +115,10 @@ impl Policy {
         }
     }
 
-    /// The tuning constants.
+    /// The tuning constants, a dict by the engine's names.
     #[getter]
-    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        let p = &self.parameters;
-        d.set_item("chi2_probability", p.chi2_probability)?;
-        d.set_item("recovering_after", p.recovering_after)?;
-        d.set_item("huber_k", p.huber_k)?;
-        d.set_item("anomaly_gamma", p.anomaly_gamma)?;
-        d.set_item("adaptive_window", p.adaptive_window)?;
-        Ok(d)
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        parameters_dict(py, &self.parameters)
     }
 
     /// Forget the state kept across updates (a fresh policy).
@@ -143,6 +129,35 @@ impl Policy {
     fn __repr__(&self) -> String {
         format!("Policy.scheme({:?})", self.scheme.name())
     }
+}
+
+impl Policy {
+    /// `scheme` with `parameters`, checked by the engine
+    /// ([`SchemeParameters::validate`]: the error names the parameter, its
+    /// value and its range).
+    fn new(scheme: RustScheme, parameters: SchemeParameters) -> PyResult<Self> {
+        parameters
+            .validate()
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(Self {
+            scheme,
+            parameters,
+            policy: scheme.policy(&parameters),
+        })
+    }
+}
+
+/// Scheme parameters as a dict, by the engine's (serde) names.
+fn parameters_dict<'py>(py: Python<'py>, p: &SchemeParameters) -> PyResult<Bound<'py, PyAny>> {
+    let value = serde_json::to_value(p).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    py_of_json(py, &value)
+}
+
+/// The engine's default tuning constants of the schemes, a dict by the
+/// keyword names of `Policy.scheme` (the `[gnss]` keys of `process`).
+#[pyfunction]
+fn scheme_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    parameters_dict(py, &SchemeParameters::default())
 }
 
 /// The names of the registry's schemes, in the order of the tables.

@@ -191,15 +191,18 @@ pub struct AnomaliesScenario {
     pub wrong_q_scale: f64,
     /// `kf_wrong_stats` believes R × this. Default 1.
     pub wrong_r_scale: f64,
-    /// Anomaly level γ of eq. 5, > 0. Default 9.
+    /// Anomaly level γ of eq. 5, 1 … 10 000. Default: the engine's
+    /// [`SchemeParameters::anomaly_gamma`] (9).
     pub gamma: f64,
     /// Stable epochs averaged for the feedback term during anomalies, ≥ 1. Default 10.
     pub stable_window: usize,
     /// Innovations n in eq. 4's empirical covariance M̂, ≥ 1. Default 10.
     pub gain_window: usize,
-    /// χ² gate probability. Default 0.999.
+    /// χ² gate probability, 0 < p < 1. Default: the engine's
+    /// [`SchemeParameters::chi2_probability`] (0.999).
     pub chi2_probability: f64,
-    /// Huber threshold k on √NIS. Default 1.345.
+    /// Huber threshold k on √NIS, 0.1 … 100. Default: the engine's
+    /// [`SchemeParameters::huber_k`] (1.345).
     pub huber_k: f64,
     /// Fixes in `median_kf`'s running median, 1 … 1001. Default 5 (a
     /// spike of up to two fixes is removed).
@@ -333,7 +336,10 @@ impl Default for Illustration {
 }
 
 impl Default for AnomaliesScenario {
+    /// γ, the χ² probability and Huber's k: the engine's
+    /// [`SchemeParameters::default`].
     fn default() -> Self {
+        let scheme = SchemeParameters::default();
         Self {
             seed: 20261123,
             runs: 200,
@@ -370,11 +376,11 @@ impl Default for AnomaliesScenario {
             initial_tilt_sigma_rad: 1e-3,
             wrong_q_scale: 1.0,
             wrong_r_scale: 1.0,
-            gamma: 9.0,
+            gamma: scheme.anomaly_gamma,
             stable_window: 10,
             gain_window: 10,
-            chi2_probability: 0.999,
-            huber_k: 1.345,
+            chi2_probability: scheme.chi2_probability,
+            huber_k: scheme.huber_k,
             median_window: 5,
             illustration: Illustration::default(),
             per_type: PerTypeScenario::default(),

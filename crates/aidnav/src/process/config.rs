@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use aidnav_estimation::adaptive::DiagonalRule;
 use aidnav_estimation::gmdh::GmdhConfig;
 use aidnav_estimation::{Scheme, SchemeParameters};
 use aidnav_supervisors::outage::{BridgeConfig, RelaySchedule};
@@ -275,11 +276,30 @@ pub struct GnssConfig {
     pub policy: PolicyName,
     /// Anomaly level γ of spec 20's detector (eq. 5: νᵀν > γ tr S) in
     /// `rejection`, `limiting`, `limited_adaptive_gain`, `developed`,
-    /// `robust` and the adaptive noise's guard. Default 9.
+    /// `robust` and the adaptive noise's guard, 1 … 10 000. Default and
+    /// range: the engine's [`SchemeParameters::anomaly_gamma`] (9).
     pub anomaly_gamma: f64,
     /// Innovations in eq. 4's sliding window (`adaptive_gain`,
-    /// `limited_adaptive_gain`). Default 20 (5 s at 4 Hz).
+    /// `limited_adaptive_gain`), 1 … 10 000. Default and range: the
+    /// engine's [`SchemeParameters::adaptive_window`] (20, 5 s at 4 Hz).
     pub adaptive_window: usize,
+    /// Probability of the χ²(m) quantile that `chi2_gate` and
+    /// `recovering_gate` reject above, 0 < p < 1. Default and range: the
+    /// engine's [`SchemeParameters::chi2_probability`] (0.999).
+    pub chi2_probability: f64,
+    /// Rejections in a row after which `recovering_gate` accepts again,
+    /// 1 … 100 000 (fixes). Default and range: the engine's
+    /// [`SchemeParameters::recovering_after`] (20, 5 s at 4 Hz).
+    pub recovering_after: usize,
+    /// Huber threshold k on √NIS (`huber`: R inflated by √NIS / k above
+    /// k), 0.1 … 100. Default and range: the engine's
+    /// [`SchemeParameters::huber_k`] (1.345).
+    pub huber_k: f64,
+    /// How eq. 4 compares the diagonals of M̂ and H P⁻ Hᵀ (`adaptive_gain`,
+    /// `limited_adaptive_gain`): `all` (every element must exceed) or
+    /// `any`. Default: the engine's
+    /// [`SchemeParameters::adaptive_diagonal_rule`] (`all`).
+    pub adaptive_diagonal_rule: DiagonalRule,
     /// Every GNSS σ (position and velocity, after the quality factors and
     /// the floors) × this: the receiver's σ may be optimistic or
     /// pessimistic as a whole (`aidnav tune` fits it). Default 1.
@@ -490,7 +510,9 @@ impl QualitySigmaScale {
 }
 
 impl Default for GnssConfig {
+    /// The scheme keys from the engine's [`SchemeParameters::default`].
     fn default() -> Self {
+        let scheme = SchemeParameters::default();
         Self {
             lever_arm_m: [0.0; 3],
             use_velocity: true,
@@ -498,8 +520,12 @@ impl Default for GnssConfig {
             min_velocity_sigma_mps: 0.02,
             quality_sigma_scale: QualitySigmaScale::default(),
             policy: PolicyName::Robust,
-            anomaly_gamma: 9.0,
-            adaptive_window: 20,
+            anomaly_gamma: scheme.anomaly_gamma,
+            adaptive_window: scheme.adaptive_window,
+            chi2_probability: scheme.chi2_probability,
+            recovering_after: scheme.recovering_after,
+            huber_k: scheme.huber_k,
+            adaptive_diagonal_rule: scheme.adaptive_diagonal_rule,
             sigma_scale: 1.0,
             recovery: true,
             recovery_fixes: 21,
@@ -961,16 +987,17 @@ impl ProcessConfig {
 pub type PolicyName = Scheme;
 
 impl GnssConfig {
-    /// The registry's tuning constants for the GNSS updates: χ² gates at
-    /// 0.999 (the recovering one accepts again after 20 rejections, 5 s at
-    /// 4 Hz), Huber k = 1.345, and this table's γ and eq. 4 window.
+    /// The registry's tuning constants for the GNSS updates, from this
+    /// table's scheme keys (every field named, so a parameter the engine
+    /// adds must be given a key here).
     pub fn scheme_parameters(&self) -> SchemeParameters {
         SchemeParameters {
-            chi2_probability: 0.999,
-            recovering_after: 20,
-            huber_k: 1.345,
+            chi2_probability: self.chi2_probability,
+            recovering_after: self.recovering_after,
+            huber_k: self.huber_k,
             anomaly_gamma: self.anomaly_gamma,
             adaptive_window: self.adaptive_window,
+            adaptive_diagonal_rule: self.adaptive_diagonal_rule,
         }
     }
 }

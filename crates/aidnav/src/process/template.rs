@@ -140,6 +140,22 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "innovations in eq. 4's window (adaptive_gain, limited_adaptive_gain)",
     ),
     (
+        "gnss.chi2_probability",
+        "chi2_gate, recovering_gate: reject when the NIS exceeds the χ²(m) quantile of this probability",
+    ),
+    (
+        "gnss.recovering_after",
+        "recovering_gate: accept again after this many rejections in a row [fixes]",
+    ),
+    (
+        "gnss.huber_k",
+        "huber: R inflated by √NIS / k when √NIS > k [dimensionless, σ of the innovation]",
+    ),
+    (
+        "gnss.adaptive_diagonal_rule",
+        "all | any: eq. 4 uses M̂ when all (any) of its diagonal exceeds H P⁻ Hᵀ's",
+    ),
+    (
         "gnss.quality_sigma_scale.float",
         "σ of RTK float solutions × this",
     ),

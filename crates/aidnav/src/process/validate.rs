@@ -3,9 +3,10 @@
 
 use aidnav_io::config::{Invalid, Validate, all_positive, count_in_range, in_range, non_negative};
 
+use aidnav_estimation::EstimationError;
 use aidnav_estimation::gmdh::{GmdhConfig, GmdhError};
 
-use super::config::{GnssFormat, ImuFormat, ProcessConfig};
+use super::config::{GnssConfig, GnssFormat, ImuFormat, ProcessConfig};
 
 impl Validate for ProcessConfig {
     fn validate(&self) -> Result<(), Invalid> {
@@ -264,9 +265,7 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
             ("min_velocity_sigma_mps", cfg.gnss.min_velocity_sigma_mps),
         ],
     )?;
-    in_range("anomaly_gamma", cfg.gnss.anomaly_gamma, 1.0, 1e4).map_err(|e| e.within("gnss"))?;
-    count_in_range("adaptive_window", cfg.gnss.adaptive_window, 1, 10_000)
-        .map_err(|e| e.within("gnss"))?;
+    validate_scheme(&cfg.gnss)?;
     count_in_range("recovery_fixes", cfg.gnss.recovery_fixes, 2, 100_000)
         .map_err(|e| e.within("gnss"))?;
     in_range(
@@ -286,6 +285,23 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
     )
     .map_err(|e| e.within("filter"))?;
     Ok(())
+}
+
+/// The scheme keys of `[gnss]` (`anomaly_gamma`, `chi2_probability`, …)
+/// in the engine's ranges ([`SchemeParameters::validate`]), the error
+/// naming `gnss.<key>`.
+///
+/// [`SchemeParameters::validate`]: aidnav_estimation::SchemeParameters::validate
+fn validate_scheme(g: &GnssConfig) -> Result<(), Invalid> {
+    match g.scheme_parameters().validate() {
+        Ok(()) => Ok(()),
+        Err(EstimationError::OutOfRange {
+            parameter,
+            value,
+            allowed,
+        }) => Err(Invalid::new(parameter, value, allowed).within("gnss")),
+        Err(other) => Err(Invalid::new("gnss", other, "valid scheme parameters")),
+    }
 }
 
 /// The outage bridge's GMDH table: every key within the bounds of
@@ -410,6 +426,64 @@ mod tests {
         aidnav_io::config::parse_toml::<ProcessConfig>(&text, std::path::Path::new("p.toml"))
             .unwrap_err()
             .to_string()
+    }
+
+    /// The application's scheme defaults are the engine's, by value.
+    #[test]
+    fn the_scheme_defaults_are_the_engines() {
+        use aidnav_estimation::SchemeParameters;
+        let engine = SchemeParameters::default();
+        assert_eq!(GnssConfig::default().scheme_parameters(), engine);
+        let cfg =
+            aidnav_io::config::parse_toml::<ProcessConfig>(DATA, std::path::Path::new("p.toml"))
+                .unwrap();
+        assert_eq!(cfg.gnss.scheme_parameters(), engine);
+    }
+
+    /// Each scheme key of `[gnss]` is read into the engine's parameters; a
+    /// value out of the engine's range is refused naming the file, the
+    /// line, the key and the range.
+    #[test]
+    fn the_scheme_keys_are_read_and_bounded_by_the_engine() {
+        use aidnav_estimation::adaptive::DiagonalRule;
+        let text = format!(
+            "{DATA}[gnss]\nchi2_probability = 0.99\nrecovering_after = 7\nhuber_k = 2.5\n\
+             anomaly_gamma = 16.0\nadaptive_window = 12\nadaptive_diagonal_rule = \"any\"\n"
+        );
+        let cfg =
+            aidnav_io::config::parse_toml::<ProcessConfig>(&text, std::path::Path::new("p.toml"))
+                .unwrap();
+        let p = cfg.gnss.scheme_parameters();
+        assert_eq!(
+            (p.chi2_probability, p.recovering_after, p.huber_k),
+            (0.99, 7, 2.5)
+        );
+        assert_eq!((p.anomaly_gamma, p.adaptive_window), (16.0, 12));
+        assert_eq!(p.adaptive_diagonal_rule, DiagonalRule::Any);
+        for (line, range) in [
+            ("chi2_probability = 1.0", "allowed 0 < chi2_probability < 1"),
+            (
+                "recovering_after = 0",
+                "allowed 1 ≤ recovering_after ≤ 100000",
+            ),
+            ("huber_k = 0.0", "allowed 0.1 ≤ huber_k ≤ 100"),
+            ("anomaly_gamma = 0.5", "allowed 1 ≤ anomaly_gamma ≤ 10000"),
+            ("adaptive_window = 0", "allowed 1 ≤ adaptive_window ≤ 10000"),
+        ] {
+            let (key, value) = line.split_once(" = ").unwrap();
+            let e = err(&format!("[gnss]\nuse_velocity = true\n{line}\n"));
+            let shown: f64 = value.parse().unwrap();
+            assert!(
+                e.starts_with(&format!("p.toml:8: gnss.{key}: {shown} is out of range")),
+                "{e}"
+            );
+            assert!(e.ends_with(range), "{e}");
+        }
+        let e = err("[gnss]\nadaptive_diagonal_rule = \"most\"\n");
+        assert!(
+            e.starts_with("p.toml:7: gnss.adaptive_diagonal_rule: ") && e.contains("any"),
+            "{e}"
+        );
     }
 
     #[test]
