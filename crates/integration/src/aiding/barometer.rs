@@ -4,11 +4,11 @@
 //! [`Augmented::BaroBias`](crate::state::Augmented::BaroBias) (without it,
 //! the barometer's datum must be the ellipsoid's).
 
-use aidnav_estimation::{AcceptAll, Chi2Gate, EstimationError};
+use aidnav_estimation::EstimationError;
 use aidnav_sensors::BaroSample;
 
-use super::{AidRecord, AidSource, SourceStatus, StepContext, first_after};
-use crate::measurements::{Barometer, Measurement};
+use super::{AidSource, SampleQueue, SourceStatus, StepContext, fuse_gated};
+use crate::measurements::Barometer;
 
 /// How the barometer source uses the samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,10 +24,8 @@ pub struct BaroConfig {
 /// Barometric heights as an aid source.
 #[derive(Debug, Clone)]
 pub struct BaroSource<'a> {
-    samples: &'a [BaroSample],
+    queue: SampleQueue<'a, BaroSample>,
     config: BaroConfig,
-    next: usize,
-    last_fused_s: f64,
     status: SourceStatus,
 }
 
@@ -35,10 +33,8 @@ impl<'a> BaroSource<'a> {
     /// A source over time-sorted samples.
     pub fn new(samples: &'a [BaroSample], config: BaroConfig) -> Self {
         Self {
-            samples,
+            queue: SampleQueue::new(samples, config.min_interval_s),
             config,
-            next: 0,
-            last_fused_s: f64::NEG_INFINITY,
             status: SourceStatus::new("barometer"),
         }
     }
@@ -50,51 +46,28 @@ impl<const N: usize> AidSource<N> for BaroSource<'_> {
     }
 
     fn start(&mut self, t_start_s: f64) {
-        self.next = first_after(self.samples, t_start_s, |s| s.time_s);
-        self.last_fused_s = f64::NEG_INFINITY;
+        self.queue.start(t_start_s);
     }
 
     fn next_time(&self) -> Option<f64> {
-        self.samples.get(self.next).map(|s| s.time_s)
+        self.queue.next_time()
     }
 
     fn step(&mut self, ctx: &mut StepContext<'_, '_, N>) -> Result<(), EstimationError> {
-        let Some(sample) = self
-            .samples
-            .get(self.next)
-            .filter(|s| s.time_s <= ctx.time_s)
-        else {
+        let due = self
+            .queue
+            .take_due(ctx.time_s, &mut self.status, |s| s.height_m.is_finite());
+        let Some(sample) = due else {
             return Ok(());
         };
-        self.next += 1;
-        if sample.time_s - self.last_fused_s < self.config.min_interval_s
-            || !sample.height_m.is_finite()
-        {
-            self.status.skipped += 1;
-            return Ok(());
-        }
-        self.last_fused_s = sample.time_s;
+        let floor = self.config.sigma_m;
         let measurement = Barometer {
             height_m: sample.height_m,
-            sigma_m: sample
-                .sigma_m
-                .map_or(self.config.sigma_m, |s| s.max(self.config.sigma_m)),
+            sigma_m: sample.sigma_m.map_or(floor, |s| s.max(floor)),
         };
-        let rec = match self.config.gate_probability {
-            Some(probability) => {
-                ctx.filter
-                    .fuse(&measurement, None, &mut Chi2Gate { probability })?
-            }
-            None => ctx.filter.fuse(&measurement, None, &mut AcceptAll)?,
-        };
-        let record = AidRecord::of(
-            sample.time_s,
-            "barometer",
-            <Barometer as Measurement<1, N>>::NAME,
-            &rec,
-        );
-        ctx.report(&mut self.status, &record);
-        Ok(())
+        let source = ("barometer", sample.time_s);
+        let gate = self.config.gate_probability;
+        fuse_gated(ctx, &measurement, gate, source, &mut self.status)
     }
 
     fn status(&self) -> SourceStatus {

@@ -3,12 +3,12 @@
 //! odometer's scale-factor error is estimated when the filter's layout has
 //! [`Augmented::WheelSpeedScale`](crate::state::Augmented::WheelSpeedScale).
 
-use aidnav_estimation::{AcceptAll, Chi2Gate, EstimationError};
+use aidnav_estimation::EstimationError;
 use aidnav_frames::{Body, Vec3};
 use aidnav_sensors::WheelSpeedSample;
 
-use super::{AidRecord, AidSource, SourceStatus, StepContext, first_after};
-use crate::measurements::{Measurement, WheelSpeed};
+use super::{AidSource, SampleQueue, SourceStatus, StepContext, fuse_gated};
+use crate::measurements::WheelSpeed;
 
 /// How the wheel-speed source uses the samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -26,10 +26,8 @@ pub struct WheelSpeedConfig {
 /// Wheel-speed samples as an aid source.
 #[derive(Debug, Clone)]
 pub struct WheelSpeedSource<'a> {
-    samples: &'a [WheelSpeedSample],
+    queue: SampleQueue<'a, WheelSpeedSample>,
     config: WheelSpeedConfig,
-    next: usize,
-    last_fused_s: f64,
     status: SourceStatus,
 }
 
@@ -37,10 +35,8 @@ impl<'a> WheelSpeedSource<'a> {
     /// A source over time-sorted samples.
     pub fn new(samples: &'a [WheelSpeedSample], config: WheelSpeedConfig) -> Self {
         Self {
-            samples,
+            queue: SampleQueue::new(samples, config.min_interval_s),
             config,
-            next: 0,
-            last_fused_s: f64::NEG_INFINITY,
             status: SourceStatus::new("wheel_speed"),
         }
     }
@@ -52,52 +48,29 @@ impl<const N: usize> AidSource<N> for WheelSpeedSource<'_> {
     }
 
     fn start(&mut self, t_start_s: f64) {
-        self.next = first_after(self.samples, t_start_s, |s| s.time_s);
-        self.last_fused_s = f64::NEG_INFINITY;
+        self.queue.start(t_start_s);
     }
 
     fn next_time(&self) -> Option<f64> {
-        self.samples.get(self.next).map(|s| s.time_s)
+        self.queue.next_time()
     }
 
     fn step(&mut self, ctx: &mut StepContext<'_, '_, N>) -> Result<(), EstimationError> {
-        let Some(sample) = self
-            .samples
-            .get(self.next)
-            .filter(|s| s.time_s <= ctx.time_s)
-        else {
+        let due = self
+            .queue
+            .take_due(ctx.time_s, &mut self.status, |s| s.speed_mps.is_finite());
+        let Some(sample) = due else {
             return Ok(());
         };
-        self.next += 1;
-        if sample.time_s - self.last_fused_s < self.config.min_interval_s
-            || !sample.speed_mps.is_finite()
-        {
-            self.status.skipped += 1;
-            return Ok(());
-        }
-        self.last_fused_s = sample.time_s;
+        let floor = self.config.sigma_mps;
         let measurement = WheelSpeed {
             speed_mps: sample.speed_mps,
-            sigma_mps: sample
-                .sigma_mps
-                .map_or(self.config.sigma_mps, |s| s.max(self.config.sigma_mps)),
+            sigma_mps: sample.sigma_mps.map_or(floor, |s| s.max(floor)),
             lever_arm_m: self.config.lever_arm_m,
         };
-        let rec = match self.config.gate_probability {
-            Some(probability) => {
-                ctx.filter
-                    .fuse(&measurement, None, &mut Chi2Gate { probability })?
-            }
-            None => ctx.filter.fuse(&measurement, None, &mut AcceptAll)?,
-        };
-        let record = AidRecord::of(
-            sample.time_s,
-            "wheel_speed",
-            <WheelSpeed as Measurement<1, N>>::NAME,
-            &rec,
-        );
-        ctx.report(&mut self.status, &record);
-        Ok(())
+        let source = ("wheel_speed", sample.time_s);
+        let gate = self.config.gate_probability;
+        fuse_gated(ctx, &measurement, gate, source, &mut self.status)
     }
 
     fn status(&self) -> SourceStatus {
