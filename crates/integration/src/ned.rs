@@ -709,14 +709,6 @@ impl<const N: usize> NedFilter<N> {
         self.instruments.gyro_bias = bias;
     }
 
-    /// Mechanize one raw increment *without* the instrument corrections and
-    /// without touching the covariance: the free INS of an outage score.
-    pub fn coast_uncorrected(&mut self, raw: &ImuIncrement) {
-        if raw.dt_s > 0.0 {
-            self.ins.update(raw);
-        }
-    }
-
     /// σ of every error state (as of the last covariance propagation).
     pub fn sigmas(&self) -> SVector<f64, N> {
         self.kf.covariance().diagonal().map(f64::sqrt)

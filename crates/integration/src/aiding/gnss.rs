@@ -198,7 +198,7 @@ impl<const N: usize> AidSource<N> for GnssSource<'_> {
     fn step(&mut self, ctx: &mut StepContext<'_, '_, N>) -> Result<(), EstimationError> {
         // One fix per step: a second one at the same time comes at the
         // loop's next (zero-length) split.
-        if !matches!(self.next_time_s(), Some(t) if t <= ctx.time_s) {
+        if !matches!(AidSource::<N>::next_time(self), Some(t) if t <= ctx.time_s) {
             return Ok(());
         }
         let index = self.next;
@@ -222,11 +222,5 @@ impl<const N: usize> AidSource<N> for GnssSource<'_> {
 
     fn status(&self) -> SourceStatus {
         self.status
-    }
-}
-
-impl GnssSource<'_> {
-    fn next_time_s(&self) -> Option<f64> {
-        self.fixes.get(self.next).map(|g| g.fix.time_s)
     }
 }
