@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("filter_measurements", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("filter_measurements", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("filter_measurements", data);
+    let _ = aidnav::app::fuzzing::run("filter_measurements", data);
 });

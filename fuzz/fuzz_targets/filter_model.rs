@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("filter_model", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("filter_model", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("filter_model", data);
+    let _ = aidnav::app::fuzzing::run("filter_model", data);
 });

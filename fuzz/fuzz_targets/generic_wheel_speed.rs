@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("generic_wheel_speed", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("generic_wheel_speed", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("generic_wheel_speed", data);
+    let _ = aidnav::app::fuzzing::run("generic_wheel_speed", data);
 });

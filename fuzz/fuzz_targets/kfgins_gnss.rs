@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("kfgins_gnss", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("kfgins_gnss", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("kfgins_gnss", data);
+    let _ = aidnav::app::fuzzing::run("kfgins_gnss", data);
 });

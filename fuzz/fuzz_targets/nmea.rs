@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("nmea", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("nmea", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("nmea", data);
+    let _ = aidnav::app::fuzzing::run("nmea", data);
 });

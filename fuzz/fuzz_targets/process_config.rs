@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("process_config", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("process_config", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("process_config", data);
+    let _ = aidnav::app::fuzzing::run("process_config", data);
 });

@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("scenarios", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("scenarios", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("scenarios", data);
+    let _ = aidnav::app::fuzzing::run("scenarios", data);
 });

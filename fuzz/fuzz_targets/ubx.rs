@@ -1,6 +1,6 @@
 #![no_main]
-//! cargo-fuzz target: `aidnav::fuzzing::run("ubx", …)`.
+//! cargo-fuzz target: `aidnav::app::fuzzing::run("ubx", …)`.
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = aidnav::fuzzing::run("ubx", data);
+    let _ = aidnav::app::fuzzing::run("ubx", data);
 });

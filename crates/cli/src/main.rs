@@ -1,12 +1,12 @@
 //! `aidnav`: the command-line face of the aidnav library. Thin by design:
-//! every subcommand parses its arguments, calls one job of `aidnav::jobs`,
+//! every subcommand parses its arguments, calls one job of `aidnav::app::jobs`,
 //! and prints what it returns.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use aidnav::io::measurements::DEFAULT_MAX_EPOCHS;
-use aidnav::jobs::{self, FilterJob};
+use aidnav::app::jobs::{self, FilterJob};
 use aidnav::reproduce::MonteCarloScenario;
 use aidnav::reproduce::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::reproduce::consistency::{ConsistencyResult, ConsistencyScenario};

@@ -3,7 +3,7 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use aidnav::jobs::{self, ProcessReport};
+use aidnav::app::jobs::{self, ProcessReport};
 use anyhow::Result;
 
 use super::ProcessArgs;
@@ -22,9 +22,9 @@ fn score(value: Option<f64>, decimals: usize) -> String {
 
 pub(crate) fn run_process(a: ProcessArgs) -> Result<ExitCode> {
     if a.print_config {
-        let platform: aidnav::process::Platform =
+        let platform: aidnav::app::process::Platform =
             serde_json::from_value(serde_json::Value::String(a.platform.clone()))?;
-        print!("{}", aidnav::process::config_template(platform));
+        print!("{}", aidnav::app::process::config_template(platform));
         return Ok(ExitCode::SUCCESS);
     }
     let Some(config) = a.config else {
@@ -67,9 +67,9 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<ExitCode> {
     println!(
         "start: {} at {} ({:.1} s after the first GNSS epoch{}); standstill updates: {}",
         match r.start.kind {
-            aidnav::process::StartKind::Given => "given attitude",
-            aidnav::process::StartKind::Static => "levelled at a standstill",
-            aidnav::process::StartKind::Moving => "aligned in motion",
+            aidnav::app::process::StartKind::Given => "given attitude",
+            aidnav::app::process::StartKind::Static => "levelled at a standstill",
+            aidnav::app::process::StartKind::Moving => "aligned in motion",
         },
         aidnav::io::text::date_time(r.start.time_s),
         r.start.after_first_fix_s,
@@ -187,7 +187,7 @@ fn print_outages(r: &ProcessReport) {
                 .collect();
             println!(
                 "  {:<15} {}",
-                aidnav::process::config_name(&b.predictor),
+                aidnav::app::process::config_name(&b.predictor),
                 cells.join("   ")
             );
         }

@@ -2,8 +2,8 @@
 
 use std::path::Path;
 
-use aidnav::jobs::{self, TuneJob};
-use aidnav::process::tune::{PARAMETERS, TuneResult};
+use aidnav::app::jobs::{self, TuneJob};
+use aidnav::app::process::tune::{PARAMETERS, TuneResult};
 use anyhow::Result;
 
 use super::TuneArgs;

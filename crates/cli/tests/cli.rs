@@ -1222,7 +1222,7 @@ fn process_with_auto_noise_tunes_first() {
 /// are the midpoints to its neighbours) plus 1e-9 s of rounding at 6e5 s.
 #[test]
 fn convert_to_kf_gins_round_trips_the_drive() {
-    use aidnav::process::{Inputs, ProcessConfig};
+    use aidnav::app::process::{Inputs, ProcessConfig};
     let dir = tempfile::tempdir().unwrap();
     let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
     let data = repo().join("data/rtklibexplorer-gnss-imu/drive_0708");

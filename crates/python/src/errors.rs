@@ -3,8 +3,8 @@
 
 use aidnav::estimation::EstimationError;
 use aidnav::io::IoError;
-use aidnav::jobs::JobError;
-use aidnav::process::ProcessError;
+use aidnav::app::jobs::JobError;
+use aidnav::app::process::ProcessError;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;

@@ -2,8 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
-use aidnav::jobs::{Campaign as RustCampaign, Experiment, ProcessRun, ScenarioOverrides};
-use aidnav::process::{Inputs, Process, ProcessConfig};
+use aidnav::app::jobs::{Campaign as RustCampaign, Experiment, ProcessRun, ScenarioOverrides};
+use aidnav::app::process::{Inputs, Process, ProcessConfig};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -102,7 +102,7 @@ impl ProcessResult {
         let r = &self.run.result;
         table(
             py,
-            aidnav::process::export::solution_table(&r.epochs, &r.between),
+            aidnav::app::process::export::solution_table(&r.epochs, &r.between),
         )
     }
 
@@ -110,7 +110,7 @@ impl ProcessResult {
     fn smoothed<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         table(
             py,
-            aidnav::process::export::smoothed_table(&self.run.result.smoothed),
+            aidnav::app::process::export::smoothed_table(&self.run.result.smoothed),
         )
     }
 
@@ -118,7 +118,7 @@ impl ProcessResult {
     fn instruments<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         table(
             py,
-            aidnav::process::export::instruments_table(&self.run.result.epochs),
+            aidnav::app::process::export::instruments_table(&self.run.result.epochs),
         )
     }
 
@@ -174,13 +174,13 @@ fn process_log(
         let process = if imu.is_none() && gnss.is_none() {
             Process::load(cfg, &base).map_err(PyErrState::process)?
         } else {
-            let dir = aidnav::process::data_dir(&cfg, &base);
+            let dir = aidnav::app::process::data_dir(&cfg, &base);
             let mut warnings = Vec::new();
             let (imu, imu_origin) = match imu {
                 Some(s) => (s, PathBuf::from("imu (in memory)")),
                 None => {
                     let path = dir.join(&cfg.data.imu);
-                    let (s, w) = aidnav::process::read_imu(
+                    let (s, w) = aidnav::app::process::read_imu(
                         cfg.data.imu_format,
                         &path,
                         cfg.data.imu_tags.as_ref().map(|t| dir.join(t)).as_deref(),
@@ -195,7 +195,7 @@ fn process_log(
                 Some(s) => (s, PathBuf::from("gnss (in memory)")),
                 None => {
                     let path = dir.join(&cfg.data.gnss);
-                    let (s, w) = aidnav::process::read_gnss(
+                    let (s, w) = aidnav::app::process::read_gnss(
                         cfg.data.gnss_format,
                         &path,
                         cfg.data.gnss_sigma_m,
@@ -222,15 +222,15 @@ fn process_log(
 
 /// An error made off the GIL, raised once it is back.
 enum PyErrState {
-    Process(aidnav::process::ProcessError),
-    Job(aidnav::jobs::JobError),
+    Process(aidnav::app::process::ProcessError),
+    Job(aidnav::app::jobs::JobError),
 }
 
 impl PyErrState {
-    fn process(e: aidnav::process::ProcessError) -> Self {
+    fn process(e: aidnav::app::process::ProcessError) -> Self {
         Self::Process(e)
     }
-    fn job(e: aidnav::jobs::JobError) -> Self {
+    fn job(e: aidnav::app::jobs::JobError) -> Self {
         Self::Job(e)
     }
     fn into_err(self) -> PyErr {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use aidnav::frames::earth::Geodetic;
 use aidnav::io::rtklib::{GnssFix, ImuSample};
-use aidnav::process::{GnssFormat, ImuFormat};
+use aidnav::app::process::{GnssFormat, ImuFormat};
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
@@ -314,7 +314,7 @@ fn read_imu<'py>(
     let f: ImuFormat = self::format(format, "format")?;
     let units = units_of(units)?;
     let (imu, warnings) = py
-        .detach(|| aidnav::process::read_imu(f, &path, tags.as_deref(), units))
+        .detach(|| aidnav::app::process::read_imu(f, &path, tags.as_deref(), units))
         .map_err(errors::process)?;
     Ok((imu_columns(py, &imu)?, warnings))
 }
@@ -332,7 +332,7 @@ fn read_gnss<'py>(
 ) -> PyResult<(Bound<'py, PyDict>, Vec<String>)> {
     let f: GnssFormat = self::format(format, "format")?;
     let (gnss, warnings) = py
-        .detach(|| aidnav::process::read_gnss(f, &path, sigma_m))
+        .detach(|| aidnav::app::process::read_gnss(f, &path, sigma_m))
         .map_err(errors::process)?;
     Ok((gnss_columns(py, &gnss)?, warnings))
 }

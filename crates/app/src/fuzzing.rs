@@ -6,7 +6,7 @@
 //!
 //! ```
 //! // A truncated RTKLIB line: an error, not a panic.
-//! aidnav::fuzzing::run("rtklib_pos", b"2025/07/08 19:34:01.000 ").unwrap();
+//! aidnav_app::fuzzing::run("rtklib_pos", b"2025/07/08 19:34:01.000 ").unwrap();
 //! ```
 
 use std::path::Path;

@@ -27,9 +27,9 @@ use serde::Serialize;
 /// given, so no heading from motion is needed. The filter stays at the fix.
 ///
 /// ```
-/// use aidnav::frames::earth::Geodetic;
-/// use aidnav::io::rtklib::{GnssFix, ImuSample};
-/// use aidnav::process::{Inputs, Process, ProcessConfig};
+/// use aidnav_frames::earth::Geodetic;
+/// use aidnav_io::rtklib::{GnssFix, ImuSample};
+/// use aidnav_app::process::{Inputs, Process, ProcessConfig};
 /// use nalgebra::Vector3;
 ///
 /// let mut cfg: ProcessConfig = toml::from_str(
@@ -39,7 +39,7 @@ use serde::Serialize;
 /// cfg.initial.attitude_deg = Some([0.0; 3]);
 /// cfg.outage_bridge.enabled = false;
 /// let place = Geodetic { latitude_rad: 0.6, longitude_rad: 0.2, height_m: 10.0 };
-/// let g = aidnav::ins::ned::gravity_ned(&place).z();
+/// let g = aidnav_ins::ned::gravity_ned(&place).z();
 /// let imu = (0..1200)
 ///     .map(|k| ImuSample {
 ///         time_s: k as f64 * 0.01,

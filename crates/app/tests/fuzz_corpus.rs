@@ -1,11 +1,11 @@
 //! The fuzz targets on stable, in the default suite: every seed, corpus and
-//! crash file under `fuzz/` replayed through `aidnav::fuzzing` (a crash file
+//! crash file under `fuzz/` replayed through `aidnav_app::fuzzing` (a crash file
 //! the fuzzer once found stays a regression test), and proptest feeding
 //! arbitrary bytes to every reader and loader. A panic fails the test.
 
 use std::path::{Path, PathBuf};
 
-use aidnav::fuzzing::{TARGETS, run};
+use aidnav_app::fuzzing::{TARGETS, run};
 use proptest::prelude::*;
 
 fn fuzz_dir() -> PathBuf {
@@ -48,11 +48,11 @@ fn every_target_has_seeds_and_replays_its_corpus_and_crashes() {
 fn the_tagged_imu_cut_is_the_first_four_bytes() {
     let mut data = 3u32.to_le_bytes().to_vec();
     data.extend(b"abcdef");
-    assert_eq!(aidnav::fuzzing::split(&data), (&b"abc"[..], &b"def"[..]));
+    assert_eq!(aidnav_app::fuzzing::split(&data), (&b"abc"[..], &b"def"[..]));
     let mut long = u32::MAX.to_le_bytes().to_vec();
     long.extend(b"xy");
-    assert_eq!(aidnav::fuzzing::split(&long), (&b"xy"[..], &b""[..]));
-    assert_eq!(aidnav::fuzzing::split(b"ab"), (&b""[..], &b""[..]));
+    assert_eq!(aidnav_app::fuzzing::split(&long), (&b"xy"[..], &b""[..]));
+    assert_eq!(aidnav_app::fuzzing::split(b"ab"), (&b""[..], &b""[..]));
 }
 
 proptest! {
@@ -86,7 +86,7 @@ proptest! {
             0..24,
         )
     ) {
-        use aidnav::io::ubx::frame::encode;
+        use aidnav_io::ubx::frame::encode;
         let mut log = Vec::new();
         for (pvt, payload, junk) in &frames {
             let (class, id) = if *pvt { (0x01, 0x07) } else { (0x02, 0x15) };
@@ -104,13 +104,13 @@ proptest! {
     #[test]
     fn generic_gnss_rows_never_panic(
         layout in 0..5usize,
-        columns in proptest::collection::vec(0..aidnav::io::generic_gnss::KNOWN_COLUMNS.len(), 1..10),
+        columns in proptest::collection::vec(0..aidnav_io::generic_gnss::KNOWN_COLUMNS.len(), 1..10),
         rows in proptest::collection::vec(
             proptest::collection::vec("(-?[0-9]{1,10}(\\.[0-9]{0,6})?|20[0-9]{2}-[01][0-9]-[0-3][0-9][T ][0-2][0-9]:[0-5][0-9]:[0-6][0-9](\\.[0-9]{1,3})?(Z|[+-][0-9]{2}:?[0-9]{2})?|fixed|float|NaN|inf|)", 0..10),
             0..12,
         )
     ) {
-        let names = aidnav::io::generic_gnss::KNOWN_COLUMNS;
+        let names = aidnav_io::generic_gnss::KNOWN_COLUMNS;
         let header = match layout {
             0 => "gpst_s,lat_deg,lon_deg,height_m,sigma_n_m,sigma_e_m,sigma_u_m,vel_n_mps,vel_e_mps,vel_d_mps,sigma_vel_mps".to_string(),
             1 => "utc,lat_deg,lon_deg,height_msl_m,geoid_sep_m,sigma_h_m,sigma_v_m,speed_mps,course_deg,quality".to_string(),

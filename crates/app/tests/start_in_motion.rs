@@ -5,11 +5,11 @@
 //! own WGS-84 mechanization (so truth and IMU agree exactly), with biased
 //! instruments; the GNSS gives the truth at 4 Hz.
 
-use aidnav::frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
-use aidnav::frames::{Body, Ned, Rotation, Vec3};
-use aidnav::ins::ned::{ImuIncrement, NedMechanization, NedState, gravity_ned};
-use aidnav::io::rtklib::{GnssFix, ImuSample};
-use aidnav::process::{Inputs, Process, ProcessConfig, StartKind};
+use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
+use aidnav_frames::{Body, Ned, Rotation, Vec3};
+use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState, gravity_ned};
+use aidnav_io::rtklib::{GnssFix, ImuSample};
+use aidnav_app::process::{Inputs, Process, ProcessConfig, StartKind};
 use nalgebra::Vector3;
 
 const DT: f64 = 0.01;
@@ -119,7 +119,7 @@ fn run(platform: &str, offset_deg: [f64; 3], after_s: &[f64]) -> (StartKind, Vec
     let result = Process::new(cfg, inputs).unwrap().run().unwrap();
     assert!(result.start.after_first_fix_s < 0.02, "{:?}", result.start);
     assert_eq!(result.standstill_updates, 0);
-    let error_deg = |e: &aidnav::process::Epoch| {
+    let error_deg = |e: &aidnav_app::process::Epoch| {
         let i = ((e.time_s() - T0) / DT).round() as usize;
         e.attitude.angle_to(&truth[i].attitude).to_degrees()
     };

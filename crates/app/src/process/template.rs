@@ -400,7 +400,7 @@ pub const OPTIONAL_KEYS: &[(&str, &str)] = &[
 /// a comment per key, the data files as placeholders to edit.
 ///
 /// ```
-/// use aidnav::process::{Platform, ProcessConfig, config_template};
+/// use aidnav_app::process::{Platform, ProcessConfig, config_template};
 /// let text = config_template(Platform::Car);
 /// let cfg: ProcessConfig = toml::from_str(&text).unwrap();
 /// assert!(cfg.non_holonomic());

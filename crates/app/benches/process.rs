@@ -12,15 +12,15 @@
 use std::hint::black_box;
 use std::path::Path;
 
-use aidnav::frames::{Rotation, Vec3};
-use aidnav::ins::ned::{ImuIncrement, NedMechanization, NedState};
-use aidnav::process::{PolicyName, ProcessConfig, RunPlan, export, load_inputs, run_filter};
+use aidnav_frames::{Rotation, Vec3};
+use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState};
+use aidnav_app::process::{PolicyName, ProcessConfig, RunPlan, export, load_inputs, run_filter};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn process(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let config = root.join("examples/drive_0708.toml");
-    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
+    let (cfg, _) = aidnav_io::load_toml::<ProcessConfig>(&config).unwrap();
     let base = config.parent().unwrap().to_path_buf();
     let inputs = load_inputs(&cfg, &base).unwrap();
     let mut g = c.benchmark_group("drive_0708");

@@ -11,16 +11,16 @@
 
 use std::path::Path;
 
-use aidnav::process::{
+use aidnav_app::process::{
     PolicyName, ProcessConfig, RunPlan, load_inputs, outage_windows, run_filter, score_windows,
     tracking_rms,
 };
 
 /// The example configuration, its path and the drive it reads.
-fn drive() -> (std::path::PathBuf, ProcessConfig, aidnav::process::Inputs) {
+fn drive() -> (std::path::PathBuf, ProcessConfig, aidnav_app::process::Inputs) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let config = root.join("examples/drive_0708.toml");
-    let (cfg, _) = aidnav::io::load_toml::<ProcessConfig>(&config).unwrap();
+    let (cfg, _) = aidnav_io::load_toml::<ProcessConfig>(&config).unwrap();
     let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
     (config, cfg, inputs)
 }
@@ -109,10 +109,10 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
     let mut kf = cfg.clone();
     kf.data.dir = dir.path().to_path_buf();
     kf.data.imu = "imu.txt".into();
-    kf.data.imu_format = aidnav::process::ImuFormat::KfGins;
+    kf.data.imu_format = aidnav_app::process::ImuFormat::KfGins;
     kf.data.imu_tags = None;
     kf.data.gnss = "gnss.txt".into();
-    kf.data.gnss_format = aidnav::process::GnssFormat::KfGins;
+    kf.data.gnss_format = aidnav_app::process::GnssFormat::KfGins;
     kf.imu.time_offset_s = 0.0;
     kf.imu.mounting_deg = [0.0; 3];
     kf.imu.smoothing_s = 0.0;
@@ -124,7 +124,7 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
     // the configuration names it; scored against itself it would be.
     assert_eq!(tracking_rms(&b, &kf.score.reference_quality), None);
     // Against the same fixes: all of the drive's (fixed and float alike).
-    use aidnav::process::FixQuality::{Fixed, Float, Unknown};
+    use aidnav_app::process::FixQuality::{Fixed, Float, Unknown};
     let (ta, tb) = (
         tracking_rms(&a, &[Fixed, Float]).unwrap(),
         tracking_rms(&b, &[Unknown]).unwrap(),
@@ -142,7 +142,7 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
 /// tracks the RTK fixes more closely than the fixed model noise.
 #[test]
 fn supervisors_on_the_drive() {
-    use aidnav::process::{AdaptiveNoise, bridged_epochs, efficiency_in_windows};
+    use aidnav_app::process::{AdaptiveNoise, bridged_epochs, efficiency_in_windows};
     let (_, mut cfg, inputs) = drive();
     cfg.efficiency.sigma_gnss_m = Some(1.5);
     let first = inputs.imu[0].time_s;
@@ -249,7 +249,7 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
     let mut nmea = cfg.clone();
     nmea.data.dir = config.parent().unwrap().join(&cfg.data.dir);
     nmea.data.gnss = dir.path().join("drive.nmea");
-    nmea.data.gnss_format = aidnav::process::GnssFormat::Nmea;
+    nmea.data.gnss_format = aidnav_app::process::GnssFormat::Nmea;
     let again = load_inputs(&nmea, dir.path()).unwrap();
     assert_eq!(again.gnss.len(), inputs.gnss.len());
     for (a, b) in inputs.gnss.iter().zip(&again.gnss) {
@@ -262,7 +262,7 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
         assert!(a.position.ned_to(&b.position).norm() < 1e-3);
         assert_eq!(a.quality, b.quality);
     }
-    let run = |cfg: &ProcessConfig, i: &aidnav::process::Inputs| {
+    let run = |cfg: &ProcessConfig, i: &aidnav_app::process::Inputs| {
         let e = run_filter(cfg, i, &RunPlan::default(), PolicyName::Accept).unwrap();
         tracking_rms(&e, &cfg.score.reference_quality).unwrap()
     };
@@ -277,7 +277,7 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
 /// < 10 ms to the nearest IMU sample).
 #[test]
 fn rows_between_fixes_cover_a_real_outage() {
-    use aidnav::process::run_filter_rows;
+    use aidnav_app::process::run_filter_rows;
     let (_, cfg, inputs) = drive();
     let first = inputs.imu[0].time_s;
     let gap = (first + 150.0, first + 180.0);
@@ -335,7 +335,7 @@ fn rows_between_fixes_cover_a_real_outage() {
 /// in `format`: upstream's mounting and time offset; the walker never
 /// exceeds 1.8 m/s, so the heading comes from the first GNSS course above
 /// 1 m/s (upstream's threshold too); lever arm and noise as the defaults.
-fn walk(gnss: &str, format: &str) -> (ProcessConfig, aidnav::process::Inputs) {
+fn walk(gnss: &str, format: &str) -> (ProcessConfig, aidnav_app::process::Inputs) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let dir = root.join("data/rtklibexplorer-gnss-imu/walk_0827");
     let text = format!(
@@ -344,7 +344,7 @@ fn walk(gnss: &str, format: &str) -> (ProcessConfig, aidnav::process::Inputs) {
          [imu]\ntime_offset_s = 0.0\nmounting_deg = [180.0, 0.0, -90.0]\n\
          [initial]\nheading_speed_mps = 1.0\n"
     );
-    let cfg = aidnav::io::parse_toml::<ProcessConfig>(&text, Path::new("walk.toml")).unwrap();
+    let cfg = aidnav_io::parse_toml::<ProcessConfig>(&text, Path::new("walk.toml")).unwrap();
     let inputs = load_inputs(&cfg, &root).unwrap();
     (cfg, inputs)
 }
@@ -363,7 +363,7 @@ fn the_walk_from_its_ubx_log_tracks_as_from_its_pos_file() {
     assert_eq!((ubx.gnss.len(), pos.gnss.len()), (536, 536));
     let a = run_filter(&cfg_ubx, &ubx, &RunPlan::default(), PolicyName::Accept).unwrap();
     let b = run_filter(&cfg_pos, &pos, &RunPlan::default(), PolicyName::Accept).unwrap();
-    let fixed = [aidnav::process::FixQuality::Fixed];
+    let fixed = [aidnav_app::process::FixQuality::Fixed];
     let (ta, tb) = (
         tracking_rms(&a, &fixed).unwrap(),
         tracking_rms(&b, &fixed).unwrap(),
@@ -388,7 +388,7 @@ fn the_walk_from_its_ubx_log_tracks_as_from_its_pos_file() {
 /// (0.80) — far from the 57.3 (or 1/57.3) a degree/radian mix-up gives.
 #[test]
 fn the_gyro_turns_with_the_gnss_course_on_both_logs() {
-    use aidnav::process::check_turn_rate;
+    use aidnav_app::process::check_turn_rate;
     let (_, _, drive) = drive();
     let (_, walk) = walk("gnss_1730.ubx", "ubx");
     let p = Path::new("x");
@@ -428,7 +428,7 @@ fn a_gyro_unit_mistake_in_a_generic_csv_is_refused_by_the_gnss_course() {
     let load = |gyro: &str| {
         let mut c = cfg.clone();
         c.data.imu = dir.path().join("imu.csv");
-        c.data.imu_format = aidnav::process::ImuFormat::GenericCsv;
+        c.data.imu_format = aidnav_app::process::ImuFormat::GenericCsv;
         c.data.imu_tags = None;
         c.data.imu_units =
             Some(toml::from_str(&format!("gyro = \"{gyro}\"\naccel = \"m_s2\"\n")).unwrap());
@@ -447,8 +447,8 @@ fn a_gyro_unit_mistake_in_a_generic_csv_is_refused_by_the_gnss_course() {
 
 #[test]
 fn the_tables_written_beside_the_smoother_are_those_written_after_it() {
-    use aidnav::jobs::ProcessRun;
-    use aidnav::process::Process;
+    use aidnav_app::jobs::ProcessRun;
+    use aidnav_app::process::Process;
     let (config, cfg, _) = drive();
     assert!(cfg.output.smooth, "the example configuration smooths");
     let load = || Process::load(cfg.clone(), config.parent().unwrap()).unwrap();
@@ -481,7 +481,7 @@ fn the_tables_written_beside_the_smoother_are_those_written_after_it() {
         monitor: cfg.filter.convergence_monitor,
         ..RunPlan::default()
     };
-    let reference: Vec<_> = aidnav::process::run_filter_rows(
+    let reference: Vec<_> = aidnav_app::process::run_filter_rows(
         &cfg,
         process.inputs(),
         &plan,
@@ -493,7 +493,7 @@ fn the_tables_written_beside_the_smoother_are_those_written_after_it() {
     .iter()
     .filter_map(|e| e.smoothed())
     .collect();
-    let positions = |epochs: &[aidnav::process::Epoch]| {
+    let positions = |epochs: &[aidnav_app::process::Epoch]| {
         epochs
             .iter()
             .map(|e| {
