@@ -12,9 +12,9 @@
 use std::hint::black_box;
 use std::path::Path;
 
+use aidnav_app::process::{Inputs, PolicyName, ProcessConfig, RunPlan, export, run_filter};
 use aidnav_frames::{Rotation, Vec3};
 use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState};
-use aidnav_app::process::{PolicyName, ProcessConfig, RunPlan, export, load_inputs, run_filter};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn process(c: &mut Criterion) {
@@ -22,11 +22,11 @@ fn process(c: &mut Criterion) {
     let config = root.join("examples/drive_0708.toml");
     let (cfg, _) = aidnav_io::load_toml::<ProcessConfig>(&config).unwrap();
     let base = config.parent().unwrap().to_path_buf();
-    let inputs = load_inputs(&cfg, &base).unwrap();
+    let inputs = Inputs::load(&cfg, &base).unwrap();
     let mut g = c.benchmark_group("drive_0708");
     g.sample_size(10);
     g.bench_function("read", |b| {
-        b.iter(|| black_box(load_inputs(&cfg, &base).unwrap().imu.len()))
+        b.iter(|| black_box(Inputs::load(&cfg, &base).unwrap().imu.len()))
     });
     g.bench_function("mechanization", |b| {
         b.iter(|| {
@@ -56,6 +56,7 @@ fn process(c: &mut Criterion) {
             black_box(
                 run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
                     .unwrap()
+                    .epochs
                     .len(),
             )
         })
@@ -69,6 +70,7 @@ fn process(c: &mut Criterion) {
             black_box(
                 run_filter(&without, &inputs, &RunPlan::default(), PolicyName::Accept)
                     .unwrap()
+                    .epochs
                     .len(),
             )
         })
@@ -86,12 +88,15 @@ fn process(c: &mut Criterion) {
                 black_box(
                     run_filter(&cfg, &inputs, &plan, cfg.gnss.policy)
                         .unwrap()
+                        .epochs
                         .len(),
                 )
             })
         });
     }
-    let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
+    let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
+        .unwrap()
+        .epochs;
     let dir = tempfile::tempdir().unwrap();
     g.bench_function("write_solution", |b| {
         b.iter(|| export::write_solution(&dir.path().join("solution.csv"), &epochs, &[]).unwrap())

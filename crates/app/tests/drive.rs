@@ -12,16 +12,20 @@
 use std::path::Path;
 
 use aidnav_app::process::{
-    PolicyName, ProcessConfig, RunPlan, load_inputs, outage_windows, run_filter, score_windows,
+    Inputs, PolicyName, ProcessConfig, RunPlan, outage_windows, run_filter, score_windows,
     tracking_rms,
 };
 
 /// The example configuration, its path and the drive it reads.
-fn drive() -> (std::path::PathBuf, ProcessConfig, aidnav_app::process::Inputs) {
+fn drive() -> (
+    std::path::PathBuf,
+    ProcessConfig,
+    aidnav_app::process::Inputs,
+) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let config = root.join("examples/drive_0708.toml");
     let (cfg, _) = aidnav_io::load_toml::<ProcessConfig>(&config).unwrap();
-    let inputs = load_inputs(&cfg, config.parent().unwrap()).unwrap();
+    let inputs = Inputs::load(&cfg, config.parent().unwrap()).unwrap();
     (config, cfg, inputs)
 }
 
@@ -29,7 +33,9 @@ fn drive() -> (std::path::PathBuf, ProcessConfig, aidnav_app::process::Inputs) {
 fn thirty_second_outages_stay_bounded() {
     let (_, cfg, inputs) = drive();
     assert_eq!(inputs.imu.len(), 54_858);
-    let clean = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
+    let clean = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
+        .unwrap()
+        .epochs;
     let reference = &cfg.score.reference_quality;
     let tracking = tracking_rms(&clean, reference).unwrap();
     assert!(tracking < 0.05, "tracking {tracking} m");
@@ -43,7 +49,9 @@ fn thirty_second_outages_stay_bounded() {
             free_ins_in_windows: free,
             ..RunPlan::default()
         };
-        let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept).unwrap();
+        let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept)
+            .unwrap()
+            .epochs;
         score_windows(&epochs, &windows, 30.0, reference)
     };
     let filter = score(false);
@@ -116,10 +124,14 @@ fn kf_gins_files_of_the_drive_give_the_same_solution() {
     kf.imu.time_offset_s = 0.0;
     kf.imu.mounting_deg = [0.0; 3];
     kf.imu.smoothing_s = 0.0;
-    let again = load_inputs(&kf, dir.path()).unwrap();
+    let again = Inputs::load(&kf, dir.path()).unwrap();
     assert_eq!(again.imu.len(), inputs.imu.len() - 1);
-    let a = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
-    let b = run_filter(&kf, &again, &RunPlan::default(), PolicyName::Accept).unwrap();
+    let a = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
+        .unwrap()
+        .epochs;
+    let b = run_filter(&kf, &again, &RunPlan::default(), PolicyName::Accept)
+        .unwrap()
+        .epochs;
     // KF-GINS text has no quality column (Q = 0): not a reference unless
     // the configuration names it; scored against itself it would be.
     assert_eq!(tracking_rms(&b, &kf.score.reference_quality), None);
@@ -153,7 +165,9 @@ fn supervisors_on_the_drive() {
         bridge: true,
         ..RunPlan::default()
     };
-    let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept).unwrap();
+    let epochs = run_filter(&cfg, &inputs, &plan, PolicyName::Accept)
+        .unwrap()
+        .epochs;
     let inside = |t: f64| windows.iter().any(|&(a, b)| (a..b).contains(&t));
     for e in &epochs {
         let t = e.time_s();
@@ -182,7 +196,9 @@ fn supervisors_on_the_drive() {
     assert!(eff.actual_crossed >= 6 && eff.actual_crossing_s.unwrap() > 5.0);
     // Eq. 3: measured 0.025 m with the model's Q, 0.011 m with the term.
     let clean = |cfg: &ProcessConfig| {
-        let e = run_filter(cfg, &inputs, &RunPlan::default(), PolicyName::Accept).unwrap();
+        let e = run_filter(cfg, &inputs, &RunPlan::default(), PolicyName::Accept)
+            .unwrap()
+            .epochs;
         tracking_rms(&e, &cfg.score.reference_quality).unwrap()
     };
     let fixed = clean(&cfg);
@@ -250,7 +266,7 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
     nmea.data.dir = config.parent().unwrap().join(&cfg.data.dir);
     nmea.data.gnss = dir.path().join("drive.nmea");
     nmea.data.gnss_format = aidnav_app::process::GnssFormat::Nmea;
-    let again = load_inputs(&nmea, dir.path()).unwrap();
+    let again = Inputs::load(&nmea, dir.path()).unwrap();
     assert_eq!(again.gnss.len(), inputs.gnss.len());
     for (a, b) in inputs.gnss.iter().zip(&again.gnss) {
         assert!(
@@ -263,7 +279,9 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
         assert_eq!(a.quality, b.quality);
     }
     let run = |cfg: &ProcessConfig, i: &aidnav_app::process::Inputs| {
-        let e = run_filter(cfg, i, &RunPlan::default(), PolicyName::Accept).unwrap();
+        let e = run_filter(cfg, i, &RunPlan::default(), PolicyName::Accept)
+            .unwrap()
+            .epochs;
         tracking_rms(&e, &cfg.score.reference_quality).unwrap()
     };
     let (ta, tb) = (run(&cfg, &inputs), run(&nmea, &again));
@@ -277,13 +295,16 @@ fn nmea_log_of_the_drive_gives_nearly_the_same_solution() {
 /// < 10 ms to the nearest IMU sample).
 #[test]
 fn rows_between_fixes_cover_a_real_outage() {
-    use aidnav_app::process::run_filter_rows;
     let (_, cfg, inputs) = drive();
     let first = inputs.imu[0].time_s;
     let gap = (first + 150.0, first + 180.0);
     let mut cut = inputs.clone();
     cut.gnss.retain(|g| !(gap.0..gap.1).contains(&g.time_s));
-    let run = run_filter_rows(&cfg, &cut, &RunPlan::default(), PolicyName::Accept, 0.01).unwrap();
+    let plan = RunPlan {
+        row_interval_s: 0.01,
+        ..RunPlan::default()
+    };
+    let run = run_filter(&cfg, &cut, &plan, PolicyName::Accept).unwrap();
     let inside: Vec<_> = run
         .between
         .iter()
@@ -311,7 +332,8 @@ fn rows_between_fixes_cover_a_real_outage() {
         },
         PolicyName::Accept,
     )
-    .unwrap();
+    .unwrap()
+    .epochs;
     let mut compared = 0;
     for e in scored
         .iter()
@@ -345,7 +367,7 @@ fn walk(gnss: &str, format: &str) -> (ProcessConfig, aidnav_app::process::Inputs
          [initial]\nheading_speed_mps = 1.0\n"
     );
     let cfg = aidnav_io::parse_toml::<ProcessConfig>(&text, Path::new("walk.toml")).unwrap();
-    let inputs = load_inputs(&cfg, &root).unwrap();
+    let inputs = Inputs::load(&cfg, &root).unwrap();
     (cfg, inputs)
 }
 
@@ -361,8 +383,12 @@ fn the_walk_from_its_ubx_log_tracks_as_from_its_pos_file() {
     let (cfg_ubx, ubx) = walk("gnss_1730.ubx", "ubx");
     let (cfg_pos, pos) = walk("gnss_1730_sf.pos", "rtklib_pos");
     assert_eq!((ubx.gnss.len(), pos.gnss.len()), (536, 536));
-    let a = run_filter(&cfg_ubx, &ubx, &RunPlan::default(), PolicyName::Accept).unwrap();
-    let b = run_filter(&cfg_pos, &pos, &RunPlan::default(), PolicyName::Accept).unwrap();
+    let a = run_filter(&cfg_ubx, &ubx, &RunPlan::default(), PolicyName::Accept)
+        .unwrap()
+        .epochs;
+    let b = run_filter(&cfg_pos, &pos, &RunPlan::default(), PolicyName::Accept)
+        .unwrap()
+        .epochs;
     let fixed = [aidnav_app::process::FixQuality::Fixed];
     let (ta, tb) = (
         tracking_rms(&a, &fixed).unwrap(),
@@ -434,7 +460,7 @@ fn a_gyro_unit_mistake_in_a_generic_csv_is_refused_by_the_gnss_course() {
             Some(toml::from_str(&format!("gyro = \"{gyro}\"\naccel = \"m_s2\"\n")).unwrap());
         c.imu.mounting_deg = [0.0; 3];
         c.imu.smoothing_s = 0.0;
-        load_inputs(&c, dir.path())
+        Inputs::load(&c, dir.path())
     };
     assert_eq!(load("rad_s").unwrap().imu.len(), walk.imu.len());
     let e = load("deg_s").unwrap_err().to_string();
@@ -479,20 +505,15 @@ fn the_tables_written_beside_the_smoother_are_those_written_after_it() {
     let plan = RunPlan {
         smooth: true,
         monitor: cfg.filter.convergence_monitor,
+        row_interval_s: cfg.output.interval_s,
         ..RunPlan::default()
     };
-    let reference: Vec<_> = aidnav_app::process::run_filter_rows(
-        &cfg,
-        process.inputs(),
-        &plan,
-        cfg.gnss.policy,
-        cfg.output.interval_s,
-    )
-    .unwrap()
-    .epochs
-    .iter()
-    .filter_map(|e| e.smoothed())
-    .collect();
+    let reference: Vec<_> = run_filter(&cfg, process.inputs(), &plan, cfg.gnss.policy)
+        .unwrap()
+        .epochs
+        .iter()
+        .filter_map(|e| e.smoothed())
+        .collect();
     let positions = |epochs: &[aidnav_app::process::Epoch]| {
         epochs
             .iter()

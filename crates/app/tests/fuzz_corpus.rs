@@ -48,7 +48,10 @@ fn every_target_has_seeds_and_replays_its_corpus_and_crashes() {
 fn the_tagged_imu_cut_is_the_first_four_bytes() {
     let mut data = 3u32.to_le_bytes().to_vec();
     data.extend(b"abcdef");
-    assert_eq!(aidnav_app::fuzzing::split(&data), (&b"abc"[..], &b"def"[..]));
+    assert_eq!(
+        aidnav_app::fuzzing::split(&data),
+        (&b"abc"[..], &b"def"[..])
+    );
     let mut long = u32::MAX.to_le_bytes().to_vec();
     long.extend(b"xy");
     assert_eq!(aidnav_app::fuzzing::split(&long), (&b"xy"[..], &b""[..]));

@@ -5,11 +5,11 @@
 //! own WGS-84 mechanization (so truth and IMU agree exactly), with biased
 //! instruments; the GNSS gives the truth at 4 Hz.
 
+use aidnav_app::process::{Inputs, Process, ProcessConfig, StartKind};
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, transport_rate_ned};
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::ned::{ImuIncrement, NedMechanization, NedState, gravity_ned};
 use aidnav_io::rtklib::{GnssFix, ImuSample};
-use aidnav_app::process::{Inputs, Process, ProcessConfig, StartKind};
 use nalgebra::Vector3;
 
 const DT: f64 = 0.01;

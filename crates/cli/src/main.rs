@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use aidnav::io::measurements::DEFAULT_MAX_EPOCHS;
 use aidnav::app::jobs::{self, FilterJob};
+use aidnav::io::measurements::DEFAULT_MAX_EPOCHS;
 use aidnav::reproduce::MonteCarloScenario;
 use aidnav::reproduce::anomalies::{AnomaliesResult, AnomaliesScenario};
 use aidnav::reproduce::consistency::{ConsistencyResult, ConsistencyScenario};

@@ -1,10 +1,10 @@
 //! The library's errors as Python exceptions, messages unchanged (they name
 //! the file, line, column or key).
 
-use aidnav::estimation::EstimationError;
-use aidnav::io::IoError;
 use aidnav::app::jobs::JobError;
 use aidnav::app::process::ProcessError;
+use aidnav::estimation::EstimationError;
+use aidnav::io::IoError;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;

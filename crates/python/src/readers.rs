@@ -3,9 +3,9 @@
 
 use std::path::PathBuf;
 
+use aidnav::app::process::{GnssFormat, ImuFormat};
 use aidnav::frames::earth::Geodetic;
 use aidnav::io::rtklib::{GnssFix, ImuSample};
-use aidnav::app::process::{GnssFormat, ImuFormat};
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;

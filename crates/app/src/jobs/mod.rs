@@ -19,11 +19,16 @@ mod process;
 mod reproduce;
 mod tune;
 
-pub use campaign::*;
-pub use convert::*;
-pub use process::*;
-pub use reproduce::*;
-pub use tune::*;
+pub use campaign::{Campaign, Experiment, reproduce_summary};
+pub use convert::{ConvertReport, convert_kfgins};
+use process::process_error;
+pub use process::{ProcessReport, ProcessRun, RecoveryReport, process};
+pub use reproduce::{
+    FormationOutcome, anomalies, anomalies_summary, consistency, consistency_summary,
+    extended_state, extended_state_summary, formation, formation_network,
+    formation_network_summary, formation_summary, group, group_summary, outages, outages_summary,
+};
+pub use tune::{TuneJob, TuneReport, tune};
 
 /// Anything a job can fail with.
 #[derive(Debug, thiserror::Error)]

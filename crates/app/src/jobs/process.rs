@@ -95,7 +95,7 @@ pub struct ProcessReport {
     pub files: Vec<PathBuf>,
 }
 
-pub use crate::process::BridgedScores;
+use crate::process::BridgedScores;
 use crate::process::{Warning, WarningKind};
 
 impl ProcessReport {

@@ -256,12 +256,12 @@ impl Process {
         let plan = RunPlan {
             smooth: cfg.output.smooth,
             monitor: cfg.filter.convergence_monitor,
+            row_interval_s: cfg.output.interval_s,
             cancel: self.cancel.clone(),
             ..RunPlan::default()
         };
         let begin = initialise(cfg, inputs)?;
-        let (run, pending) =
-            run_filter_forward(cfg, inputs, &plan, cfg.gnss.policy, cfg.output.interval_s)?;
+        let (run, pending) = run_filter_forward(cfg, inputs, &plan, cfg.gnss.policy)?;
         let start_time_s = inputs.imu[begin.index].time_s;
         let first_fix_in_imu_span_s = inputs
             .gnss

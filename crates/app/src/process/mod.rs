@@ -41,16 +41,35 @@ pub mod tune;
 mod validate;
 pub mod warnings;
 
-pub use api::*;
-pub use config::*;
-pub use consistency::*;
-pub use run::*;
-pub use score::*;
-pub use scoring::*;
-pub use selection::*;
+pub use api::{Process, ProcessResult, Smoothed, Smoothing, StartSummary};
+pub use config::{
+    AdaptiveNoise, BRIDGE_PREDICTORS, ConstraintConfig, DataFiles, EfficiencyConfig, Feedback,
+    FilterConfig, FixQuality, GnssConfig, GnssFormat, ImuConfig, ImuFormat, InitialConfig,
+    NoiseConfig, OutageBridgeConfig, OutputConfig, Platform, PlatformPreset, PolicyName,
+    ProcessConfig, QualitySigmaScale, ScoreConfig, StandstillConfig, TuneConfig, TuneObjective,
+    config_name,
+};
+pub use consistency::{
+    Consistency, ELLIPSOID_PROBABILITY, NisConsistency, OutageConsistency, POSITION_DOF, chi2_3_99,
+    nis_consistency, outage_consistency, position_nees,
+};
+pub use run::{
+    Epoch, MAX_SMOOTHED_EPOCHS, ResetEvent, Run, RunPlan, SolutionRow, fix_position_sigma,
+    reset_events, run_filter,
+};
+pub use score::{
+    EfficiencyScore, OutageScore, bridged_epochs, convergence_times, cut_short_tolerance_s,
+    efficiency_in_windows, inject_outliers, is_reference, outage_windows, periodic_windows,
+    post_outage_bursts, reference_epochs, score_windows, tracking_rms, tracking_rms_with_gnss,
+};
+pub use scoring::{BridgedScores, DriftSeries, Scores, score_log};
+pub use selection::{SelectedEpoch, SelectionSummary, select_sources, selection_summary};
 pub use start::{Start, StartKind, initialise};
 pub use template::{config_template, doc_of};
-pub use warnings::*;
+pub use warnings::{
+    DIVERGENCE_NIS_PER_DOF, DIVERGENCE_WINDOW_S, REJECTION_RUN_S, Warning, WarningKind,
+    divergence_warnings, rejection_run_warnings,
+};
 
 pub use aidnav_ins::mounting::euler_to_ctm;
 
@@ -98,7 +117,7 @@ pub struct Inputs {
 
 impl Inputs {
     /// Read the files named in the configuration (relative to `base`),
-    /// time-shift, rotate to the body frame and smooth: [`load_inputs`].
+    /// time-shift, rotate to the body frame and smooth.
     pub fn load(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
         load_inputs(cfg, base)
     }
@@ -110,7 +129,7 @@ impl Inputs {
     }
 
     /// The samples as the readers give them (sensor frame, the file's time
-    /// tags, no smoothing): [`load_raw`].
+    /// tags, no smoothing).
     pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
         load_raw(cfg, base)
     }
@@ -137,12 +156,12 @@ impl Inputs {
 }
 
 /// Read, time-shift, rotate to the body frame and smooth.
-pub fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
+fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     Ok(load_unsmoothed(cfg, base)?.into_smoothed(cfg.imu.smoothing_s))
 }
 
 /// Read, time-shift and rotate to the body frame.
-pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
+fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     let raw = load_raw(cfg, base)?;
     let dir = data_dir(cfg, base);
     Inputs::from_samples(
@@ -154,12 +173,12 @@ pub fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, Proce
     )
 }
 
-/// The samples as the readers give them, before [`load_unsmoothed`] applies
+/// The samples as the readers give them, before [`Inputs::load_unsmoothed`] applies
 /// the configuration: IMU in the sensor frame on the IMU file's time tags
 /// (no `imu.mounting_deg`, no `imu.time_offset_s`, no smoothing), GNSS as
 /// read, and the readers' warnings. The files are read with the
 /// configuration's formats and units, exactly as `aidnav process` reads them.
-pub fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
+fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     let dir = data_dir(cfg, base);
     let imu_path = dir.join(&cfg.data.imu);
     let gnss_path = dir.join(&cfg.data.gnss);
@@ -229,7 +248,7 @@ pub fn read_gnss(
 
 impl Inputs {
     /// Inputs from samples already in memory (sensor-frame IMU, time as
-    /// recorded), treated as [`load_unsmoothed`] treats the files' samples:
+    /// recorded), treated as [`Inputs::load_unsmoothed`] treats the files' samples:
     /// time-shifted (`imu.time_offset_s`), rotated to the body frame
     /// (`imu.mounting_deg`), and checked (the spans overlap, the gyro turns
     /// with the GNSS course). `origins` name the IMU and GNSS sources in

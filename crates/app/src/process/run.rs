@@ -53,6 +53,9 @@ pub struct RunPlan {
     /// Bridge the withheld windows with spec 20's predictors
     /// ([`Epoch::bridged`]; closed loop, not with `free_ins_in_windows`).
     pub bridge: bool,
+    /// Write a [`SolutionRow`] every this many seconds between the GNSS
+    /// epochs (0: none).
+    pub row_interval_s: f64,
     /// Looked at every IMU sample: once set, the pass stops (unwinding
     /// with [`Cancelled`](aidnav_sim::Cancelled); see [`Cancel`]).
     pub cancel: Cancel,
@@ -267,17 +270,6 @@ pub struct Run {
     pub standstill_updates: usize,
 }
 
-/// Run the filter over the whole log under a plan and a policy: one
-/// [`Epoch`] per GNSS epoch.
-pub fn run_filter(
-    cfg: &ProcessConfig,
-    inputs: &Inputs,
-    plan: &RunPlan,
-    policy: PolicyName,
-) -> Result<Vec<Epoch>, ProcessError> {
-    run_filter_rows(cfg, inputs, plan, policy, 0.0).map(|r| r.epochs)
-}
-
 /// The filter at the start of the log, configured for a plan and a policy.
 fn new_filter(
     cfg: &ProcessConfig,
@@ -417,17 +409,18 @@ impl EpochObserver for CancelWatch<'_> {
     fn fix(&mut self, _filter: &dyn FilterView, _record: &FixRecord) {}
 }
 
-/// [`run_filter`], also writing a [`SolutionRow`] every `interval_s` (at
-/// the first IMU sample at or after each multiple; 0: none) between the
-/// GNSS epochs — through real GNSS outages too.
-pub fn run_filter_rows(
+/// Run the filter over the whole log under a plan and a policy: one
+/// [`Epoch`] per GNSS epoch, and a [`SolutionRow`] every
+/// `plan.row_interval_s` (at the first IMU sample at or after each multiple;
+/// 0: none) between the GNSS epochs — through real GNSS outages too. With
+/// `plan.smooth`, the epochs carry the RTS-smoothed positions.
+pub fn run_filter(
     cfg: &ProcessConfig,
     inputs: &Inputs,
     plan: &RunPlan,
     policy: PolicyName,
-    interval_s: f64,
 ) -> Result<Run, ProcessError> {
-    let (mut run, pending) = run_filter_forward(cfg, inputs, plan, policy, interval_s)?;
+    let (mut run, pending) = run_filter_forward(cfg, inputs, plan, policy)?;
     if let Some(pending) = pending {
         pending.finish()?.apply(&mut run.epochs);
     }
@@ -501,7 +494,7 @@ impl SmoothedPositions {
     }
 }
 
-/// [`run_filter_rows`]'s forward pass: the epochs without their smoothed
+/// [`run_filter`]'s forward pass: the epochs without their smoothed
 /// positions and, when the plan smooths, the pending smoothing that adds
 /// them.
 pub(crate) fn run_filter_forward(
@@ -509,8 +502,8 @@ pub(crate) fn run_filter_forward(
     inputs: &Inputs,
     plan: &RunPlan,
     policy: PolicyName,
-    interval_s: f64,
 ) -> Result<(Run, Option<PendingSmoothing>), ProcessError> {
+    let interval_s = plan.row_interval_s;
     let (mut filter, start) = new_filter(cfg, inputs, plan, policy)?;
     let (imu, gnss) = (&inputs.imu, &inputs.gnss);
     let mut fixes = plan.prepare(gnss);
@@ -736,7 +729,9 @@ mod tests {
             ..RunPlan::default()
         };
         let started = std::time::Instant::now();
-        let epochs = run_filter(&cfg, &inputs, &plan, cfg.gnss.policy).unwrap();
+        let epochs = run_filter(&cfg, &inputs, &plan, cfg.gnss.policy)
+            .unwrap()
+            .epochs;
         let seconds = started.elapsed().as_secs_f64();
         let smoothed: Vec<Epoch> = epochs.iter().filter_map(Epoch::smoothed).collect();
         assert_eq!(smoothed.len(), epochs.len());
@@ -776,7 +771,9 @@ mod tests {
             PolicyName::Rejection,
             PolicyName::Chi2Gate,
         ] {
-            let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), policy).unwrap();
+            let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), policy)
+                .unwrap()
+                .epochs;
             let resets = reset_events(&epochs);
             assert_eq!(resets.len(), 1, "{policy}: {resets:?}");
             let reset = resets[0];
@@ -800,7 +797,9 @@ mod tests {
             assert!(end < 0.01, "{policy}: {end}");
         }
         cfg.gnss.recovery = false;
-        let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Rejection).unwrap();
+        let epochs = run_filter(&cfg, &inputs, &RunPlan::default(), PolicyName::Rejection)
+            .unwrap()
+            .epochs;
         let last = epochs.last().unwrap();
         assert!(last.fix.position.ned_to(&last.antenna).norm() > 45.0);
     }

@@ -195,9 +195,9 @@ fn outage_scores(
                 let _one_at_a_time = smoothing
                     .lock()
                     .unwrap_or_else(std::sync::PoisonError::into_inner);
-                run_filter(cfg, inputs, &plan, cfg.gnss.policy)?
+                run_filter(cfg, inputs, &plan, cfg.gnss.policy)?.epochs
             } else {
-                run_filter(cfg, inputs, &plan, cfg.gnss.policy)?
+                run_filter(cfg, inputs, &plan, cfg.gnss.policy)?.epochs
             };
             let score = score_windows(&epochs, windows, l, reference);
             if free {
@@ -305,9 +305,10 @@ fn anomaly_scores(
                 cancel: cancel.clone(),
                 ..RunPlan::default()
             };
-            let (run, resets) = rms_and_resets(run_filter(cfg, inputs, &plan, p), |e| {
-                tracking_rms(e, &cfg.score.reference_quality)
-            });
+            let (run, resets) =
+                rms_and_resets(run_filter(cfg, inputs, &plan, p).map(|r| r.epochs), |e| {
+                    tracking_rms(e, &cfg.score.reference_quality)
+                });
             let what = format!("{:.0} % outliers, {}", 100.0 * f, p.name());
             (f, p, scored_or_nan(what, run), resets)
         })
@@ -358,9 +359,10 @@ fn burst_scores(
                     cancel: cancel.clone(),
                     ..RunPlan::default()
                 };
-                let (run, resets) = rms_and_resets(run_filter(cfg, inputs, &plan, p), |e| {
-                    tracking_rms_with_gnss(e, &cfg.score.reference_quality)
-                });
+                let (run, resets) =
+                    rms_and_resets(run_filter(cfg, inputs, &plan, p).map(|r| r.epochs), |e| {
+                        tracking_rms_with_gnss(e, &cfg.score.reference_quality)
+                    });
                 (
                     scored_or_nan(format!("30 s outages {what}, {}", p.name()), run),
                     resets,

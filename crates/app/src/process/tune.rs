@@ -487,7 +487,7 @@ pub fn log_likelihood(
         windows: windows.to_vec(),
         ..RunPlan::default()
     };
-    let epochs = run_filter(&cfg, inputs, &plan, PolicyName::Accept)?;
+    let epochs = run_filter(&cfg, inputs, &plan, PolicyName::Accept)?.epochs;
     let not_finite = |t: f64| {
         ProcessError::Data(format!(
             "the log-likelihood of the fix at {} is not finite",
