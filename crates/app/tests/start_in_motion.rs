@@ -112,6 +112,8 @@ fn run(platform: &str, offset_deg: [f64; 3], after_s: &[f64]) -> (StartKind, Vec
     .unwrap();
     cfg.outage_bridge.enabled = false;
     let inputs = Inputs {
+        wheel_speed: Vec::new(),
+        barometer: Vec::new(),
         imu,
         gnss,
         warnings: Vec::new(),

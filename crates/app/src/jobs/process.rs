@@ -27,6 +27,11 @@ pub struct ProcessReport {
     pub start: crate::process::StartSummary,
     /// Standstill (zero-velocity + zero-angular-rate) updates in the clean run.
     pub standstill_updates: usize,
+    /// What every aid source of the clean run did: per source (`source`)
+    /// the measurements it passed to the filter (`fused`), of those
+    /// `accepted`, `rejected`, `modified` (limited or re-weighted) and
+    /// `reset`, and the samples it did not fuse (`skipped`).
+    pub aid_sources: Vec<crate::process::AidSourceCounts>,
     /// RMS 3-D error of the RTS-smoothed antenna positions over the
     /// reference epochs (null: not smoothed, or no reference).
     pub tracking_smoothed_rms_m: Option<Option<f64>>,
@@ -355,6 +360,7 @@ impl ProcessReport {
             outcomes: result.outcomes,
             start: result.start,
             standstill_updates: result.standstill_updates,
+            aid_sources: result.aid_sources,
             recovery: RecoveryReport {
                 resets: result.resets.len(),
                 events: result.resets,
@@ -412,6 +418,8 @@ fn report_fields(result: &crate::process::ProcessResult) -> crate::process::Proc
         selection: r.selection,
         start: r.start,
         standstill_updates: r.standstill_updates,
+        aid_sources: r.aid_sources.clone(),
+        aid_updates: Vec::new(),
         warnings: r.warnings.clone(),
     }
 }

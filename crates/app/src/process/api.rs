@@ -6,6 +6,7 @@ use aidnav_sim::Cancel;
 use std::path::Path;
 
 use aidnav_frames::earth::Geodetic;
+use aidnav_integration::aiding::{AidRecord, SourceStatus};
 
 use super::config::{FixQuality, PolicyName, ProcessConfig};
 use super::consistency::{NisConsistency, nis_consistency};
@@ -121,10 +122,52 @@ pub struct ProcessResult {
     pub start: StartSummary,
     /// Standstill (zero-velocity + zero-angular-rate) updates made.
     pub standstill_updates: usize,
+    /// Every aid source's counts, in the loop's order.
+    pub aid_sources: Vec<AidSourceCounts>,
+    /// Every update of the wheel-speed and barometer sources, in time
+    /// order (`wheel_speed.csv`, `barometer.csv`).
+    pub aid_updates: Vec<AidRecord>,
     /// Warnings: the readers' notes (kind `input`), divergence and long
     /// rejection runs of this run ([`super::warnings`]); other checks of
     /// the run push theirs here.
     pub warnings: Vec<Warning>,
+}
+
+/// What an aid source did over a run (`summary.json`'s
+/// `result.aid_sources[]`; [`SourceStatus`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct AidSourceCounts {
+    /// The measurement stream: `non_holonomic`, `zero_velocity`,
+    /// `zero_angular_rate`, `gnss_position`, `gnss_velocity`, `wheel_speed`,
+    /// `barometer`.
+    pub source: &'static str,
+    /// Measurements the source passed to the filter.
+    pub fused: usize,
+    /// Of those, accepted as they were.
+    pub accepted: usize,
+    /// Of those, refused by the policy (no update).
+    pub rejected: usize,
+    /// Of those, limited, re-weighted or given another gain.
+    pub modified: usize,
+    /// Of those, ending in a reset of the measured states.
+    pub reset: usize,
+    /// Samples the source did not fuse (not due, out of range, the
+    /// condition not met).
+    pub skipped: usize,
+}
+
+impl From<SourceStatus> for AidSourceCounts {
+    fn from(s: SourceStatus) -> Self {
+        Self {
+            source: s.name,
+            fused: s.fused,
+            accepted: s.accepted,
+            rejected: s.rejected,
+            modified: s.modified,
+            reset: s.reset,
+            skipped: s.skipped,
+        }
+    }
 }
 
 /// How and when the filter started (`summary.json`'s `result.start`).
@@ -312,6 +355,8 @@ impl Process {
                 speed_mps: begin.speed_mps.is_finite().then_some(begin.speed_mps),
             },
             standstill_updates: run.standstill_updates,
+            aid_sources: run.sources.iter().map(|&s| s.into()).collect(),
+            aid_updates: run.aid_updates,
             warnings,
             between: run.between,
             smoothed: Vec::new(),

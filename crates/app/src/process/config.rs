@@ -5,6 +5,10 @@ use std::path::PathBuf;
 use aidnav_estimation::adaptive::DiagonalRule;
 use aidnav_estimation::gmdh::GmdhConfig;
 use aidnav_estimation::{Scheme, SchemeParameters};
+use aidnav_frames::Vec3;
+use aidnav_integration::aiding::{BaroConfig, BaroSource, WheelSpeedConfig, WheelSpeedSource};
+use aidnav_integration::state::{Augmented, BlockDynamics, StateLayout};
+use aidnav_sensors::{BaroSample, WheelSpeedSample};
 use aidnav_supervisors::outage::{BridgeConfig, RelaySchedule};
 use serde::{Deserialize, Deserializer, Serialize};
 
@@ -25,7 +29,7 @@ fn exact_array_option<'de, D: Deserializer<'de>, const N: usize>(
     exact_array(d).map(Some)
 }
 
-pub use aidnav_io::formats::{GnssFormat, ImuFormat};
+pub use aidnav_io::formats::{BaroFormat, GnssFormat, ImuFormat, WheelSpeedFormat};
 
 /// Where the data are.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -379,6 +383,166 @@ impl Default for ConstraintConfig {
             zero_angular_rate_sigma_deg_s: 0.1,
             zero_velocity_rate_hz: 1.0,
         }
+    }
+}
+
+/// `[wheel_speed]`: a wheel-speed (odometer) stream as an aid source, a
+/// forward-speed update at the wheel's lever arm (absent: none).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WheelSpeedSection {
+    /// The file, relative to `data.dir` (required).
+    pub file: PathBuf,
+    /// Its format. Default `generic_csv` (see `--help`).
+    pub format: WheelSpeedFormat,
+    /// Added to the file's time [s] (a logging delay).
+    pub time_offset_s: f64,
+    /// σ of a sample without its own, and the floor of a given σ [m/s].
+    /// Default 0.1 (slip, tyre deflection and quantisation together).
+    pub sigma_mps: f64,
+    /// Lever arm from the IMU to the wheel's contact point (body frame:
+    /// forward, right, down) [m]. Default 0 (a rear-axle centre behind the
+    /// IMU is e.g. [-1.3, 0, 0.3]).
+    #[serde(deserialize_with = "exact_array")]
+    pub lever_arm_m: [f64; 3],
+    /// Estimate the odometer's scale-factor error (a state of its own).
+    /// Default on.
+    pub scale_state: bool,
+    /// Prior σ of the scale-factor error [–]. Default 0.02 (2 %: tyre
+    /// radius, pressure and wear).
+    pub scale_sigma: f64,
+    /// Random-walk density of the scale-factor error [1/√s]. Default 1e-5
+    /// (the radius changes with temperature and pressure over tens of
+    /// minutes).
+    pub scale_noise_per_sqrt_s: f64,
+    /// χ² gate probability of each update (1: every sample accepted).
+    /// Default 0.999.
+    pub gate_probability: f64,
+    /// Fuse at most one sample per this interval [s] (0: every sample).
+    /// Default 0.1: the wheel's errors are correlated over tenths of a
+    /// second, so faster updates count the same error again.
+    pub min_interval_s: f64,
+}
+
+impl Default for WheelSpeedSection {
+    fn default() -> Self {
+        Self {
+            file: PathBuf::new(),
+            format: WheelSpeedFormat::default(),
+            time_offset_s: 0.0,
+            sigma_mps: 0.1,
+            lever_arm_m: [0.0; 3],
+            scale_state: true,
+            scale_sigma: 0.02,
+            scale_noise_per_sqrt_s: 1e-5,
+            gate_probability: 0.999,
+            min_interval_s: 0.1,
+        }
+    }
+}
+
+impl WheelSpeedSection {
+    /// The state block this section adds to the filter (None: no scale
+    /// state).
+    pub fn block(&self) -> Option<(Augmented, BlockDynamics)> {
+        self.scale_state.then(|| {
+            (
+                Augmented::WheelSpeedScale,
+                BlockDynamics::random_walk(self.scale_sigma, self.scale_noise_per_sqrt_s),
+            )
+        })
+    }
+
+    /// The aid source of this section over its samples.
+    pub fn source<'a>(&self, samples: &'a [WheelSpeedSample]) -> WheelSpeedSource<'a> {
+        WheelSpeedSource::new(
+            samples,
+            WheelSpeedConfig {
+                sigma_mps: self.sigma_mps,
+                lever_arm_m: Vec3::assume_in_frame(self.lever_arm_m.into()),
+                gate_probability: gate(self.gate_probability),
+                min_interval_s: self.min_interval_s,
+            },
+        )
+    }
+}
+
+/// A gate probability of the configuration: 1 is no gate.
+fn gate(probability: f64) -> Option<f64> {
+    (probability < 1.0).then_some(probability)
+}
+
+/// `[barometer]`: a barometric height (or pressure) stream as an aid
+/// source, a height update (absent: none).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BarometerSection {
+    /// The file, relative to `data.dir` (required).
+    pub file: PathBuf,
+    /// Its format. Default `generic_csv` (see `--help`; a pressure column
+    /// becomes a height by the ISA standard atmosphere).
+    pub format: BaroFormat,
+    /// Added to the file's time [s] (a logging delay).
+    pub time_offset_s: f64,
+    /// σ of a sample without its own, and the floor of a given σ [m].
+    /// Default 0.5 (a consumer MEMS barometer's noise and gusts).
+    pub sigma_m: f64,
+    /// Estimate the barometer's height bias against the ellipsoid (a state
+    /// of its own: the ISA datum, the geoid and the weather). Default on;
+    /// off, the barometer's heights must be ellipsoidal.
+    pub bias_state: bool,
+    /// Prior σ of the bias [m]. Default 100 (geoid undulation and the
+    /// weather's departure from the standard atmosphere).
+    pub bias_sigma_m: f64,
+    /// Random-walk density of the bias [m/√s]. Default 0.05 (≈ 3 m/√h:
+    /// the weather moves the pressure by about 1 hPa per hour).
+    pub bias_noise_m_per_sqrt_s: f64,
+    /// χ² gate probability of each update (1: every sample accepted).
+    /// Default 0.999.
+    pub gate_probability: f64,
+    /// Fuse at most one sample per this interval [s] (0: every sample).
+    /// Default 0.1.
+    pub min_interval_s: f64,
+}
+
+impl Default for BarometerSection {
+    fn default() -> Self {
+        Self {
+            file: PathBuf::new(),
+            format: BaroFormat::default(),
+            time_offset_s: 0.0,
+            sigma_m: 0.5,
+            bias_state: true,
+            bias_sigma_m: 100.0,
+            bias_noise_m_per_sqrt_s: 0.05,
+            gate_probability: 0.999,
+            min_interval_s: 0.1,
+        }
+    }
+}
+
+impl BarometerSection {
+    /// The state block this section adds to the filter (None: no bias
+    /// state).
+    pub fn block(&self) -> Option<(Augmented, BlockDynamics)> {
+        self.bias_state.then(|| {
+            (
+                Augmented::BaroBias,
+                BlockDynamics::random_walk(self.bias_sigma_m, self.bias_noise_m_per_sqrt_s),
+            )
+        })
+    }
+
+    /// The aid source of this section over its samples.
+    pub fn source<'a>(&self, samples: &'a [BaroSample]) -> BaroSource<'a> {
+        BaroSource::new(
+            samples,
+            BaroConfig {
+                sigma_m: self.sigma_m,
+                gate_probability: gate(self.gate_probability),
+                min_interval_s: self.min_interval_s,
+            },
+        )
     }
 }
 
@@ -917,9 +1081,30 @@ pub struct ProcessConfig {
     /// Outputs.
     #[serde(default)]
     pub output: OutputConfig,
+    /// A wheel-speed (odometer) stream (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wheel_speed: Option<WheelSpeedSection>,
+    /// A barometer stream (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub barometer: Option<BarometerSection>,
 }
 
 impl ProcessConfig {
+    /// The filter's state layout: the base 21 states and the blocks the
+    /// aid-source sections add (in the order wheel speed, barometer).
+    pub fn state_layout(&self) -> StateLayout {
+        let blocks = [
+            self.wheel_speed.as_ref().and_then(WheelSpeedSection::block),
+            self.barometer.as_ref().and_then(BarometerSection::block),
+        ];
+        blocks
+            .into_iter()
+            .flatten()
+            .fold(StateLayout::base(), |layout, (kind, dynamics)| {
+                layout.with(kind, dynamics)
+            })
+    }
+
     /// Whether the non-holonomic constraint is applied (the key, else the platform).
     pub fn non_holonomic(&self) -> bool {
         self.constraints

@@ -1,7 +1,8 @@
 //! A [`ProcessResult`] and its optional [`Scores`] as the files `aidnav
 //! process` writes: `solution.csv`, `navresult.txt` (optional),
 //! `smoothed.csv`, `selected.csv`, `trajectory.svg`, `instruments.csv`, `innovations.svg`,
-//! `outage_drift.svg` (with scores) and `summary.json`; a tuning's
+//! `outage_drift.svg` (with scores), `wheel_speed.csv` and `barometer.csv`
+//! (with those streams) and `summary.json`; a tuning's
 //! `allan.svg`, `allan.csv` and `tuned_noise.toml`.
 
 use std::fmt::Write as _;
@@ -9,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use aidnav_estimation::Outcome;
 use aidnav_frames::earth::Geodetic;
+use aidnav_integration::aiding::AidRecord;
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
 use aidnav_io::writers::{Summary, begin_outputs, write_table_noting_infinities};
@@ -29,7 +31,13 @@ use super::tune::{AxisAllan, ImuAllan, TuneResult, tuned_noise_toml};
 /// ([`remove_stale_outputs`](aidnav_io::writers::remove_stale_outputs)).
 /// The tuning's files are not among them: `tuned_noise.toml` is a result
 /// the user pastes into a configuration, kept until a tuning replaces it.
-pub const OPTIONAL_FILES: [&str; 3] = ["navresult.txt", "smoothed.csv", "outage_drift.svg"];
+pub const OPTIONAL_FILES: [&str; 5] = [
+    "navresult.txt",
+    "smoothed.csv",
+    "outage_drift.svg",
+    "wheel_speed.csv",
+    "barometer.csv",
+];
 
 /// Write every file of a result (and of its scores) into `out`, in the
 /// order `aidnav process` lists them; `navresult` adds `navresult.txt`.
@@ -107,6 +115,14 @@ pub fn write_forward_files(
     // innovations.svg after instruments.csv, outage_drift.svg last.
     let mut others = vec![selected, trajectory, instruments, innovations];
     others.extend(drift);
+    let mut other_warnings = other_warnings;
+    for (source, unit) in AID_UPDATE_FILES {
+        if result.aid_sources.iter().any(|s| s.source == source) {
+            let path = out.join(format!("{source}.csv"));
+            other_warnings.extend(write_aid_updates(&path, &result.aid_updates, source, unit)?);
+            others.push(path);
+        }
+    }
     Ok(ForwardFiles {
         navigation,
         navigation_warnings,
@@ -146,6 +162,51 @@ pub fn write_smoothed_file(
     let path = out.join("smoothed.csv");
     let warnings = write_smoothed(&path, smoothed)?;
     Ok(Some((path, warnings)))
+}
+
+/// The sources whose every update has a file of its own
+/// ([`write_aid_updates`]), with the unit of their innovations.
+const AID_UPDATE_FILES: [(&str, &str); 2] = [("wheel_speed", "m/s"), ("barometer", "m")];
+
+/// Write `<source>.csv` (`wheel_speed.csv`, `barometer.csv`): one row per
+/// update of the source — its time, the innovation (predicted minus
+/// measured), its σ, the NIS and the outcome.
+pub fn write_aid_updates(
+    path: &Path,
+    updates: &[AidRecord],
+    source: &str,
+    unit: &str,
+) -> Result<Vec<String>, IoError> {
+    let innovation = format!("innovation [{unit}]");
+    let sigma = format!("innovation_sigma [{unit}]");
+    let header = [
+        "time [s GPST since 1970]",
+        innovation.as_str(),
+        sigma.as_str(),
+        "nis",
+        "outcome (1 accepted, 2 limited, 3 rejected, 4 reset)",
+    ];
+    let rows = updates.iter().filter(|u| u.source == source).map(|u| {
+        [
+            u.time_s,
+            u.innovation[0],
+            u.innovation_sigma[0],
+            u.nis,
+            outcome_code(Some(u.outcome)),
+        ]
+    });
+    aidnav_io::writers::write_rows(path, &header, rows)
+}
+
+/// The outcome column of `solution.csv` and the aid-update files.
+fn outcome_code(outcome: Option<Outcome>) -> f64 {
+    match outcome {
+        Some(Outcome::Accepted) => 1.0,
+        Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
+        Some(Outcome::Rejected) => 3.0,
+        Some(Outcome::Reset) => 4.0,
+        _ => 0.0,
+    }
 }
 
 /// The navigation tables of [`write_forward_files`], in its order:
@@ -410,13 +471,7 @@ fn solution_rows<'a>(
         row
     };
     let epoch_rows = epochs.iter().map(move |e| {
-        let outcome = match e.outcome {
-            Some(Outcome::Accepted) => 1.0,
-            Some(Outcome::Limited) | Some(Outcome::Reweighted) => 2.0,
-            Some(Outcome::Rejected) => 3.0,
-            Some(Outcome::Reset) => 4.0,
-            _ => 0.0,
-        };
+        let outcome = outcome_code(e.outcome);
         row(
             navigation_values(&e.row()),
             [

@@ -41,13 +41,13 @@ pub mod tune;
 mod validate;
 pub mod warnings;
 
-pub use api::{Process, ProcessResult, Smoothed, Smoothing, StartSummary};
+pub use api::{AidSourceCounts, Process, ProcessResult, Smoothed, Smoothing, StartSummary};
 pub use config::{
-    AdaptiveNoise, BRIDGE_PREDICTORS, ConstraintConfig, DataFiles, EfficiencyConfig, Feedback,
-    FilterConfig, FixQuality, GnssConfig, GnssFormat, ImuConfig, ImuFormat, InitialConfig,
-    NoiseConfig, OutageBridgeConfig, OutputConfig, Platform, PlatformPreset, PolicyName,
-    ProcessConfig, QualitySigmaScale, ScoreConfig, StandstillConfig, TuneConfig, TuneObjective,
-    config_name,
+    AdaptiveNoise, BRIDGE_PREDICTORS, BaroFormat, BarometerSection, ConstraintConfig, DataFiles,
+    EfficiencyConfig, Feedback, FilterConfig, FixQuality, GnssConfig, GnssFormat, ImuConfig,
+    ImuFormat, InitialConfig, NoiseConfig, OutageBridgeConfig, OutputConfig, Platform,
+    PlatformPreset, PolicyName, ProcessConfig, QualitySigmaScale, ScoreConfig, StandstillConfig,
+    TuneConfig, TuneObjective, WheelSpeedFormat, WheelSpeedSection, config_name,
 };
 pub use consistency::{
     Consistency, ELLIPSOID_PROBABILITY, NisConsistency, OutageConsistency, POSITION_DOF, chi2_3_99,
@@ -79,6 +79,7 @@ use aidnav_estimation::EstimationError;
 use aidnav_ins::alignment::course;
 use aidnav_ins::samples::moving_average_in_place;
 use aidnav_io::rtklib::{GnssFix, ImuSample};
+use aidnav_sensors::{BaroSample, WheelSpeedSample};
 use nalgebra::Vector3;
 
 /// Anything processing can fail with.
@@ -104,13 +105,18 @@ impl From<EstimationError> for ProcessError {
     }
 }
 
-/// IMU samples (body frame) and GNSS fixes ready for the filter.
+/// IMU samples (body frame), GNSS fixes and the other aiding streams
+/// ready for the filter.
 #[derive(Debug, Clone)]
 pub struct Inputs {
     /// Body-frame IMU samples, SI.
     pub imu: Vec<ImuSample>,
     /// GNSS fixes.
     pub gnss: Vec<GnssFix>,
+    /// Wheel-speed samples (`[wheel_speed]`; empty without).
+    pub wheel_speed: Vec<WheelSpeedSample>,
+    /// Barometric heights (`[barometer]`; empty without).
+    pub barometer: Vec<BaroSample>,
     /// Reader warnings.
     pub warnings: Vec<String>,
 }
@@ -164,13 +170,15 @@ fn load_inputs(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError>
 fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     let raw = load_raw(cfg, base)?;
     let dir = data_dir(cfg, base);
-    Inputs::from_samples(
+    let mut inputs = Inputs::from_samples(
         cfg,
         raw.imu,
         raw.gnss,
         raw.warnings,
         (&dir.join(&cfg.data.imu), &dir.join(&cfg.data.gnss)),
-    )
+    )?;
+    inputs.add_aiding(cfg, raw.wheel_speed, raw.barometer, &dir)?;
+    Ok(inputs)
 }
 
 /// The samples as the readers give them, before [`Inputs::load_unsmoothed`] applies
@@ -200,9 +208,23 @@ fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     let (imu, mut warnings) = imu?;
     let (gnss, w) = gnss?;
     warnings.extend(w);
+    let mut wheel_speed = Vec::new();
+    if let Some(section) = &cfg.wheel_speed {
+        let (samples, w) = section.format.read(&dir.join(&section.file))?;
+        wheel_speed = samples;
+        warnings.extend(w);
+    }
+    let mut barometer = Vec::new();
+    if let Some(section) = &cfg.barometer {
+        let (samples, w) = section.format.read(&dir.join(&section.file))?;
+        barometer = samples;
+        warnings.extend(w);
+    }
     Ok(Inputs {
         imu,
         gnss,
+        wheel_speed,
+        barometer,
         warnings,
     })
 }
@@ -267,8 +289,77 @@ impl Inputs {
         Ok(Inputs {
             imu,
             gnss,
+            wheel_speed: Vec::new(),
+            barometer: Vec::new(),
             warnings,
         })
+    }
+
+    /// Add the wheel-speed and barometer streams (as read: the sections'
+    /// `time_offset_s` is applied here), each checked to overlap the IMU's
+    /// span: a configured stream that would give no update is an error
+    /// naming its file. `dir` is the data directory (for the messages).
+    pub fn add_aiding(
+        &mut self,
+        cfg: &ProcessConfig,
+        mut wheel_speed: Vec<WheelSpeedSample>,
+        mut barometer: Vec<BaroSample>,
+        dir: &Path,
+    ) -> Result<(), ProcessError> {
+        if let Some(section) = &cfg.wheel_speed {
+            wheel_speed
+                .iter_mut()
+                .for_each(|s| s.time_s += section.time_offset_s);
+            let path = dir.join(&section.file);
+            self.check_aiding_overlap(wheel_speed.iter().map(|s| s.time_s), &path)?;
+        }
+        if let Some(section) = &cfg.barometer {
+            barometer
+                .iter_mut()
+                .for_each(|s| s.time_s += section.time_offset_s);
+            let path = dir.join(&section.file);
+            self.check_aiding_overlap(barometer.iter().map(|s| s.time_s), &path)?;
+        }
+        self.wheel_speed = wheel_speed;
+        self.barometer = barometer;
+        Ok(())
+    }
+
+    /// An error unless some sample of an aiding stream lies within the IMU
+    /// span; a warning with the count of those outside it.
+    fn check_aiding_overlap(
+        &mut self,
+        times: impl Iterator<Item = f64>,
+        path: &Path,
+    ) -> Result<(), ProcessError> {
+        let (Some(first), Some(last)) = (self.imu.first(), self.imu.last()) else {
+            return Ok(());
+        };
+        let (a, b) = (first.time_s, last.time_s);
+        let (mut inside, mut outside) = (0usize, 0usize);
+        for t in times {
+            if (a..=b).contains(&t) {
+                inside += 1;
+            } else {
+                outside += 1;
+            }
+        }
+        if inside == 0 {
+            return Err(ProcessError::Data(format!(
+                "{}: none of its {outside} samples lies within the IMU span {}–{} s (GPST s since 1970; same time scale? its time_offset_s?)",
+                path.display(),
+                aidnav_io::text::num(a),
+                aidnav_io::text::num(b),
+            )));
+        }
+        if outside > 0 {
+            self.warnings.push(format!(
+                "{}: {outside} of {} samples lie outside the IMU span and are not used",
+                path.display(),
+                inside + outside
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -551,6 +642,8 @@ mod tests {
         // The only fix is at the last IMU sample's time: the filter starts
         // there and no update follows.
         let inputs = Inputs {
+            wheel_speed: Vec::new(),
+            barometer: Vec::new(),
             imu: imu_at((0..100).map(|k| k as f64 * 0.01)),
             gnss: gnss_at([0.99].into_iter()),
             warnings: Vec::new(),

@@ -10,23 +10,24 @@ use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::ned::ImuIncrement;
 use aidnav_ins::standstill::StandstillThresholds;
 use aidnav_integration::aiding::{
-    AidSource, GnssConfig, GnssPolicies, GnssSource, NonHolonomic, NonHolonomicSource,
-    StandstillSource, StandstillUpdates,
+    AidRecord, AidSource, GnssConfig, GnssPolicies, GnssSource, NonHolonomic, NonHolonomicSource,
+    SourceStatus, StandstillSource, StandstillUpdates,
 };
 use aidnav_integration::bridge::BridgeObserver;
 use aidnav_integration::ned::FilterView;
-use aidnav_integration::ned::NedFilter;
+use aidnav_integration::ned::{NedFilter, SmoothedAntenna};
 use aidnav_integration::ned_loop::{
     AidingFix, Collector, EpochObserver, FixRecord, FreeInsObserver, run_loop,
 };
+use aidnav_integration::state::StateLayout;
 use aidnav_io::rtklib::GnssFix;
 use aidnav_models::ned_ins::{
-    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, VELOCITY,
-    Vector21,
+    ACCEL_BIAS, ACCEL_SCALE, ATTITUDE, GYRO_BIAS, GYRO_SCALE, NedErrorModel, POSITION, STATES,
+    VELOCITY,
 };
 use aidnav_sim::Cancel;
 use aidnav_supervisors::efficiency::EfficiencyCriterion;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SVector, Vector3};
 
 use super::config::{AdaptiveNoise, Feedback, PolicyName, QualitySigmaScale};
 use super::{Inputs, ProcessConfig, ProcessError, initialise};
@@ -268,21 +269,28 @@ pub struct Run {
     pub between: Vec<SolutionRow>,
     /// Standstill (zero-velocity + zero-angular-rate) updates made.
     pub standstill_updates: usize,
+    /// Every aid source's counts at the end of the pass, in the loop's
+    /// order.
+    pub sources: Vec<SourceStatus>,
+    /// Every update of the wheel-speed and barometer sources, in time
+    /// order (the GNSS updates are in [`Run::epochs`]).
+    pub aid_updates: Vec<AidRecord>,
 }
 
 /// The filter at the start of the log, configured for a plan and a policy.
-fn new_filter(
+fn new_filter<const N: usize>(
     cfg: &ProcessConfig,
     inputs: &Inputs,
     plan: &RunPlan,
     policy: PolicyName,
-) -> Result<(NedFilter, usize), ProcessError> {
+    layout: StateLayout,
+) -> Result<(NedFilter<N>, usize), ProcessError> {
     let begin = initialise(cfg, inputs)?;
     let model = NedErrorModel {
         noise: cfg.imu.noise.values,
     };
     let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
-    let mut sig = Vector21::zeros();
+    let mut sig = SVector::<f64, N>::zeros();
     for i in 0..3 {
         sig[POSITION + i] = begin.position_sigma_m;
         sig[VELOCITY + i] = begin.velocity_sigma_mps;
@@ -296,8 +304,13 @@ fn new_filter(
         sig[GYRO_SCALE + i] = kg[i];
         sig[ACCEL_SCALE + i] = ka[i];
     }
-    let lever = Vector3::from(cfg.gnss.lever_arm_m);
-    let mut filter = NedFilter::new(model, begin.state, &sig, Vec3::assume_in_frame(lever))?;
+    for block in layout.blocks() {
+        for i in 0..block.kind.states() {
+            sig[block.offset + i] = block.dynamics.prior_sigma;
+        }
+    }
+    let lever = Vec3::assume_in_frame(Vector3::from(cfg.gnss.lever_arm_m));
+    let mut filter = NedFilter::with_layout(model, begin.state, &sig, lever, layout)?;
     if !filter.set_recovery(cfg.gnss.recovery_config()) {
         return Err(ProcessError::Data(
             "gnss.recovery_fixes, recovery_probability or recovery_margin out of range".into(),
@@ -430,7 +443,33 @@ pub fn run_filter(
 /// A forward pass whose smoothing is still to do: the filter and its
 /// recording, from [`run_filter_forward`].
 pub(crate) struct PendingSmoothing {
-    filter: NedFilter,
+    filter: Box<dyn ForwardPass>,
+}
+
+/// What the smoothing needs of a forward pass's filter, whatever its
+/// state layout.
+trait ForwardPass: Send {
+    fn catch_up_recording(&self);
+    fn smoothed_states_with_covariance(
+        &self,
+    ) -> Result<Option<Vec<SmoothedAntenna>>, aidnav_estimation::EstimationError>;
+    fn antenna_of(&self, state: &aidnav_ins::ned::NedState) -> Geodetic;
+}
+
+impl<const N: usize> ForwardPass for NedFilter<N> {
+    fn catch_up_recording(&self) {
+        NedFilter::catch_up_recording(self);
+    }
+
+    fn smoothed_states_with_covariance(
+        &self,
+    ) -> Result<Option<Vec<SmoothedAntenna>>, aidnav_estimation::EstimationError> {
+        NedFilter::smoothed_states_with_covariance(self)
+    }
+
+    fn antenna_of(&self, state: &aidnav_ins::ned::NedState) -> Geodetic {
+        NedFilter::antenna_of(self, state)
+    }
 }
 
 /// The RTS-smoothed antenna and IMU positions and the antenna position's
@@ -503,8 +542,45 @@ pub(crate) fn run_filter_forward(
     plan: &RunPlan,
     policy: PolicyName,
 ) -> Result<(Run, Option<PendingSmoothing>), ProcessError> {
+    // The filter's matrices are fixed-size: one pass per layout length the
+    // sections can give (the base; one added state; two).
+    let layout = cfg.state_layout();
+    match layout.len() {
+        STATES => forward::<STATES>(cfg, inputs, plan, policy, layout),
+        22 => forward::<22>(cfg, inputs, plan, policy, layout),
+        23 => forward::<23>(cfg, inputs, plan, policy, layout),
+        n => Err(ProcessError::Data(format!(
+            "no filter of {n} states is built in (the base {STATES} states and up to two added)"
+        ))),
+    }
+}
+
+/// The updates of the wheel-speed and barometer sources, for
+/// [`Run::aid_updates`] (the GNSS updates have their epochs; the
+/// constraints are counted only).
+#[derive(Default)]
+struct AidUpdates(Vec<AidRecord>);
+
+impl EpochObserver for AidUpdates {
+    fn fix(&mut self, _filter: &dyn FilterView, _record: &FixRecord) {}
+
+    fn aided(&mut self, record: &AidRecord) {
+        if matches!(record.source, "wheel_speed" | "barometer") {
+            self.0.push(*record);
+        }
+    }
+}
+
+/// [`run_filter_forward`] on a filter of `N` states.
+fn forward<const N: usize>(
+    cfg: &ProcessConfig,
+    inputs: &Inputs,
+    plan: &RunPlan,
+    policy: PolicyName,
+    layout: StateLayout,
+) -> Result<(Run, Option<PendingSmoothing>), ProcessError> {
     let interval_s = plan.row_interval_s;
-    let (mut filter, start) = new_filter(cfg, inputs, plan, policy)?;
+    let (mut filter, start) = new_filter::<N>(cfg, inputs, plan, policy, layout)?;
     let (imu, gnss) = (&inputs.imu, &inputs.gnss);
     let mut fixes = plan.prepare(gnss);
     inflate_by_quality(
@@ -532,7 +608,9 @@ pub(crate) fn run_filter_forward(
     let mut position_policy = policy.policy(&cfg.gnss.scheme_parameters());
     let mut velocity_policy = policy.policy(&cfg.gnss.scheme_parameters());
     let mut watch = CancelWatch(&plan.cancel);
-    let mut observers: Vec<&mut dyn EpochObserver> = vec![&mut collector, &mut watch];
+    let mut aid_updates = AidUpdates::default();
+    let mut observers: Vec<&mut dyn EpochObserver> =
+        vec![&mut collector, &mut watch, &mut aid_updates];
     if let Some(f) = free.as_mut() {
         observers.push(f);
     }
@@ -549,9 +627,11 @@ pub(crate) fn run_filter_forward(
     );
     let mut nhc = non_holonomic_source(cfg);
     let mut standstill = standstill_source(cfg);
-    // The order of today's loop: the constraint, the standstill check,
-    // then the fix.
-    let mut sources: Vec<&mut dyn AidSource<{ aidnav_models::ned_ins::STATES }>> = Vec::new();
+    let mut wheel_speed = (cfg.wheel_speed.as_ref()).map(|w| w.source(&inputs.wheel_speed));
+    let mut barometer = (cfg.barometer.as_ref()).map(|b| b.source(&inputs.barometer));
+    // The constraint, the standstill check, the fix, then the other
+    // streams (sources due at the same time are stepped in this order).
+    let mut sources: Vec<&mut dyn AidSource<N>> = Vec::new();
     if let Some(s) = nhc.as_mut() {
         sources.push(s);
     }
@@ -559,6 +639,12 @@ pub(crate) fn run_filter_forward(
         sources.push(s);
     }
     sources.push(&mut gnss_source);
+    if let Some(s) = wheel_speed.as_mut() {
+        sources.push(s);
+    }
+    if let Some(s) = barometer.as_mut() {
+        sources.push(s);
+    }
     run_loop(
         &mut filter,
         imu,
@@ -576,6 +662,7 @@ pub(crate) fn run_filter_forward(
         ))
     })?;
     drop(observers);
+    let statuses = sources.iter().flat_map(|s| s.statuses()).collect();
     drop(sources);
     let mut epochs: Vec<Epoch> = collector
         .fixes
@@ -604,10 +691,14 @@ pub(crate) fn run_filter_forward(
         epochs,
         between: collector.rows,
         standstill_updates: collector.standstill_updates,
+        sources: statuses,
+        aid_updates: aid_updates.0,
     };
     Ok((
         run,
-        smoothing(cfg, plan).then_some(PendingSmoothing { filter }),
+        smoothing(cfg, plan).then(|| PendingSmoothing {
+            filter: Box::new(filter),
+        }),
     ))
 }
 
@@ -660,6 +751,8 @@ mod tests {
             })
             .collect();
         let inputs = super::super::Inputs {
+            wheel_speed: Vec::new(),
+            barometer: Vec::new(),
             imu,
             gnss,
             warnings: Vec::new(),
@@ -720,6 +813,8 @@ mod tests {
             })
             .collect();
         let inputs = super::super::Inputs {
+            wheel_speed: Vec::new(),
+            barometer: Vec::new(),
             imu,
             gnss,
             warnings: Vec::new(),

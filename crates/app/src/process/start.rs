@@ -402,6 +402,8 @@ mod tests {
             let cfg: ProcessConfig =
                 toml::from_str("[data]\ndir = \".\"\nimu = \"i\"\ngnss = \"g\"\n").unwrap();
             let inputs = Inputs {
+                wheel_speed: Vec::new(),
+                barometer: Vec::new(),
                 imu: imu.clone(),
                 gnss,
                 warnings: Vec::new(),

@@ -341,6 +341,64 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "output.interval_s",
         "also rows between GNSS epochs every this many s (0: one row per GNSS epoch)",
     ),
+    (
+        "wheel_speed.file",
+        "wheel-speed (odometer) file (generic CSV: time_s | gpst_s | gps_week + tow_s | utc, speed_mps | speed_kmh, optional sigma_mps; see --help)",
+    ),
+    ("wheel_speed.format", "generic_csv"),
+    ("wheel_speed.time_offset_s", "added to the file's time [s]"),
+    (
+        "wheel_speed.sigma_mps",
+        "σ of a sample without its own, floor of a given one [m/s]",
+    ),
+    (
+        "wheel_speed.lever_arm_m",
+        "IMU → wheel contact point, body frame (forward, right, down) [m]",
+    ),
+    (
+        "wheel_speed.scale_state",
+        "estimate the odometer's scale-factor error (a state)",
+    ),
+    ("wheel_speed.scale_sigma", "its prior σ [–]"),
+    (
+        "wheel_speed.scale_noise_per_sqrt_s",
+        "its random-walk density [1/√s]",
+    ),
+    (
+        "wheel_speed.gate_probability",
+        "χ² gate probability of an update (1: no gate)",
+    ),
+    (
+        "wheel_speed.min_interval_s",
+        "at most one update per this interval [s] (0: every sample)",
+    ),
+    (
+        "barometer.file",
+        "barometer file (generic CSV: a time column as for wheel speed, height_m | pressure_pa | pressure_hpa (ISA), optional sigma_m; see --help)",
+    ),
+    ("barometer.format", "generic_csv"),
+    ("barometer.time_offset_s", "added to the file's time [s]"),
+    (
+        "barometer.sigma_m",
+        "σ of a sample without its own, floor of a given one [m]",
+    ),
+    (
+        "barometer.bias_state",
+        "estimate the barometer's height bias (a state; off: the heights must be ellipsoidal)",
+    ),
+    ("barometer.bias_sigma_m", "its prior σ [m]"),
+    (
+        "barometer.bias_noise_m_per_sqrt_s",
+        "its random-walk density [m/√s]",
+    ),
+    (
+        "barometer.gate_probability",
+        "χ² gate probability of an update (1: no gate)",
+    ),
+    (
+        "barometer.min_interval_s",
+        "at most one update per this interval [s] (0: every sample)",
+    ),
 ];
 
 /// Keys whose default is "none", written commented out after their table's
@@ -429,6 +487,8 @@ pub fn config_template(platform: Platform) -> String {
         score: Default::default(),
         tune: Default::default(),
         output: Default::default(),
+        wheel_speed: None,
+        barometer: None,
     }
     .resolved();
     // Serializing plain data to TOML cannot fail; an empty body would be
@@ -473,7 +533,62 @@ pub fn config_template(platform: Platform) -> String {
         }
     }
     flush_optional(&mut out, &table);
+    for (table, section) in optional_sections() {
+        out.push_str(&format!(
+            "\n# [{table}]{:<28} # uncomment this table to use the stream\n",
+            ""
+        ));
+        for line in section.lines() {
+            let doc = line
+                .split_once(" = ")
+                .and_then(|(key, _)| doc_of(&format!("{table}.{key}")))
+                .unwrap_or("");
+            out.push_str(&format!("# {line:<38} # {doc}\n"));
+        }
+    }
     out
+}
+
+/// The optional tables (an aid source each), serialized with their
+/// defaults and a placeholder file: the template writes them commented out.
+fn optional_sections() -> [(&'static str, String); 2] {
+    use super::config::{BarometerSection, WheelSpeedSection};
+    let wheel = WheelSpeedSection {
+        file: "wheel_speed.csv".into(),
+        ..Default::default()
+    };
+    let baro = BarometerSection {
+        file: "barometer.csv".into(),
+        ..Default::default()
+    };
+    // Serializing plain data to TOML cannot fail (see above).
+    [
+        ("wheel_speed", toml::to_string(&wheel).unwrap_or_default()),
+        ("barometer", toml::to_string(&baro).unwrap_or_default()),
+    ]
+}
+
+/// The template with its optional tables uncommented (for tests: every key
+/// of every table then parses and is documented).
+#[cfg(test)]
+fn uncomment_optional_sections(text: &str) -> String {
+    let mut inside = false;
+    let mut out = Vec::new();
+    for line in text.lines() {
+        if let Some(rest) = line.strip_prefix("# [") {
+            inside = optional_sections()
+                .iter()
+                .any(|(t, _)| rest.starts_with(&format!("{t}]")));
+        } else if line.is_empty() {
+            inside = false;
+        }
+        out.push(if inside {
+            line.trim_start_matches("# ")
+        } else {
+            line
+        });
+    }
+    out.join("\n")
 }
 
 /// The comment of a dotted key.
@@ -523,6 +638,10 @@ mod tests {
             let text = config_template(platform);
             let cfg: ProcessConfig = toml::from_str(&text).unwrap();
             assert_eq!(cfg.platform, platform);
+            assert!(cfg.wheel_speed.is_none() && cfg.barometer.is_none());
+            let cfg: ProcessConfig = toml::from_str(&uncomment_optional_sections(&text)).unwrap();
+            assert_eq!(cfg.wheel_speed.as_ref().unwrap().sigma_mps, 0.1);
+            assert_eq!(cfg.barometer.as_ref().unwrap().bias_sigma_m, 100.0);
             // Resolving again changes nothing: the preset values are written.
             assert_eq!(cfg, cfg.resolved());
             let mut all = Vec::new();

@@ -963,6 +963,8 @@ mod tests {
         (
             cfg,
             Inputs {
+                wheel_speed: Vec::new(),
+                barometer: Vec::new(),
                 imu,
                 gnss,
                 warnings: Vec::new(),

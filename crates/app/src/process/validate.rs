@@ -12,6 +12,7 @@ impl Validate for ProcessConfig {
     fn validate(&self) -> Result<(), Invalid> {
         validate_inputs(self)?;
         validate_physical_bounds(self)?;
+        validate_aid_sources(self)?;
         validate_supervision_and_scores(self)
     }
 }
@@ -27,6 +28,63 @@ fn vector_in_range(key: &str, v: &[f64; 3], lo: f64, hi: f64) -> Result<(), Inva
                 format!("{lo} ≤ each element ≤ {hi}"),
             ));
         }
+    }
+    Ok(())
+}
+
+/// The `[wheel_speed]` and `[barometer]` tables: a file, every number in a
+/// physical range, and a layout the filter is built for.
+fn validate_aid_sources(cfg: &ProcessConfig) -> Result<(), Invalid> {
+    let file = |table: &str, file: &std::path::Path| {
+        if file.as_os_str().is_empty() {
+            Err(Invalid::new(
+                format!("{table}.file"),
+                "(missing)",
+                "the stream's file, relative to data.dir",
+            ))
+        } else {
+            Ok(())
+        }
+    };
+    if let Some(w) = &cfg.wheel_speed {
+        file("wheel_speed", &w.file)?;
+        for (key, value, lo, hi) in [
+            ("time_offset_s", w.time_offset_s, -10.0, 10.0),
+            ("sigma_mps", w.sigma_mps, 1e-6, 100.0),
+            ("scale_sigma", w.scale_sigma, 1e-9, 1.0),
+            ("scale_noise_per_sqrt_s", w.scale_noise_per_sqrt_s, 0.0, 1.0),
+            ("gate_probability", w.gate_probability, 0.5, 1.0),
+            ("min_interval_s", w.min_interval_s, 0.0, 3600.0),
+        ] {
+            bounded("wheel_speed", key, value, lo, hi)?;
+        }
+        vector_in_range("wheel_speed.lever_arm_m", &w.lever_arm_m, -100.0, 100.0)?;
+    }
+    if let Some(b) = &cfg.barometer {
+        file("barometer", &b.file)?;
+        for (key, value, lo, hi) in [
+            ("time_offset_s", b.time_offset_s, -10.0, 10.0),
+            ("sigma_m", b.sigma_m, 1e-6, 1e4),
+            ("bias_sigma_m", b.bias_sigma_m, 1e-6, 1e5),
+            (
+                "bias_noise_m_per_sqrt_s",
+                b.bias_noise_m_per_sqrt_s,
+                0.0,
+                100.0,
+            ),
+            ("gate_probability", b.gate_probability, 0.5, 1.0),
+            ("min_interval_s", b.min_interval_s, 0.0, 3600.0),
+        ] {
+            bounded("barometer", key, value, lo, hi)?;
+        }
+    }
+    if cfg.filter.convergence_monitor && cfg.state_layout().len() != aidnav_models::ned_ins::STATES
+    {
+        return Err(Invalid::new(
+            "filter.convergence_monitor",
+            true,
+            "off with an added state (wheel_speed.scale_state, barometer.bias_state): the monitor covers the base 21 states only",
+        ));
     }
     Ok(())
 }

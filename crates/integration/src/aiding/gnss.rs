@@ -223,4 +223,8 @@ impl<const N: usize> AidSource<N> for GnssSource<'_> {
     fn status(&self) -> SourceStatus {
         self.status
     }
+
+    fn statuses(&self) -> Vec<SourceStatus> {
+        vec![self.status, self.velocity_status]
+    }
 }

@@ -133,4 +133,8 @@ impl<const N: usize> AidSource<N> for StandstillSource {
     fn status(&self) -> SourceStatus {
         self.status
     }
+
+    fn statuses(&self) -> Vec<SourceStatus> {
+        vec![self.status, self.rate_status]
+    }
 }
