@@ -101,9 +101,28 @@ enum Command {
     /// accel = "m_s2" | "g", kind = "rates" | "increments" }`. Units that
     /// cannot be right are refused with the evidence: the median specific
     /// force against g, the gyro at rest, and the gyro's turn against the
-    /// GNSS course while moving (57× or 1/57×: degrees and radians mixed). Writes solution.csv, instruments.csv,
+    /// GNSS course while moving (57× or 1/57×: degrees and radians mixed).
+    ///
+    /// More aiding streams, each a table of its own (in `--print-config`,
+    /// commented out): `[wheel_speed] file = "…"` fuses a wheel-speed
+    /// (odometer) log as a forward-speed update at the wheel's lever arm
+    /// (`lever_arm_m`), estimating its scale factor (`scale_state`);
+    /// `[barometer] file = "…"` fuses barometric heights, estimating their
+    /// bias against the ellipsoid (`bias_state`). Their generic CSVs: a
+    /// header row naming the columns, any order; time `time_s` (the scale
+    /// of the other files), `gpst_s`, `gps_week` + `tow_s` or `utc`; wheel
+    /// speed `speed_mps` or `speed_kmh` (negative when reversing), optional
+    /// `sigma_mps`; barometer `height_m`, or `pressure_pa` / `pressure_hpa`
+    /// (converted by the ISA standard atmosphere), optional `sigma_m`. A
+    /// stream with no sample inside the IMU's span is an error.
+    ///
+    /// Writes solution.csv, instruments.csv,
     /// smoothed.csv, trajectory.svg, innovations.svg, outage_drift.svg and
-    /// summary.json, and prints the score tables: simulated GNSS outages of
+    /// summary.json (its `result.aid_sources`: per measurement stream the
+    /// updates fused, accepted, rejected, modified, reset and the samples
+    /// skipped), wheel_speed.csv and barometer.csv with those streams (one
+    /// row per update: innovation, its σ, NIS, outcome), and prints the
+    /// score tables: simulated GNSS outages of
     /// 10/30/60 s (RMS over windows of the maximum drift against the
     /// withheld RTK fixes: filter, RTS-smoothed, free INS, and bridged by
     /// spec 20's predictors), the efficiency criterion K_eff in the outages,
