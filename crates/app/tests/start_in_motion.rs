@@ -111,13 +111,7 @@ fn run(platform: &str, offset_deg: [f64; 3], after_s: &[f64]) -> (StartKind, Vec
     ))
     .unwrap();
     cfg.outage_bridge.enabled = false;
-    let inputs = Inputs {
-        wheel_speed: Vec::new(),
-        barometer: Vec::new(),
-        imu,
-        gnss,
-        warnings: Vec::new(),
-    };
+    let inputs = Inputs::new(imu, gnss);
     let result = Process::new(cfg, inputs).unwrap().run().unwrap();
     assert!(result.start.after_first_fix_s < 0.02, "{:?}", result.start);
     assert_eq!(result.standstill_updates, 0);

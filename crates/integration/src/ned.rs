@@ -314,6 +314,64 @@ pub struct RecoveryConfig {
     pub margin: f64,
 }
 
+impl Default for RecoveryConfig {
+    /// A run of 21 refused fixes that agree at χ² probability 0.999, reset
+    /// to `2 R`: at 1–10 Hz a genuine jump of the fixes (a new reference,
+    /// a corrected multipath bias) is followed within 2–20 s, while a run
+    /// of 21 outliers agreeing by chance is below 1e-50 at that
+    /// probability; a margin of 1 doubles the variance the fix claims, so
+    /// the filter takes the next fixes without trusting the reset one
+    /// alone.
+    fn default() -> Self {
+        Self {
+            agreement: AgreementConfig {
+                run_length: 21,
+                probability: 0.999,
+            },
+            margin: 1.0,
+        }
+    }
+}
+
+impl RecoveryConfig {
+    /// Every parameter in its range: a run of 2 to 100 000 fixes, a
+    /// probability in [1e-9, 1 − 1e-12], a margin in [0, 1e6]; the error
+    /// names the configuration key (`recovery_fixes`,
+    /// `recovery_probability`, `recovery_margin`).
+    pub fn validate(&self) -> Result<(), EstimationError> {
+        let out_of_range = |parameter, value: String, allowed: &str| {
+            Err(EstimationError::OutOfRange {
+                parameter,
+                value,
+                allowed: allowed.into(),
+            })
+        };
+        let a = &self.agreement;
+        if !(2..=100_000).contains(&a.run_length) {
+            return out_of_range(
+                "recovery_fixes",
+                a.run_length.to_string(),
+                "2 ≤ recovery_fixes ≤ 100000",
+            );
+        }
+        if !(1e-9..=1.0 - 1e-12).contains(&a.probability) {
+            return out_of_range(
+                "recovery_probability",
+                a.probability.to_string(),
+                "1e-9 ≤ recovery_probability ≤ 1 − 1e-12",
+            );
+        }
+        if !(0.0..=1e6).contains(&self.margin) {
+            return out_of_range(
+                "recovery_margin",
+                self.margin.to_string(),
+                "0 ≤ recovery_margin ≤ 1e6",
+            );
+        }
+        Ok(())
+    }
+}
+
 /// One detector per GNSS stream.
 #[derive(Debug, Clone)]
 struct Recovery<const N: usize> {
@@ -647,29 +705,31 @@ impl<const N: usize> NedFilter<N> {
     }
 
     /// Turn on the reset recovery of the GNSS updates (see
-    /// [`RecoveryConfig`]); None turns it off. Returns false (and leaves it
-    /// off) when the configuration is invalid: a run shorter than 2, a
-    /// probability outside (0, 1) or a negative or non-finite margin.
-    pub fn set_recovery(&mut self, config: Option<RecoveryConfig>) -> bool {
+    /// [`RecoveryConfig`]); None turns it off. An invalid configuration
+    /// ([`RecoveryConfig::validate`]) is an error and leaves it off.
+    pub fn set_recovery(&mut self, config: Option<RecoveryConfig>) -> Result<(), EstimationError> {
         self.recovery = None;
         let Some(config) = config else {
-            return true;
+            return Ok(());
         };
-        if !(config.margin.is_finite() && config.margin >= 0.0) {
-            return false;
-        }
+        config.validate()?;
         let (Some(position), Some(velocity)) = (
             AgreementDetector::new(config.agreement),
             AgreementDetector::new(config.agreement),
         ) else {
-            return false;
+            // Not reached after `validate`; the detector's own check kept.
+            return Err(EstimationError::OutOfRange {
+                parameter: "recovery_fixes",
+                value: config.agreement.run_length.to_string(),
+                allowed: "a run of at least 2 fixes at a probability in (0, 1)".into(),
+            });
         };
         self.recovery = Some(Box::new(Recovery {
             config,
             position,
             velocity,
         }));
-        true
+        Ok(())
     }
 
     /// The recovery's configuration (None: off).
@@ -1744,7 +1804,7 @@ mod tests {
         let sig = prior(&model, [0.02, 0.01, 0.001, 0.001]);
         let lever = Vec3::new(1.0, 0.0, 0.0);
         let mut filter = NedFilter::new(model, start, &sig, lever).unwrap();
-        assert!(filter.set_recovery(recovery));
+        filter.set_recovery(recovery).unwrap();
         let mut truth = NedMechanization::new(start);
         let mut gate = aidnav_estimation::Chi2Gate { probability: 0.999 };
         let sigma = Vector3::repeat(0.02);
@@ -1876,7 +1936,7 @@ mod tests {
             ..start
         };
         let mut filter = NedFilter::new(model, wrong, &sig, Vec3::zeros()).unwrap();
-        assert!(filter.set_recovery(Some(recovery(RUN))));
+        filter.set_recovery(Some(recovery(RUN))).unwrap();
         let mut truth = NedMechanization::new(start);
         let (mut gate, mut vgate) = (
             aidnav_estimation::Chi2Gate { probability: 0.999 },
@@ -1929,10 +1989,12 @@ mod tests {
     #[test]
     fn a_reset_decorrelates_the_states_and_keeps_p_symmetric_psd() {
         let (mut filter, _, _) = drive_with_step(None, 20, 100, Vec3::zeros());
-        assert!(filter.set_recovery(Some(RecoveryConfig {
-            margin: 0.5,
-            ..recovery(RUN)
-        })));
+        filter
+            .set_recovery(Some(RecoveryConfig {
+                margin: 0.5,
+                ..recovery(RUN)
+            }))
+            .unwrap();
         let before = *filter.kf.covariance();
         // Correlated beforehand: position with attitude and velocity.
         assert!(before[(POSITION, VELOCITY)].abs() > 1e-9);

@@ -27,11 +27,11 @@ pub struct ProcessReport {
     pub start: crate::process::StartSummary,
     /// Standstill (zero-velocity + zero-angular-rate) updates in the clean run.
     pub standstill_updates: usize,
-    /// What every aid source of the clean run did: per source (`source`)
+    /// What every aid source of the clean run did: per measurement stream (`name`)
     /// the measurements it passed to the filter (`fused`), of those
     /// `accepted`, `rejected`, `modified` (limited or re-weighted) and
     /// `reset`, and the samples it did not fuse (`skipped`).
-    pub aid_sources: Vec<crate::process::AidSourceCounts>,
+    pub aid_sources: Vec<aidnav_integration::aiding::SourceStatus>,
     /// RMS 3-D error of the RTS-smoothed antenna positions over the
     /// reference epochs (null: not smoothed, or no reference).
     pub tracking_smoothed_rms_m: Option<Option<f64>>,

@@ -59,7 +59,7 @@ use serde::Serialize;
 ///         velocity_sigma_neu: None,
 ///     })
 ///     .collect();
-/// let inputs = Inputs { imu, gnss, warnings: Vec::new() };
+/// let inputs = Inputs::new(imu, gnss);
 /// let process = Process::new(cfg, inputs).unwrap();
 /// let result = process.run().unwrap();
 /// assert_eq!(result.epochs.len(), 47); // every fix after the first IMU sample
@@ -123,7 +123,7 @@ pub struct ProcessResult {
     /// Standstill (zero-velocity + zero-angular-rate) updates made.
     pub standstill_updates: usize,
     /// Every aid source's counts, in the loop's order.
-    pub aid_sources: Vec<AidSourceCounts>,
+    pub aid_sources: Vec<SourceStatus>,
     /// Every update of the wheel-speed and barometer sources, in time
     /// order (`wheel_speed.csv`, `barometer.csv`).
     pub aid_updates: Vec<AidRecord>,
@@ -131,43 +131,6 @@ pub struct ProcessResult {
     /// rejection runs of this run ([`super::warnings`]); other checks of
     /// the run push theirs here.
     pub warnings: Vec<Warning>,
-}
-
-/// What an aid source did over a run (`summary.json`'s
-/// `result.aid_sources[]`; [`SourceStatus`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-pub struct AidSourceCounts {
-    /// The measurement stream: `non_holonomic`, `zero_velocity`,
-    /// `zero_angular_rate`, `gnss_position`, `gnss_velocity`, `wheel_speed`,
-    /// `barometer`.
-    pub source: &'static str,
-    /// Measurements the source passed to the filter.
-    pub fused: usize,
-    /// Of those, accepted as they were.
-    pub accepted: usize,
-    /// Of those, refused by the policy (no update).
-    pub rejected: usize,
-    /// Of those, limited, re-weighted or given another gain.
-    pub modified: usize,
-    /// Of those, ending in a reset of the measured states.
-    pub reset: usize,
-    /// Samples the source did not fuse (not due, out of range, the
-    /// condition not met).
-    pub skipped: usize,
-}
-
-impl From<SourceStatus> for AidSourceCounts {
-    fn from(s: SourceStatus) -> Self {
-        Self {
-            source: s.name,
-            fused: s.fused,
-            accepted: s.accepted,
-            rejected: s.rejected,
-            modified: s.modified,
-            reset: s.reset,
-            skipped: s.skipped,
-        }
-    }
 }
 
 /// How and when the filter started (`summary.json`'s `result.start`).
@@ -355,7 +318,7 @@ impl Process {
                 speed_mps: begin.speed_mps.is_finite().then_some(begin.speed_mps),
             },
             standstill_updates: run.standstill_updates,
-            aid_sources: run.sources.iter().map(|&s| s.into()).collect(),
+            aid_sources: run.sources,
             aid_updates: run.aid_updates,
             warnings,
             between: run.between,

@@ -7,6 +7,7 @@ use aidnav_estimation::gmdh::GmdhConfig;
 use aidnav_estimation::{Scheme, SchemeParameters};
 use aidnav_frames::Vec3;
 use aidnav_integration::aiding::{BaroConfig, BaroSource, WheelSpeedConfig, WheelSpeedSource};
+use aidnav_integration::ned::RecoveryConfig;
 use aidnav_integration::state::{Augmented, BlockDynamics, StateLayout};
 use aidnav_sensors::{BaroSample, WheelSpeedSample};
 use aidnav_supervisors::outage::{BridgeConfig, RelaySchedule};
@@ -676,6 +677,7 @@ impl QualitySigmaScale {
 impl Default for GnssConfig {
     /// The scheme keys from the engine's [`SchemeParameters::default`].
     fn default() -> Self {
+        let recovery = RecoveryConfig::default();
         let scheme = SchemeParameters::default();
         Self {
             lever_arm_m: [0.0; 3],
@@ -692,9 +694,9 @@ impl Default for GnssConfig {
             adaptive_diagonal_rule: scheme.adaptive_diagonal_rule,
             sigma_scale: 1.0,
             recovery: true,
-            recovery_fixes: 21,
-            recovery_probability: 0.999,
-            recovery_margin: 1.0,
+            recovery_fixes: recovery.agreement.run_length,
+            recovery_probability: recovery.agreement.probability,
+            recovery_margin: recovery.margin,
         }
     }
 }
@@ -1189,15 +1191,20 @@ impl GnssConfig {
 
 impl GnssConfig {
     /// The filter's reset recovery (None when `recovery` is off).
-    pub fn recovery_config(&self) -> Option<aidnav_integration::ned::RecoveryConfig> {
-        self.recovery
-            .then_some(aidnav_integration::ned::RecoveryConfig {
-                agreement: aidnav_estimation::recovery::AgreementConfig {
-                    run_length: self.recovery_fixes,
-                    probability: self.recovery_probability,
-                },
-                margin: self.recovery_margin,
-            })
+    pub fn recovery_config(&self) -> Option<RecoveryConfig> {
+        self.recovery.then(|| self.recovery_parameters())
+    }
+
+    /// The recovery's parameters from this table's keys, whether or not
+    /// `recovery` is on.
+    pub fn recovery_parameters(&self) -> RecoveryConfig {
+        RecoveryConfig {
+            agreement: aidnav_estimation::recovery::AgreementConfig {
+                run_length: self.recovery_fixes,
+                probability: self.recovery_probability,
+            },
+            margin: self.recovery_margin,
+        }
     }
 }
 

@@ -117,7 +117,7 @@ pub fn write_forward_files(
     others.extend(drift);
     let mut other_warnings = other_warnings;
     for (source, unit) in AID_UPDATE_FILES {
-        if result.aid_sources.iter().any(|s| s.source == source) {
+        if result.aid_sources.iter().any(|s| s.name == source) {
             let path = out.join(format!("{source}.csv"));
             other_warnings.extend(write_aid_updates(&path, &result.aid_updates, source, unit)?);
             others.push(path);

@@ -41,7 +41,7 @@ pub mod tune;
 mod validate;
 pub mod warnings;
 
-pub use api::{AidSourceCounts, Process, ProcessResult, Smoothed, Smoothing, StartSummary};
+pub use api::{Process, ProcessResult, Smoothed, Smoothing, StartSummary};
 pub use config::{
     AdaptiveNoise, BRIDGE_PREDICTORS, BaroFormat, BarometerSection, ConstraintConfig, DataFiles,
     EfficiencyConfig, Feedback, FilterConfig, FixQuality, GnssConfig, GnssFormat, ImuConfig,
@@ -122,6 +122,18 @@ pub struct Inputs {
 }
 
 impl Inputs {
+    /// Body-frame IMU samples and GNSS fixes as they are (no other stream,
+    /// no warning): inputs built in memory.
+    pub fn new(imu: Vec<ImuSample>, gnss: Vec<GnssFix>) -> Self {
+        Self {
+            imu,
+            gnss,
+            wheel_speed: Vec::new(),
+            barometer: Vec::new(),
+            warnings: Vec::new(),
+        }
+    }
+
     /// Read the files named in the configuration (relative to `base`),
     /// time-shift, rotate to the body frame and smooth.
     pub fn load(cfg: &ProcessConfig, base: &Path) -> Result<Self, ProcessError> {
@@ -287,11 +299,8 @@ impl Inputs {
         warnings.extend(check_overlap(&imu, &gnss, imu_path, gnss_path)?);
         check_turn_rate(&imu, &gnss, imu_path, gnss_path)?;
         Ok(Inputs {
-            imu,
-            gnss,
-            wheel_speed: Vec::new(),
-            barometer: Vec::new(),
             warnings,
+            ..Inputs::new(imu, gnss)
         })
     }
 
@@ -641,13 +650,10 @@ mod tests {
         cfg.initial.attitude_deg = Some([0.0; 3]);
         // The only fix is at the last IMU sample's time: the filter starts
         // there and no update follows.
-        let inputs = Inputs {
-            wheel_speed: Vec::new(),
-            barometer: Vec::new(),
-            imu: imu_at((0..100).map(|k| k as f64 * 0.01)),
-            gnss: gnss_at([0.99].into_iter()),
-            warnings: Vec::new(),
-        };
+        let inputs = Inputs::new(
+            imu_at((0..100).map(|k| k as f64 * 0.01)),
+            gnss_at([0.99].into_iter()),
+        );
         let e = initialise(&cfg, &inputs).unwrap_err().to_string();
         assert!(e.contains("the run would make no update"), "{e}");
     }

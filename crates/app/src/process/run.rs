@@ -311,11 +311,7 @@ fn new_filter<const N: usize>(
     }
     let lever = Vec3::assume_in_frame(Vector3::from(cfg.gnss.lever_arm_m));
     let mut filter = NedFilter::with_layout(model, begin.state, &sig, lever, layout)?;
-    if !filter.set_recovery(cfg.gnss.recovery_config()) {
-        return Err(ProcessError::Data(
-            "gnss.recovery_fixes, recovery_probability or recovery_margin out of range".into(),
-        ));
-    }
+    filter.set_recovery(cfg.gnss.recovery_config())?;
     filter.set_gyro_bias(begin.gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
     if smoothing(cfg, plan) {
@@ -750,13 +746,7 @@ mod tests {
                 velocity_sigma_neu: Some(Vector3::repeat(0.05)),
             })
             .collect();
-        let inputs = super::super::Inputs {
-            wheel_speed: Vec::new(),
-            barometer: Vec::new(),
-            imu,
-            gnss,
-            warnings: Vec::new(),
-        };
+        let inputs = super::super::Inputs::new(imu, gnss);
         (cfg, inputs)
     }
 
@@ -812,13 +802,7 @@ mod tests {
                 velocity_sigma_neu: Some(Vector3::repeat(0.05)),
             })
             .collect();
-        let inputs = super::super::Inputs {
-            wheel_speed: Vec::new(),
-            barometer: Vec::new(),
-            imu,
-            gnss,
-            warnings: Vec::new(),
-        };
+        let inputs = super::super::Inputs::new(imu, gnss);
         let plan = RunPlan {
             smooth: true,
             ..RunPlan::default()

@@ -401,13 +401,7 @@ mod tests {
                 .collect();
             let cfg: ProcessConfig =
                 toml::from_str("[data]\ndir = \".\"\nimu = \"i\"\ngnss = \"g\"\n").unwrap();
-            let inputs = Inputs {
-                wheel_speed: Vec::new(),
-                barometer: Vec::new(),
-                imu: imu.clone(),
-                gnss,
-                warnings: Vec::new(),
-            };
+            let inputs = Inputs::new(imu.clone(), gnss);
             initialise(&cfg, &inputs).unwrap()
         };
         let coarse = start(3.0);

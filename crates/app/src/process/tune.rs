@@ -960,16 +960,7 @@ mod tests {
                 velocity_sigma_neu: None,
             })
             .collect();
-        (
-            cfg,
-            Inputs {
-                wheel_speed: Vec::new(),
-                barometer: Vec::new(),
-                imu,
-                gnss,
-                warnings: Vec::new(),
-            },
-        )
+        (cfg, Inputs::new(imu, gnss))
     }
 
     /// The Allan deviation of a static log reads the white noise it was

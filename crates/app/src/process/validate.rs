@@ -324,17 +324,7 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
         ],
     )?;
     validate_scheme(&cfg.gnss)?;
-    count_in_range("recovery_fixes", cfg.gnss.recovery_fixes, 2, 100_000)
-        .map_err(|e| e.within("gnss"))?;
-    in_range(
-        "recovery_probability",
-        cfg.gnss.recovery_probability,
-        1e-9,
-        1.0 - 1e-12,
-    )
-    .map_err(|e| e.within("gnss"))?;
-    in_range("recovery_margin", cfg.gnss.recovery_margin, 0.0, 1e6)
-        .map_err(|e| e.within("gnss"))?;
+    engine_ranges("gnss", cfg.gnss.recovery_parameters().validate())?;
     count_in_range(
         "adaptive_noise_window",
         cfg.filter.adaptive_noise_window,
@@ -351,14 +341,20 @@ fn validate_inputs(cfg: &ProcessConfig) -> Result<(), Invalid> {
 ///
 /// [`SchemeParameters::validate`]: aidnav_estimation::SchemeParameters::validate
 fn validate_scheme(g: &GnssConfig) -> Result<(), Invalid> {
-    match g.scheme_parameters().validate() {
+    engine_ranges("gnss", g.scheme_parameters().validate())
+}
+
+/// A library's own range check of parameters read from `table`, its error
+/// naming `table.<key>`.
+fn engine_ranges(table: &str, checked: Result<(), EstimationError>) -> Result<(), Invalid> {
+    match checked {
         Ok(()) => Ok(()),
         Err(EstimationError::OutOfRange {
             parameter,
             value,
             allowed,
-        }) => Err(Invalid::new(parameter, value, allowed).within("gnss")),
-        Err(other) => Err(Invalid::new("gnss", other, "valid scheme parameters")),
+        }) => Err(Invalid::new(parameter, value, allowed).within(table)),
+        Err(other) => Err(Invalid::new(table, other, "valid parameters")),
     }
 }
 

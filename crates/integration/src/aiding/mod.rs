@@ -31,10 +31,13 @@ pub use non_holonomic::{NonHolonomic, NonHolonomicSource};
 pub use standstill::{StandstillSource, StandstillUpdates};
 pub use wheel_speed::{WheelSpeedConfig, WheelSpeedSource};
 
-/// What one source's updates came to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// What one source's updates came to (`summary.json`'s
+/// `result.aid_sources[]` is a list of these).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct SourceStatus {
-    /// The source's name (snake_case, as in `summary.json`).
+    /// The measurement stream's name (snake_case): `non_holonomic`,
+    /// `zero_velocity`, `zero_angular_rate`, `gnss_position`,
+    /// `gnss_velocity`, `wheel_speed`, `barometer`.
     pub name: &'static str,
     /// Measurements the control step passed to the filter.
     pub fused: usize,
