@@ -5,12 +5,17 @@
 //! them and the simulator writes them: no sensor knows the filter, and the
 //! readers need not know the mechanization.
 //!
-//! Every record is [`Timed`]; [`merge()`] walks any number of time-sorted
+//! Records: [`ImuSample`], [`GnssFix`], [`WheelSpeedSample`],
+//! [`BaroSample`] and the raw GNSS measurements of an epoch
+//! ([`RawGnssEpoch`]: pseudorange, carrier phase, Doppler per satellite and
+//! signal). Every record is [`Timed`]; [`merge()`] walks any number of time-sorted
 //! streams of them in time order ([`merge`](mod@merge) module).
 
 pub mod merge;
+pub mod raw_gnss;
 
 pub use merge::{Merge, Timed, Timeline, merge};
+pub use raw_gnss::{Constellation, RawGnssEpoch, RawObservation, SatelliteId};
 
 use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;

@@ -17,7 +17,7 @@
 //! A stream that is not sorted is still walked completely, each record
 //! once, but the output is then only ordered among the streams' heads.
 
-use crate::{BaroSample, GnssFix, ImuSample, WheelSpeedSample};
+use crate::{BaroSample, GnssFix, ImuSample, RawGnssEpoch, WheelSpeedSample};
 
 /// A record that carries its time.
 pub trait Timed {
@@ -36,7 +36,13 @@ macro_rules! timed_by_field {
     };
 }
 
-timed_by_field!(ImuSample, GnssFix, WheelSpeedSample, BaroSample);
+timed_by_field!(
+    ImuSample,
+    GnssFix,
+    WheelSpeedSample,
+    BaroSample,
+    RawGnssEpoch
+);
 
 /// A sequence of timed records, seen only through its length and the time
 /// of each record: what [`merge`] needs, whatever the record type (so
