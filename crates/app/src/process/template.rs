@@ -534,9 +534,9 @@ pub fn config_template(platform: Platform) -> String {
     }
     flush_optional(&mut out, &table);
     for (table, section) in optional_sections() {
+        let header = format!("[{table}]");
         out.push_str(&format!(
-            "\n# [{table}]{:<28} # uncomment this table to use the stream\n",
-            ""
+            "\n# {header:<38} # uncomment this table to use the stream\n"
         ));
         for line in section.lines() {
             let doc = line

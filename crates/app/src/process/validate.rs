@@ -597,6 +597,57 @@ mod tests {
     }
 
     #[test]
+    fn the_aid_source_tables_are_bounded_and_name_their_key() {
+        let ok = |extra: &str| {
+            let text = format!("{DATA}{extra}");
+            aidnav_io::config::parse_toml::<ProcessConfig>(&text, std::path::Path::new("p.toml"))
+                .unwrap()
+        };
+        let cfg = ok("[wheel_speed]\nfile = \"w.csv\"\n[barometer]\nfile = \"b.csv\"\n");
+        assert_eq!(cfg.state_layout().len(), 23);
+        let cfg = ok("[wheel_speed]\nfile = \"w.csv\"\nscale_state = false\n");
+        assert_eq!(cfg.state_layout().len(), 21);
+        // The engine's recovery defaults are the table's.
+        let recovery = aidnav_integration::ned::RecoveryConfig::default();
+        assert_eq!(GnssConfig::default().recovery_parameters(), recovery);
+        for (extra, key) in [
+            ("[wheel_speed]\nsigma_mps = 0.1\n", "wheel_speed.file"),
+            ("[barometer]\nsigma_m = 0.5\n", "barometer.file"),
+            (
+                "[wheel_speed]\nfile = \"w\"\ngate_probability = 0.2\n",
+                "wheel_speed.gate_probability",
+            ),
+            (
+                "[wheel_speed]\nfile = \"w\"\nsigma_mps = -1\n",
+                "wheel_speed.sigma_mps",
+            ),
+            (
+                "[wheel_speed]\nfile = \"w\"\nlever_arm_m = [0, 0, 1e9]\n",
+                "wheel_speed.lever_arm_m[2]",
+            ),
+            (
+                "[barometer]\nfile = \"b\"\nbias_sigma_m = inf\n",
+                "barometer.bias_sigma_m",
+            ),
+            (
+                "[barometer]\nfile = \"b\"\nmin_interval_s = -1\n",
+                "barometer.min_interval_s",
+            ),
+            (
+                "[filter]\nconvergence_monitor = true\n[barometer]\nfile = \"b\"\n",
+                "filter.convergence_monitor",
+            ),
+            ("[gnss]\nrecovery_fixes = 1\n", "gnss.recovery_fixes"),
+            ("[gnss]\nrecovery_margin = -1\n", "gnss.recovery_margin"),
+        ] {
+            let e = err(extra);
+            assert!(e.contains(&format!("{key}: ")), "{key}: {e}");
+        }
+        let e = err("[wheel_speed]\nfile = \"w\"\nspeed = 3\n");
+        assert!(e.contains("speed"), "{e}");
+    }
+
+    #[test]
     fn non_holonomic_sigma_and_rate_are_bounded() {
         for (value, shown) in [
             ("-0.1", "-0.1"),
