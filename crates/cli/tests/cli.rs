@@ -53,11 +53,83 @@ fn filter_args<'a>(model: &'a Path, z: &'a Path, out: &'a Path) -> Vec<&'a str> 
     ]
 }
 
+/// `aidnav COMMAND INPUT ARGS… --out OUT`, expected to succeed (`process`,
+/// `run`, `tune`, `convert`); its standard output.
+fn on_file(command: &str, input: &Path, args: &[&str], out: &Path) -> String {
+    let mut all = vec![command, input.to_str().unwrap()];
+    all.extend_from_slice(args);
+    all.extend(["--out", out.to_str().unwrap()]);
+    success(&all)
+}
+
+/// `aidnav run examples/{example}.toml --runs 2 --quiet --out OUT`: the
+/// formation examples cut short; its standard output.
+fn run_two_runs_of(example: &str, out: &Path) -> String {
+    let config = repo().join(format!("examples/{example}.toml"));
+    on_file("run", &config, &["--runs", "2", "--quiet"], out)
+}
+
+/// `text` holds every one of `parts` (the whole text shown if not).
+#[track_caller]
+fn assert_contains_all(text: &str, parts: &[&str]) {
+    assert!(parts.iter().all(|p| text.contains(p)), "{text}");
+}
+
+/// A recorded log of the repository's data (`drive_0708`, `walk_0827`).
+fn data_dir(log: &str) -> PathBuf {
+    repo().join("data/rtklibexplorer-gnss-imu").join(log)
+}
+
+/// The example configuration `examples/{log}.toml` with its data dir made
+/// absolute (a copy written elsewhere still finds the log).
+fn example_with_absolute_data(log: &str) -> String {
+    let example = std::fs::read_to_string(repo().join(format!("examples/{log}.toml"))).unwrap();
+    example.replace(
+        &format!("dir = \"../data/rtklibexplorer-gnss-imu/{log}\""),
+        &format!("dir = {:?}", data_dir(log).to_str().unwrap()),
+    )
+}
+
+/// The scalar model and measurements `z_csv`, written as `m.toml` and
+/// `z.csv` in `dir`.
+fn scalar_inputs(dir: &Path, z_csv: &str) -> (PathBuf, PathBuf) {
+    let model = dir.join("m.toml");
+    std::fs::write(&model, SCALAR_MODEL).unwrap();
+    let z = dir.join("z.csv");
+    std::fs::write(&z, z_csv).unwrap();
+    (model, z)
+}
+
+/// `text` written to `config`, `aidnav COMMAND CONFIG` expected to fail; its
+/// standard error.
+fn failure_on(command: &str, config: &Path, text: &str) -> String {
+    std::fs::write(config, text).unwrap();
+    failure(&[command, config.to_str().unwrap()])
+}
+
+/// `aidnav ARGS…` with its standard output closed before it writes (the
+/// reader of a pipe gone, as `| head`): its exit status and output.
+fn with_stdout_closed(args: &[&str]) -> Output {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_aidnav"))
+        .args(args)
+        .env("CI", "true")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    child.wait_with_output().unwrap()
+}
+
 fn filter_failure(model: &Path, z: &Path, out: &Path) -> String {
     failure(&filter_args(model, z, out))
 }
 
-fn reproduce_failure(scenario: &Path, out: &Path) -> String {
+/// `text` written to `scenario`, `aidnav reproduce consistency --scenario
+/// SCENARIO --out OUT` expected to fail; its standard error.
+fn reproduce_failure(scenario: &Path, text: &str, out: &Path) -> String {
+    std::fs::write(scenario, text).unwrap();
     failure(&[
         "reproduce",
         "consistency",
@@ -128,15 +200,12 @@ fn filter_reproduces_the_hand_checked_example() {
 #[test]
 fn bad_inputs_give_errors_naming_file_line_and_key() {
     let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.toml");
-    let good = "phi = [[1.0]]\nq = [[0.0]]\nh = [[1.0]]\nr = [[1.0]]\nx0 = [0.0]\np0 = [[1.0]]\n";
-    std::fs::write(&model, format!("{good}rr = 3\n")).unwrap();
-    let z = dir.path().join("z.csv");
-    std::fs::write(&z, "z1\n1\n").unwrap();
+    let (model, z) = scalar_inputs(dir.path(), "z1\n1\n");
+    std::fs::write(&model, format!("{SCALAR_MODEL}rr = 3\n")).unwrap();
     let err = filter_failure(&model, &z, dir.path());
     assert!(err.contains("m.toml:7: rr: unknown field `rr`"), "{err}");
 
-    std::fs::write(&model, good).unwrap();
+    std::fs::write(&model, SCALAR_MODEL).unwrap();
     std::fs::write(&z, "z1\n1\nabc\n").unwrap();
     let err = filter_failure(&model, &z, dir.path());
     assert!(
@@ -152,14 +221,12 @@ fn bad_inputs_give_errors_naming_file_line_and_key() {
 fn scenario_range_errors_name_the_key_and_range() {
     let dir = tempfile::tempdir().unwrap();
     let s = dir.path().join("s.toml");
-    std::fs::write(&s, "seed = 1\n\nconfidence = 1.5\n").unwrap();
-    let err = reproduce_failure(&s, dir.path());
+    let err = reproduce_failure(&s, "seed = 1\n\nconfidence = 1.5\n", dir.path());
     assert!(
         err.contains("s.toml:3: confidence: 1.5 is out of range: allowed 0 < confidence < 1"),
         "{err}"
     );
-    std::fs::write(&s, "runs = \"ten\"\n").unwrap();
-    let err = reproduce_failure(&s, dir.path());
+    let err = reproduce_failure(&s, "runs = \"ten\"\n", dir.path());
     assert!(
         err.contains("s.toml:1: runs: invalid type: string \"ten\""),
         "{err}"
@@ -171,10 +238,7 @@ fn reproduce_writes_table_plot_and_summary_with_seed_and_scenario() {
     let dir = tempfile::tempdir().unwrap();
     let args = ["--runs", "20", "--seed", "99"];
     let stdout = reproduce("consistency", &args, dir.path());
-    assert!(
-        stdout.contains("tuned") && stdout.contains("q_too_small") && stdout.contains("seed 99"),
-        "{stdout}"
-    );
+    assert_contains_all(&stdout, &["tuned", "q_too_small", "seed 99"]);
     for f in ["consistency.csv", "nees.svg", "summary.json"] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
@@ -218,19 +282,16 @@ fn a_failed_reproduction_leaves_no_stale_summary() {
 #[test]
 fn a_closed_pipe_stops_the_program_quietly() {
     use std::os::unix::process::ExitStatusExt;
-    use std::process::Stdio;
     let out = tempfile::tempdir().unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_aidnav"))
-        .args(["reproduce", "consistency", "--runs", "50", "--out"])
-        .arg(out.path())
-        .env("CI", "true")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Close the reading end before the table is printed.
-    drop(child.stdout.take());
-    let result = child.wait_with_output().unwrap();
+    // The reading end is closed before the table is printed.
+    let result = with_stdout_closed(&[
+        "reproduce",
+        "consistency",
+        "--runs",
+        "50",
+        "--out",
+        out.path().to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&result.stderr);
     assert!(
         !err.contains("Broken pipe") && !err.contains("panicked"),
@@ -246,36 +307,26 @@ fn a_closed_pipe_stops_the_program_quietly() {
 
 #[test]
 fn help_explains_every_subcommand() {
-    let out = aidnav(&["--help"]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        text.contains("filter") && text.contains("reproduce") && text.contains("run"),
-        "{text}"
-    );
-    let out = aidnav(&["run", "--help"]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        text.contains("[formation]") && text.contains("denial"),
-        "{text}"
-    );
-    let out = aidnav(&["filter", "--help"]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        text.contains("--smooth") && text.contains("empty") && text.contains("--max-epochs"),
-        "{text}"
-    );
-    let out = aidnav(&["reproduce", "--help"]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        text.contains("--print-scenario") && text.contains("consistency"),
-        "{text}"
-    );
-    let out = aidnav(&["process", "--help"]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        text.contains("--strict") && text.contains("status 3") && text.contains("no reference"),
-        "{text}"
-    );
+    let cases: [(&[&str], &[&str]); 5] = [
+        (&["--help"], &["filter", "reproduce", "run"]),
+        (&["run", "--help"], &["[formation]", "denial"]),
+        (
+            &["filter", "--help"],
+            &["--smooth", "empty", "--max-epochs"],
+        ),
+        (
+            &["reproduce", "--help"],
+            &["--print-scenario", "consistency"],
+        ),
+        (
+            &["process", "--help"],
+            &["--strict", "status 3", "no reference"],
+        ),
+    ];
+    for (args, words) in cases {
+        let out = aidnav(args);
+        assert_contains_all(&String::from_utf8_lossy(&out.stdout), words);
+    }
 }
 
 #[test]
@@ -398,20 +449,8 @@ fn reproduce_group_writes_the_case_keys_other_tools_read() {
 #[test]
 fn run_formation_example_prints_members_and_bounds_the_denied_one() {
     let dir = tempfile::tempdir().unwrap();
-    let example = repo().join("examples/formation.toml");
-    let stdout = success(&[
-        "run",
-        example.to_str().unwrap(),
-        "--runs",
-        "2",
-        "--quiet",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert!(
-        stdout.contains("GNSS/INS alone") && stdout.contains("EKF fusion"),
-        "{stdout}"
-    );
+    let stdout = run_two_runs_of("formation", dir.path());
+    assert_contains_all(&stdout, &["GNSS/INS alone", "EKF fusion"]);
     for f in ["formation.csv", "formation_errors.svg", "summary.json"] {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
@@ -442,16 +481,7 @@ fn run_formation_example_prints_members_and_bounds_the_denied_one() {
 #[test]
 fn run_formation_degraded_example_scores_the_degraded_member() {
     let dir = tempfile::tempdir().unwrap();
-    let example = repo().join("examples/formation_degraded.toml");
-    let stdout = success(&[
-        "run",
-        example.to_str().unwrap(),
-        "--runs",
-        "2",
-        "--quiet",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
+    let stdout = run_two_runs_of("formation_degraded", dir.path());
     assert!(
         stdout.contains("member 2 during its GNSS degradation"),
         "{stdout}"
@@ -474,27 +504,25 @@ fn run_formation_degraded_example_scores_the_degraded_member() {
 fn run_names_file_line_and_key_of_a_bad_formation() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("f.toml");
-    std::fs::write(&f, "[formation]\nmembers = 0\n").unwrap();
-    let err = failure(&["run", f.to_str().unwrap()]);
-    assert!(
-        err.contains("f.toml:2: formation.members: 0 is out of range"),
-        "{err}"
-    );
-    std::fs::write(&f, "[formation]\nmembers = 3\n[[formation.denial]]\nmembers = [3]\nstart_s = 1.0\nend_s = 2.0\n").unwrap();
-    let err = failure(&["run", f.to_str().unwrap()]);
-    assert!(err.contains("formation.denial[0].members"), "{err}");
-    std::fs::write(&f, "[formation]\n[[formation.degradation]]\nmember = 1\nstart_s = 1.0\nend_s = 2.0\nsigma_scale = 0.5\n").unwrap();
-    let err = failure(&["run", f.to_str().unwrap()]);
-    assert!(
-        err.contains("formation.degradation[0].sigma_scale"),
-        "{err}"
-    );
-    std::fs::write(&f, "[formaton]\n").unwrap();
-    let err = failure(&["run", f.to_str().unwrap()]);
-    assert!(
-        err.contains("f.toml:1") && err.contains("formaton"),
-        "{err}"
-    );
+    for (text, message) in [
+        (
+            "[formation]\nmembers = 0\n",
+            "f.toml:2: formation.members: 0 is out of range",
+        ),
+        (
+            "[formation]\nmembers = 3\n[[formation.denial]]\nmembers = [3]\nstart_s = 1.0\nend_s = 2.0\n",
+            "formation.denial[0].members",
+        ),
+        (
+            "[formation]\n[[formation.degradation]]\nmember = 1\nstart_s = 1.0\nend_s = 2.0\nsigma_scale = 0.5\n",
+            "formation.degradation[0].sigma_scale",
+        ),
+    ] {
+        let err = failure_on("run", &f, text);
+        assert!(err.contains(message), "{err}");
+    }
+    let err = failure_on("run", &f, "[formaton]\n");
+    assert_contains_all(&err, &["f.toml:1", "formaton"]);
 }
 
 #[test]
@@ -508,10 +536,7 @@ fn reproduce_extended_state_writes_the_case_keys_other_tools_read() {
         &["--scenario", scenario.to_str().unwrap(), "--quiet"],
         &out,
     );
-    assert!(
-        stdout.contains("2–5") && stdout.contains("4–10"),
-        "{stdout}"
-    );
+    assert_contains_all(&stdout, &["2–5", "4–10"]);
     let summary = read_summary(&out);
     let cases = summary["cases"].as_array().unwrap();
     // Per trajectory: δ armed and δ literal per threshold, the share rule.
@@ -564,13 +589,7 @@ fn process_runs_the_recorded_drive_and_scores_it() {
     let config = repo().join("examples/drive_0708.toml");
     // `--strict`: the readers' notes (a truncated line dropped, fixes
     // before the first IMU sample) do not fail it; a healthy run passes.
-    let stdout = success(&[
-        "process",
-        config.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-        "--strict",
-    ]);
+    let stdout = on_file("process", &config, &["--strict"], dir.path());
     assert!(
         stdout.contains("54858 IMU samples")
             // Published numbers of other tools are not printed beside an
@@ -683,13 +702,7 @@ fn process_runs_the_recorded_drive_and_scores_it() {
 /// The drive as a cheap scoring run: 10 s outages only, no anomaly or
 /// burst runs, no bridging or smoothing; `extra` appended.
 fn quick_drive_config(dir: &Path, extra: &str) -> PathBuf {
-    let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
-    let data = repo().join("data/rtklibexplorer-gnss-imu/drive_0708");
-    let config = example
-        .replace(
-            "dir = \"../data/rtklibexplorer-gnss-imu/drive_0708\"",
-            &format!("dir = {:?}", data.to_str().unwrap()),
-        )
+    let config = example_with_absolute_data("drive_0708")
         .replace("outages_s = [10.0, 30.0, 60.0]", "outages_s = [10.0]")
         .replace(
             "outlier_fractions = [0.1, 0.3]",
@@ -716,18 +729,15 @@ fn process_without_a_reference_quality_fix_says_no_reference() {
     assert!(text.contains("[\"ppp\"]"));
     std::fs::write(&c, text).unwrap();
     let out = dir.path().join("out");
-    let stdout = success(&[
-        "process",
-        c.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(
-        stdout.contains("over the 0 reference epochs no reference")
-            && stdout.contains("0/12")
-            && stdout.contains("12 of 12 windows hold no reference epoch")
-            && stdout.contains("actual error: no reference"),
-        "{stdout}"
+    let stdout = on_file("process", &c, &[], &out);
+    assert_contains_all(
+        &stdout,
+        &[
+            "over the 0 reference epochs no reference",
+            "0/12",
+            "12 of 12 windows hold no reference epoch",
+            "actual error: no reference",
+        ],
     );
     let lines: Vec<&str> = stdout.lines().collect();
     let row = lines.iter().position(|l| l.contains("L [s]")).unwrap() + 1;
@@ -777,10 +787,12 @@ fn process_strict_exits_non_zero_after_writing_when_the_filter_diverges() {
     let o = aidnav(&args);
     assert!(o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        err.contains("warning: divergence: the mean position NIS per degree of freedom over 30 s stayed above 10 from")
-            && err.contains("position updates in a row rejected or limited, from"),
-        "{err}"
+    assert_contains_all(
+        &err,
+        &[
+            "warning: divergence: the mean position NIS per degree of freedom over 30 s stayed above 10 from",
+            "position updates in a row rejected or limited, from",
+        ],
     );
     // With it: exit status 3, every output written first.
     std::fs::remove_dir_all(&out).unwrap();
@@ -823,12 +835,7 @@ fn process_strict_exits_non_zero_after_writing_when_the_filter_diverges() {
 fn process_runs_the_walk_example_from_the_repository() {
     let dir = tempfile::tempdir().unwrap();
     let config = repo().join("examples/walk_0827.toml");
-    let stdout = success(&[
-        "process",
-        config.to_str().unwrap(),
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
+    let stdout = on_file("process", &config, &[], dir.path());
     assert!(stdout.contains("levelled at a standstill"), "{stdout}");
     assert!(stdout.contains("simulated outages"), "{stdout}");
     let summary = read_summary(dir.path());
@@ -850,20 +857,12 @@ fn process_runs_the_walk_example_from_the_repository() {
 fn process_names_file_line_and_key_of_a_bad_config() {
     let dir = tempfile::tempdir().unwrap();
     let c = dir.path().join("c.toml");
-    std::fs::write(
-        &c,
-        "[data]\ndir = \".\"\nimu = \"i.csv\"\nimu_tags = \"i.csv.tag\"\ngnss = \"g.pos\"\n[imu]\nsmoothing_s = -1.0\n",
-    )
-    .unwrap();
-    let err = failure(&["process", c.to_str().unwrap()]);
+    // Inputs that do not exist, named relative to the configuration.
+    let data = "[data]\ndir = \".\"\nimu = \"i.csv\"\nimu_tags = \"i.csv.tag\"\ngnss = \"g.pos\"\n";
+    let err = failure_on("process", &c, &format!("{data}[imu]\nsmoothing_s = -1.0\n"));
     assert!(err.contains("c.toml:7: imu.smoothing_s"), "{err}");
-    std::fs::write(
-        &c,
-        "[data]\ndir = \".\"\nimu = \"i.csv\"\nimu_tags = \"i.csv.tag\"\ngnss = \"g.pos\"\n",
-    )
-    .unwrap();
     // Neither input exists: the first one read is named.
-    let err = failure(&["process", c.to_str().unwrap()]);
+    let err = failure_on("process", &c, data);
     assert!(
         err.contains("i.csv: cannot read") || err.contains("i.csv.tag: cannot read"),
         "{err}"
@@ -874,7 +873,7 @@ fn process_names_file_line_and_key_of_a_bad_config() {
 fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
     let dir = tempfile::tempdir().unwrap();
     let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
-    let data = repo().join("data/rtklibexplorer-gnss-imu/drive_0708");
+    let data = data_dir("drive_0708");
     let config = example
         .replace(
             "# attitude_deg = [0.0, 0.0, 90.0]",
@@ -899,15 +898,12 @@ fn process_takes_a_given_attitude_and_writes_kf_gins_text() {
     ] {
         std::fs::write(out.join(name), "an earlier run's").unwrap();
     }
-    success(&[
+    on_file(
         "process",
-        c.to_str().unwrap(),
-        "--data",
-        data.to_str().unwrap(),
-        "--no-score",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+        &c,
+        &["--data", data.to_str().unwrap(), "--no-score"],
+        &out,
+    );
     assert!(out.join("notes.txt").exists());
     assert!(!out.join("outage_drift.svg").exists());
     let removed: Vec<String> = read_summary(&out)["result"]["warnings"]
@@ -957,16 +953,8 @@ fn an_os_error_is_printed_once() {
 
 #[test]
 fn a_closed_stdout_stops_the_process_quietly() {
-    use std::process::Stdio;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_aidnav"))
-        .args(["reproduce", "all", "--print-scenario"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
     // The reader goes away before the first line is written (`| head -0`).
-    drop(child.stdout.take());
-    let out = child.wait_with_output().unwrap();
+    let out = with_stdout_closed(&["reproduce", "all", "--print-scenario"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.is_empty(), "{err}");
     #[cfg(unix)]
@@ -986,11 +974,8 @@ const SCALAR_MODEL: &str =
 #[test]
 fn a_non_finite_nis_is_a_warning_naming_file_column_and_epoch() {
     let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.toml");
-    std::fs::write(&model, SCALAR_MODEL).unwrap();
-    let z = dir.path().join("z.csv");
     // 1e200² overflows: the NIS of epoch 1 is inf.
-    std::fs::write(&z, "z1\n1\n1e200\n").unwrap();
+    let (model, z) = scalar_inputs(dir.path(), "z1\n1\n1e200\n");
     let out = dir.path().join("out");
     let o = aidnav(&filter_args(&model, &z, &out));
     assert!(o.status.success());
@@ -1014,10 +999,7 @@ fn a_non_finite_nis_is_a_warning_naming_file_column_and_epoch() {
 #[test]
 fn a_failed_filter_leaves_no_file_under_a_final_name() {
     let dir = tempfile::tempdir().unwrap();
-    let model = dir.path().join("m.toml");
-    std::fs::write(&model, SCALAR_MODEL).unwrap();
-    let z = dir.path().join("z.csv");
-    std::fs::write(&z, "z1\n1\n2\n").unwrap();
+    let (model, z) = scalar_inputs(dir.path(), "z1\n1\n2\n");
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
     // A summary of an earlier run, and a directory where innovations.csv goes.
@@ -1041,30 +1023,26 @@ fn a_failed_filter_leaves_no_file_under_a_final_name() {
 fn process_runs_the_walk_from_its_ubx_log() {
     let dir = tempfile::tempdir().unwrap();
     let config = repo().join("examples/walk_0827.toml");
-    success(&[
-        "process",
-        config.to_str().unwrap(),
-        "--no-score",
-        "--out",
-        dir.path().to_str().unwrap(),
-    ]);
+    on_file("process", &config, &["--no-score"], dir.path());
     let summary = read_summary(dir.path());
     let result = &summary["result"];
     assert_eq!(result["gnss_epochs"], 536, "{result}");
     let tracking = result["tracking_rms_m"].as_f64().unwrap();
     assert!((0.01..0.04).contains(&tracking), "{tracking}");
     let warnings = result["warnings"].to_string();
-    assert!(
-        warnings.contains("136199 bytes outside UBX frames")
-            && warnings.contains("RXM-SFRBX ×2328, RXM-RAWX ×536"),
-        "{warnings}"
+    assert_contains_all(
+        &warnings,
+        &[
+            "136199 bytes outside UBX frames",
+            "RXM-SFRBX ×2328, RXM-RAWX ×536",
+        ],
     );
 }
 
 /// The walk example with its `[imu.noise]` table and GNSS σ scale removed
 /// (the defaults' noise, far from the walk's), its data dir absolute.
 fn walk_with_default_noise(dir: &Path) -> PathBuf {
-    let example = std::fs::read_to_string(repo().join("examples/walk_0827.toml")).unwrap();
+    let example = example_with_absolute_data("walk_0827");
     let mut out = String::new();
     let mut in_noise = false;
     for line in example.lines() {
@@ -1077,11 +1055,6 @@ fn walk_with_default_noise(dir: &Path) -> PathBuf {
         out.push_str(line);
         out.push('\n');
     }
-    let data = repo().join("data/rtklibexplorer-gnss-imu/walk_0827");
-    let out = out.replace(
-        "dir = \"../data/rtklibexplorer-gnss-imu/walk_0827\"",
-        &format!("dir = {:?}", data.to_str().unwrap()),
-    );
     let c = dir.join("walk_default_noise.toml");
     std::fs::write(&c, out).unwrap();
     c
@@ -1095,20 +1068,15 @@ fn tune_fits_the_walk_and_its_table_pastes_into_the_configuration() {
     let dir = tempfile::tempdir().unwrap();
     let config = walk_with_default_noise(dir.path());
     let out = dir.path().join("tune");
-    let stdout = success(&[
-        "tune",
-        config.to_str().unwrap(),
-        "--max-evaluations",
-        "12",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(
-        stdout.contains("longest standstill: 18.1 s, 115.6 s into the log")
-            && stdout.contains("Allan deviation of the unsmoothed samples at rest")
-            && stdout.contains("gnss_sigma_scale")
-            && stdout.contains("log-likelihood: configured"),
-        "{stdout}"
+    let stdout = on_file("tune", &config, &["--max-evaluations", "12"], &out);
+    assert_contains_all(
+        &stdout,
+        &[
+            "longest standstill: 18.1 s, 115.6 s into the log",
+            "Allan deviation of the unsmoothed samples at rest",
+            "gnss_sigma_scale",
+            "log-likelihood: configured",
+        ],
     );
     let summary = read_summary(&out);
     assert_eq!(summary["command"], "tune");
@@ -1147,17 +1115,14 @@ fn tune_fits_the_walk_and_its_table_pastes_into_the_configuration() {
     let example = std::fs::read_to_string(&config).unwrap();
     let c = dir.path().join("tuned.toml");
     std::fs::write(&c, format!("{example}\n{tuned}")).unwrap();
-    let data = repo().join("data/rtklibexplorer-gnss-imu/walk_0827");
+    let data = data_dir("walk_0827");
     let p_out = dir.path().join("process");
-    success(&[
+    on_file(
         "process",
-        c.to_str().unwrap(),
-        "--data",
-        data.to_str().unwrap(),
-        "--no-score",
-        "--out",
-        p_out.to_str().unwrap(),
-    ]);
+        &c,
+        &["--data", data.to_str().unwrap(), "--no-score"],
+        &p_out,
+    );
     let used = &read_summary(&p_out)["scenario"]["imu"]["noise"];
     let fitted_arw = t["fitted"]["noise"]["arw_deg_per_sqrt_h"].as_f64().unwrap();
     let used_arw = used["arw_deg_per_sqrt_h"].as_f64().unwrap();
@@ -1180,17 +1145,14 @@ fn process_with_auto_noise_tunes_first() {
         format!("{example}\n[imu.noise]\nauto = true\n\n[tune]\nmax_evaluations = 6\n"),
     )
     .unwrap();
-    let data = repo().join("data/rtklibexplorer-gnss-imu/walk_0827");
+    let data = data_dir("walk_0827");
     let out = dir.path().join("out");
-    let stdout = success(&[
+    let stdout = on_file(
         "process",
-        c.to_str().unwrap(),
-        "--data",
-        data.to_str().unwrap(),
-        "--no-score",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+        &c,
+        &["--data", data.to_str().unwrap(), "--no-score"],
+        &out,
+    );
     assert!(
         stdout.contains("[imu.noise] auto: the noise was tuned first"),
         "{stdout}"
@@ -1224,23 +1186,12 @@ fn process_with_auto_noise_tunes_first() {
 fn convert_to_kf_gins_round_trips_the_drive() {
     use aidnav::app::process::{Inputs, ProcessConfig};
     let dir = tempfile::tempdir().unwrap();
-    let example = std::fs::read_to_string(repo().join("examples/drive_0708.toml")).unwrap();
-    let data = repo().join("data/rtklibexplorer-gnss-imu/drive_0708");
-    let original = example.replace(
-        "dir = \"../data/rtklibexplorer-gnss-imu/drive_0708\"",
-        &format!("dir = {:?}", data.to_str().unwrap()),
-    );
+    let data = data_dir("drive_0708");
+    let original = example_with_absolute_data("drive_0708");
     let c = dir.path().join("drive.toml");
     std::fs::write(&c, &original).unwrap();
     let out = dir.path().join("kf");
-    let stdout = success(&[
-        "convert",
-        c.to_str().unwrap(),
-        "--to",
-        "kf-gins",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let stdout = on_file("convert", &c, &["--to", "kf-gins"], &out);
     assert!(stdout.contains("times in seconds of GPS week"), "{stdout}");
     let yaml = std::fs::read_to_string(out.join("kf-gins.yaml")).unwrap();
     for key in [
@@ -1318,22 +1269,19 @@ fn convert_help_and_errors() {
     assert!(help.contains("seconds of week"), "{help}");
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("missing.toml");
-    let err = failure(&[
-        "convert",
-        missing.to_str().unwrap(),
-        "--to",
-        "kf-gins",
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-    ]);
+    let out = dir.path().join("o");
+    let convert_to = |format: &str| {
+        failure(&[
+            "convert",
+            missing.to_str().unwrap(),
+            "--to",
+            format,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let err = convert_to("kf-gins");
     assert!(err.contains("missing.toml"), "{err}");
-    let err = failure(&[
-        "convert",
-        missing.to_str().unwrap(),
-        "--to",
-        "rinex",
-        "--out",
-        "o",
-    ]);
+    let err = convert_to("rinex");
     assert!(err.contains("kf-gins"), "{err}");
 }

@@ -1487,6 +1487,28 @@ mod tests {
 
     /// Prior σ: position, velocity, tilt, heading as given, instruments from
     /// the model's noise terms.
+    /// At rest at the tests' site (latitude 0.7 rad, longitude −1.8 rad,
+    /// 1600 m) with the attitude of these Euler angles (roll, pitch, yaw).
+    fn at_rest(roll: f64, pitch: f64, yaw: f64) -> NedState {
+        NedState {
+            position: Geodetic {
+                latitude_rad: 0.7,
+                longitude_rad: -1.8,
+                height_m: 1600.0,
+            },
+            velocity: Vec3::zeros(),
+            attitude: Rotation::from_euler_angles(roll, pitch, yaw),
+        }
+    }
+
+    /// At the tests' site at 10 m/s north-east, heading north-east, level.
+    fn driving_north_east() -> NedState {
+        NedState {
+            velocity: Vec3::new(7.0, 7.0, 0.0),
+            ..at_rest(0.0, 0.0, std::f64::consts::FRAC_PI_4)
+        }
+    }
+
     fn prior(model: &NedErrorModel, [p, v, tilt, heading]: [f64; 4]) -> Vector21 {
         let [sg, sa, kg, ka] = model.noise.instrument_sigmas();
         let mut sig = Vector21::zeros();
@@ -1510,15 +1532,7 @@ mod tests {
     /// smoothed one (fixes after the gap tell the bias) stays much closer.
     #[test]
     fn smoother_closes_a_gap_between_fixes() {
-        let start = NedState {
-            position: Geodetic {
-                latitude_rad: 0.7,
-                longitude_rad: -1.8,
-                height_m: 1600.0,
-            },
-            velocity: Vec3::zeros(),
-            attitude: Rotation::from_euler_angles(0.0, 0.0, 0.5),
-        };
+        let start = at_rest(0.0, 0.0, 0.5);
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
         let mut f = NedFilter::new(model, start, &sig, Vec3::zeros()).unwrap();
@@ -1572,15 +1586,7 @@ mod tests {
         // The smoothed output's promise (position in m, velocity in m/s,
         // attitude in rad, covariance in m²); the difference is rounding.
         const TOLERANCE: f64 = 1e-9;
-        let start = NedState {
-            position: Geodetic {
-                latitude_rad: 0.7,
-                longitude_rad: -1.8,
-                height_m: 1600.0,
-            },
-            velocity: Vec3::zeros(),
-            attitude: Rotation::from_euler_angles(0.01, -0.02, 0.5),
-        };
+        let start = at_rest(0.01, -0.02, 0.5);
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.5, 0.05, 0.01, 0.02]);
         let mut f = NedFilter::new(model, start, &sig, Vec3::new(0.3, -0.1, -0.8)).unwrap();
@@ -1648,15 +1654,7 @@ mod tests {
     /// levelled, static INS otherwise only sees through slow tilt drift.
     #[test]
     fn standstill_updates_hold_the_ins_and_find_the_gyro_bias() {
-        let start = NedState {
-            position: Geodetic {
-                latitude_rad: 0.7,
-                longitude_rad: -1.8,
-                height_m: 1600.0,
-            },
-            velocity: Vec3::zeros(),
-            attitude: Rotation::from_euler_angles(0.01, -0.02, 0.5),
-        };
+        let start = at_rest(0.01, -0.02, 0.5);
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.5, 0.05, 0.01, 0.01]);
         let bias = Vector3::new(2e-4, -3e-4, 1e-4); // ≈ 40, 60, 20 °/h
@@ -1791,15 +1789,7 @@ mod tests {
         step_at: usize,
         step: Vec3<Ned>,
     ) -> (NedFilter, Vec<Outcome>, Vec<f64>) {
-        let start = NedState {
-            position: Geodetic {
-                latitude_rad: 0.7,
-                longitude_rad: -1.8,
-                height_m: 1600.0,
-            },
-            velocity: Vec3::new(7.0, 7.0, 0.0),
-            attitude: Rotation::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_4),
-        };
+        let start = driving_north_east();
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.02, 0.01, 0.001, 0.001]);
         let lever = Vec3::new(1.0, 0.0, 0.0);
@@ -1920,15 +1910,7 @@ mod tests {
     /// accepted and the solution is on the fixes.
     #[test]
     fn a_diverged_filter_is_reset_by_its_velocity_and_position_runs() {
-        let start = NedState {
-            position: Geodetic {
-                latitude_rad: 0.7,
-                longitude_rad: -1.8,
-                height_m: 1600.0,
-            },
-            velocity: Vec3::new(7.0, 7.0, 0.0),
-            attitude: Rotation::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_4),
-        };
+        let start = driving_north_east();
         let model = NedErrorModel::default();
         let sig = prior(&model, [0.02, 0.01, 0.001, 0.001]);
         let wrong = NedState {
@@ -2052,15 +2034,7 @@ mod tests {
 
     #[test]
     fn static_alignment_finds_the_vertical_accelerometer_bias() {
-        let start = NedState {
-            position: Geodetic {
-                latitude_rad: 0.7,
-                longitude_rad: -1.8,
-                height_m: 1600.0,
-            },
-            velocity: Vec3::zeros(),
-            attitude: Rotation::from_euler_angles(0.01, -0.02, 0.5),
-        };
+        let start = at_rest(0.01, -0.02, 0.5);
         let model = NedErrorModel {
             noise: ImuNoise::default(),
         };

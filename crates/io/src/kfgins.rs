@@ -899,16 +899,16 @@ mod tests {
             "100.0 30.5 114.3 20.0 0.01 0.01 0.02\n100.0 30.5 114.3 20.0 0.01 0.01 0.02\n",
         )
         .unwrap();
-        let e = read_kfgins_gnss(&gnss).unwrap_err().to_string();
+        let e = kfgins_gnss_err(&gnss);
         assert!(
             e.contains("gnss.txt:2: column `time`") && e.contains("does not increase"),
             "{e}"
         );
         std::fs::write(&gnss, "100.0 30.5 114.3 20.0 0.01 0 0.02\n").unwrap();
-        let e = read_kfgins_gnss(&gnss).unwrap_err().to_string();
+        let e = kfgins_gnss_err(&gnss);
         assert!(e.contains("column `σE`: σ = 0"), "{e}");
         std::fs::write(&gnss, "100.0 30.5 114.3 NaN 0.01 0.01 0.02\n").unwrap();
-        let e = read_kfgins_gnss(&gnss).unwrap_err().to_string();
+        let e = kfgins_gnss_err(&gnss);
         assert!(e.contains("column `height`"), "{e}");
     }
 
@@ -950,11 +950,23 @@ mod tests {
         read_kfgins_gnss_from(text.as_bytes(), Path::new("gnss.txt"))
     }
 
+    // The error tests read only the message: one call each instead of
+    // `.unwrap_err().to_string()` after every read.
+    fn generic_err(text: &str) -> String {
+        generic(text).unwrap_err().to_string()
+    }
+
+    fn kf_gnss_err(text: &str) -> String {
+        kf_gnss(text).unwrap_err().to_string()
+    }
+
+    fn kfgins_gnss_err(path: &Path) -> String {
+        read_kfgins_gnss(path).unwrap_err().to_string()
+    }
+
     #[test]
     fn accelerometers_in_g_are_refused() {
-        let e = generic(&format!("{HEADER}\n1.0,0,0,0,0,0,-1\n1.01,0,0,0,0,0,-1\n"))
-            .unwrap_err()
-            .to_string();
+        let e = generic_err(&format!("{HEADER}\n1.0,0,0,0,0,0,-1\n1.01,0,0,0,0,0,-1\n"));
         assert!(
             e.starts_with("g.csv:2: column `ax_m_s2`: median |f| = 1 m/s²") && e.contains("in g"),
             "{e}"
@@ -974,24 +986,19 @@ mod tests {
 
     #[test]
     fn impossible_rates_and_forces_name_their_line() {
-        let e = generic(&format!(
-            "{HEADER}\n1.0,0,0,0,0,0,-9.8\n1.01,0,0,57.3,0,0,-9.8\n"
-        ))
-        .unwrap_err()
-        .to_string();
-        assert!(
-            e.starts_with("g.csv:3: column `gx_rad_s`: |ω| = 57.3 rad/s"),
-            "{e}"
-        );
-        let e = generic(&format!(
-            "{HEADER}\n1.0,0,0,0,0,0,-9.8\n1.01,0,0,0,0,0,-9800\n"
-        ))
-        .unwrap_err()
-        .to_string();
-        assert!(
-            e.starts_with("g.csv:3: column `ax_m_s2`: |f| = 9800 m/s²"),
-            "{e}"
-        );
+        for (rows, message) in [
+            (
+                "1.0,0,0,0,0,0,-9.8\n1.01,0,0,57.3,0,0,-9.8\n",
+                "g.csv:3: column `gx_rad_s`: |ω| = 57.3 rad/s",
+            ),
+            (
+                "1.0,0,0,0,0,0,-9.8\n1.01,0,0,0,0,0,-9800\n",
+                "g.csv:3: column `ax_m_s2`: |f| = 9800 m/s²",
+            ),
+        ] {
+            let e = generic_err(&format!("{HEADER}\n{rows}"));
+            assert!(e.starts_with(message), "{e}");
+        }
     }
 
     /// A 13-column row in KF-GINS's layout (`time lat lon h vN vE vD σN σE
@@ -1017,43 +1024,35 @@ mod tests {
         )
         .unwrap();
         assert_eq!(f[0].velocity_ned, Some(Vector3::zeros()));
-        let e = kf_gnss(
+        let e = kf_gnss_err(
             "100.0 30.5 114.3 20.0 1 2 3 0.01 0 0.03 0.1 0.2 0.3
 ",
-        )
-        .unwrap_err()
-        .to_string();
+        );
         assert!(e.contains("gnss.txt:1: column `σE`: σ = 0"), "{e}");
-        let e = kf_gnss(
+        let e = kf_gnss_err(
             "100.0 30.5 114.3 20.0 x 2 3 0.01 0.02 0.03 0.1 0.2 0.3
 ",
-        )
-        .unwrap_err()
-        .to_string();
+        );
         assert!(e.contains("column `vN`"), "{e}");
         // Seven columns keep the σ in columns 4–6.
-        let e = kf_gnss(
+        let e = kf_gnss_err(
             "100.0 30.5 114.3 20.0 x 0.02 0.03
 ",
-        )
-        .unwrap_err()
-        .to_string();
+        );
         assert!(e.contains("column `σN`"), "{e}");
     }
 
     #[test]
     fn kfgins_gnss_columns_must_be_7_or_13() {
         // Velocity without its σ used to be dropped silently.
-        let e = kf_gnss("100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n101.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n")
-            .unwrap_err()
-            .to_string();
+        let e = kf_gnss_err(
+            "100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n101.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3\n",
+        );
         assert!(
             e.starts_with("gnss.txt:1: column `(line)`: 10 fields, expected 7 or 13"),
             "{e}"
         );
-        let e = kf_gnss("100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3 0.1 0.1 0.1 9\n")
-            .unwrap_err()
-            .to_string();
+        let e = kf_gnss_err("100.0 30.5 114.3 20.0 0.01 0.01 0.02 1 2 3 0.1 0.1 0.1 9\n");
         assert!(e.contains("14 fields, expected 7 or 13"), "{e}");
         let e = read_kfgins_imu_from(b"100.0 0 0 0 0 0 0 0\n", Path::new("imu.txt"))
             .unwrap_err()
@@ -1063,17 +1062,19 @@ mod tests {
 
     #[test]
     fn kfgins_positions_are_range_checked() {
-        let e = kf_gnss("100.0 30.5 114.3 -5000 0.01 0.01 0.02\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.starts_with("gnss.txt:1: column `height`: -5000 m is outside [-1000, 100000] m"),
-            "{e}"
-        );
-        let e = kf_gnss("100.0 30.5 414.3 20 0.01 0.01 0.02\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("column `longitude`"), "{e}");
+        for (line, message) in [
+            (
+                "100.0 30.5 114.3 -5000 0.01 0.01 0.02\n",
+                "gnss.txt:1: column `height`: -5000 m is outside [-1000, 100000] m",
+            ),
+            (
+                "100.0 30.5 414.3 20 0.01 0.01 0.02\n",
+                "gnss.txt:1: column `longitude`",
+            ),
+        ] {
+            let e = kf_gnss_err(line);
+            assert!(e.starts_with(message), "{e}");
+        }
     }
 
     #[test]
@@ -1085,7 +1086,7 @@ mod tests {
         .unwrap();
         assert_eq!(s.len(), 2);
         let header = format!("time_s,{}", "y".repeat(100_000));
-        let e = generic(&format!("{header}\n1\n")).unwrap_err().to_string();
+        let e = generic_err(&format!("{header}\n1\n"));
         assert!(e.len() < 200 && e.contains('…'), "{} chars", e.len());
         let (f, _) = kf_gnss(
             "\u{FEFF}100.0 30.5 114.3 20.0 0.01 0.01 0.02\r101.0 30.5 114.3 20.0 0.01 0.01 0.02",
@@ -1101,10 +1102,25 @@ mod tests {
         );
     }
 
-    fn units(gyro: GyroUnit, accel: AccelUnit, kind: ImuKind) -> GenericImuOptions {
-        GenericImuOptions {
-            units: Some(ImuUnits { gyro, accel, kind }),
-        }
+    /// `text` as `g.csv` with the units declared.
+    fn generic_with(
+        text: &str,
+        gyro: GyroUnit,
+        accel: AccelUnit,
+        kind: ImuKind,
+    ) -> Result<(Vec<ImuSample>, Vec<String>)> {
+        let units = Some(ImuUnits { gyro, accel, kind });
+        read_generic_imu_with_from(
+            text.as_bytes(),
+            Path::new("g.csv"),
+            GenericImuOptions { units },
+        )
+    }
+
+    fn generic_with_err(text: &str, gyro: GyroUnit, accel: AccelUnit, kind: ImuKind) -> String {
+        generic_with(text, gyro, accel, kind)
+            .unwrap_err()
+            .to_string()
     }
 
     /// `n` rows at rest at 100 Hz: gyro `w`, accelerometer `f`, as written.
@@ -1130,12 +1146,8 @@ mod tests {
         use std::f64::consts::PI;
         // Increments over 10 ms: 0.01° about z and 0.01 g·s down.
         let csv = "time_s,gx,gy,gz,ax,ay,az\n1.00,0,0,0,0,0,0\n1.01,0,0,0.01,0,0,-0.01\n1.02,0,0,0.01,0,0,-0.01\n";
-        let (s, _) = read_generic_imu_with_from(
-            csv.as_bytes(),
-            Path::new("imu.csv"),
-            units(GyroUnit::DegPerS, AccelUnit::G, ImuKind::Increments),
-        )
-        .unwrap();
+        let (s, _) =
+            generic_with(csv, GyroUnit::DegPerS, AccelUnit::G, ImuKind::Increments).unwrap();
         assert_eq!(s.len(), 2);
         assert!(
             (s[0].angular_rate.z - PI / 180.0).abs() < 1e-9,
@@ -1146,10 +1158,11 @@ mod tests {
         assert_eq!(s[0].time_s, 1.01);
         // The same in rad and m/s.
         let csv = "time_s,gx,gy,gz,ax,ay,az\n1.00,0,0,0,0,0,0\n1.01,0,0,1e-3,0,0,-0.098\n";
-        let (s, _) = read_generic_imu_with_from(
-            csv.as_bytes(),
-            Path::new("imu.csv"),
-            units(GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Increments),
+        let (s, _) = generic_with(
+            csv,
+            GyroUnit::RadPerS,
+            AccelUnit::MPerS2,
+            ImuKind::Increments,
         )
         .unwrap();
         assert!(
@@ -1160,20 +1173,14 @@ mod tests {
     #[test]
     fn unit_free_names_need_declared_units_and_the_other_way_round() {
         let csv = at_rest("time_s,gx,gy,gz,ax,ay,az", 3, [0.0; 3], [0.0, 0.0, -9.8]);
-        let e = generic(&csv).unwrap_err().to_string();
+        let e = generic_err(&csv);
         assert!(
             e.starts_with("g.csv:1: column `gx`: columns gx … az carry no unit")
                 && e.contains("imu_units"),
             "{e}"
         );
         let csv = at_rest(HEADER, 3, [0.0; 3], [0.0, 0.0, -9.8]);
-        let e = read_generic_imu_with_from(
-            csv.as_bytes(),
-            Path::new("g.csv"),
-            units(GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Rates),
-        )
-        .unwrap_err()
-        .to_string();
+        let e = generic_with_err(&csv, GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Rates);
         assert!(
             e.starts_with("g.csv:1: column `gx_rad_s`: imu_units is declared"),
             "{e}"
@@ -1185,13 +1192,7 @@ mod tests {
         let neutral = "time_s,gx,gy,gz,ax,ay,az";
         // A MEMS gyro's bias in deg/s (0.2, −0.3, 0.25) declared rad/s.
         let csv = at_rest(neutral, 50, [0.2, -0.3, 0.25], [0.1, 0.2, -9.8]);
-        let e = read_generic_imu_with_from(
-            csv.as_bytes(),
-            Path::new("g.csv"),
-            units(GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Rates),
-        )
-        .unwrap_err()
-        .to_string();
+        let e = generic_with_err(&csv, GyroUnit::RadPerS, AccelUnit::MPerS2, ImuKind::Rates);
         assert!(
             e.starts_with("g.csv:22: column `gx`: |ω| = 0.4387 rad/s")
                 && e.contains("median over 41 stretches of 10 samples at rest")
@@ -1199,20 +1200,10 @@ mod tests {
             "{e}"
         );
         // Declared deg/s, it passes (0.0077 rad/s).
-        let ok = read_generic_imu_with_from(
-            csv.as_bytes(),
-            Path::new("g.csv"),
-            units(GyroUnit::DegPerS, AccelUnit::MPerS2, ImuKind::Rates),
-        );
+        let ok = generic_with(&csv, GyroUnit::DegPerS, AccelUnit::MPerS2, ImuKind::Rates);
         assert_eq!(ok.unwrap().0.len(), 50);
         // m/s² declared g.
-        let e = read_generic_imu_with_from(
-            csv.as_bytes(),
-            Path::new("g.csv"),
-            units(GyroUnit::DegPerS, AccelUnit::G, ImuKind::Rates),
-        )
-        .unwrap_err()
-        .to_string();
+        let e = generic_with_err(&csv, GyroUnit::DegPerS, AccelUnit::G, ImuKind::Rates);
         assert!(
             e.starts_with("g.csv:2: column `ax`: median |f| = 96.1")
                 && e.contains("imu_units.accel = \"m_s2\""),
@@ -1220,13 +1211,7 @@ mod tests {
         );
         // g declared m/s².
         let csv = at_rest(neutral, 50, [0.0; 3], [0.0, 0.0, -1.0]);
-        let e = read_generic_imu_with_from(
-            csv.as_bytes(),
-            Path::new("g.csv"),
-            units(GyroUnit::DegPerS, AccelUnit::MPerS2, ImuKind::Rates),
-        )
-        .unwrap_err()
-        .to_string();
+        let e = generic_with_err(&csv, GyroUnit::DegPerS, AccelUnit::MPerS2, ImuKind::Rates);
         assert!(
             e.contains("median |f| = 1 m/s²") && e.contains("imu_units.accel = \"g\""),
             "{e}"

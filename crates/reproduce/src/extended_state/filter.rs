@@ -112,8 +112,7 @@ pub(super) fn filter_pass(
 ) -> Result<(Vec<Option<Snapshot>>, Vec<Option<Snapshot>>), EstimationError> {
     let (traj, errors) = (flight.traj, &flight.errors);
     let dt = traj.dt_s;
-    let per_fix = (sc.fix_interval_s / dt).round() as usize;
-    let start_step = (sc.fusion_start_s / dt).round() as usize;
+    let fix_steps = FixSteps::new(sc, dt);
     let last = traj.samples() - 1;
     let (p0, r, q) = filter_matrices(sc);
     let mut kf = FixedKalmanFilter::<STATES>::new(SVector::zeros(), p0)?;
@@ -127,16 +126,11 @@ pub(super) fn filter_pass(
     for k in 0..last {
         ins.step_with_thrust(dt, &flight.raw[k]);
         let step = k + 1;
-        if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
+        if !fix_steps.at(step) {
             continue;
         }
         let t_fix = step as f64 * dt;
-        let Some(fix) = path.fixes.get(n) else {
-            return Err(path
-                .error
-                .clone()
-                .expect("a path shorter than the flight ended in an error"));
-        };
+        let fix = path.fix(n)?;
         if n > 0 {
             kf.predict(&fix.phi, &q)?;
             fisher.propagate(&fix.phi)?;
@@ -204,8 +198,7 @@ pub(super) struct PathFix {
 fn fix_transitions(sc: &ExtendedStateScenario, flight: &Flight<'_>) -> (Vec<Matrix14>, Matrix14) {
     let (traj, errors) = (flight.traj, &flight.errors);
     let dt = traj.dt_s;
-    let per_fix = (sc.fix_interval_s / dt).round() as usize;
-    let start_step = (sc.fusion_start_s / dt).round() as usize;
+    let fix_steps = FixSteps::new(sc, dt);
     let last = traj.samples() - 1;
     let first_order = |t0: f64, span: f64| {
         let (att, f) = raw_outputs(traj, errors, t0);
@@ -217,13 +210,13 @@ fn fix_transitions(sc: &ExtendedStateScenario, flight: &Flight<'_>) -> (Vec<Matr
     let mut last_fix_s = f64::NAN;
     for k in 0..last {
         let t = k as f64 * dt;
-        if k >= start_step && sc.transition == TransitionForm::Exact {
+        if k >= fix_steps.start && sc.transition == TransitionForm::Exact {
             let (att, f) = raw_outputs(traj, errors, t + dt / 2.0);
             let a = ExtendedStateModel::continuous(t + dt / 2.0, &att, &f);
             phi = ExtendedStateModel::transition(&a, dt, TransitionForm::Exact) * phi;
         }
         let step = k + 1;
-        if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
+        if !fix_steps.at(step) {
             continue;
         }
         let t_fix = step as f64 * dt;
@@ -283,6 +276,29 @@ pub(super) struct CovariancePath {
     pub(super) error: Option<EstimationError>,
 }
 
+/// When fixes arrive, in IMU steps: at the end of step `start` (the fusion
+/// start), then every `per_fix` steps (the fix interval).
+#[derive(Debug, Clone, Copy)]
+struct FixSteps {
+    per_fix: usize,
+    start: usize,
+}
+
+impl FixSteps {
+    /// The scenario's fix times in steps of `dt` (rounded to the nearest).
+    fn new(sc: &ExtendedStateScenario, dt: f64) -> Self {
+        Self {
+            per_fix: (sc.fix_interval_s / dt).round() as usize,
+            start: (sc.fusion_start_s / dt).round() as usize,
+        }
+    }
+
+    /// Whether a fix arrives at the end of IMU step `step`.
+    fn at(self, step: usize) -> bool {
+        step >= self.start && (step - self.start).is_multiple_of(self.per_fix)
+    }
+}
+
 /// A switch for each case ([`switch_cases`]); the forecast rule's input is
 /// the per-second reduction, the δ rules' δ(n).
 fn case_switches(sc: &ExtendedStateScenario) -> Vec<(SwitchKind, ConvergenceSwitch)> {
@@ -324,6 +340,16 @@ fn case_switches(sc: &ExtendedStateScenario) -> Vec<(SwitchKind, ConvergenceSwit
 }
 
 impl CovariancePath {
+    /// Fix `n`, or the error that ended the path before it: a run needing
+    /// that fix fails as the shared pass did.
+    fn fix(&self, n: usize) -> Result<&PathFix, EstimationError> {
+        self.fixes.get(n).ok_or_else(|| {
+            self.error
+                .clone()
+                .expect("a path shorter than the flight ended in an error")
+        })
+    }
+
     /// The filter pass of `flight` without a state: every fix to t_B.
     pub(super) fn new(sc: &ExtendedStateScenario, flight: &Flight<'_>) -> Self {
         let mut path = Self {
@@ -362,10 +388,9 @@ impl CovariancePath {
         let mut switches = case_switches(sc);
         let z = SVector::<f64, NAVIGATION>::zeros();
         let dt = flight.traj.dt_s;
-        let per_fix = (sc.fix_interval_s / dt).round() as usize;
-        let start_step = (sc.fusion_start_s / dt).round() as usize;
+        let fix_steps = FixSteps::new(sc, dt);
         for (n, (phi, w)) in phis.iter().zip(&weights).enumerate() {
-            let t_fix = (start_step + n * per_fix) as f64 * dt;
+            let t_fix = (fix_steps.start + n * fix_steps.per_fix) as f64 * dt;
             if n > 0 {
                 kf.predict(phi, &q)?;
                 fisher.propagate(phi)?;
@@ -469,8 +494,7 @@ pub(super) fn replay_runs(
 ) -> Result<Vec<Replay>, EstimationError> {
     let traj = flight.traj;
     let dt = traj.dt_s;
-    let per_fix = (sc.fix_interval_s / dt).round() as usize;
-    let start_step = (sc.fusion_start_s / dt).round() as usize;
+    let fix_steps = FixSteps::new(sc, dt);
     let last = traj.samples() - 1;
     let c = ExtendedStateModel::measurement();
     let mut outs: Vec<Replay> = rngs
@@ -494,17 +518,12 @@ pub(super) fn replay_runs(
         }
         lanes.step(dt);
         let step = k + 1;
-        if step < start_step || !(step - start_step).is_multiple_of(per_fix) {
+        if !fix_steps.at(step) {
             continue;
         }
         let t_fix = step as f64 * dt;
-        let Some(fix) = path.fixes.get(n) else {
-            // The shared pass failed here; so would this run's.
-            return Err(path
-                .error
-                .clone()
-                .expect("a path shorter than the flight ended in an error"));
-        };
+        // The shared pass failed here; so would this run's.
+        let fix = path.fix(n)?;
         for (i, ((out, x), rng)) in outs
             .iter_mut()
             .zip(&mut xs)

@@ -1,6 +1,6 @@
 //! Tests of the extended-state experiment.
 
-use super::gauss_newton::gauss_newton;
+use super::gauss_newton::{BatchEstimate, gauss_newton};
 use super::*;
 use aidnav_sim::trajectory::{LaunchProgram, LaunchTarget, TABLE1};
 
@@ -270,6 +270,26 @@ fn the_literal_rule_fires_at_once_and_the_forecast_only_improves() {
     }
 }
 
+/// Gauss–Newton over the replayed fixes up to the snapshot `s`, started
+/// from the filter's estimate there: 10 iterations, the final cost too.
+fn gauss_newton_to(
+    sc: &ExtendedStateScenario,
+    flight: &Flight<'_>,
+    rep: &Replay,
+    s: &Snapshot,
+) -> BatchEstimate {
+    gauss_newton(
+        sc,
+        flight,
+        &rep.ins_at_first_fix,
+        &rep.fixes[..=s.fix],
+        &s.estimate,
+        10,
+        true,
+    )
+    .unwrap()
+}
+
 /// Exact fixes at full Table 2 errors (where the linear filter is biased):
 /// Gauss–Newton from the filter's estimate recovers the 14 parameters
 /// (instrument errors, INS error at the first fix), every iteration lowers
@@ -296,16 +316,7 @@ fn gauss_newton_recovers_the_parameters_from_exact_fixes() {
     let filter_worst = (0..ESTIMATED)
         .map(|i| ((s.estimate[i] - truth[i]) / truth[i]).abs())
         .fold(0.0, f64::max);
-    let est = gauss_newton(
-        &sc,
-        &flight,
-        &rep.ins_at_first_fix,
-        &rep.fixes[..=s.fix],
-        &s.estimate,
-        10,
-        true,
-    )
-    .unwrap();
+    let est = gauss_newton_to(&sc, &flight, &rep, &s);
     for (i, t) in truth.iter().enumerate() {
         let e = (est.parameters[NAVIGATION + i] - t) / t;
         assert!(e.abs() < 1e-4, "component {i}: relative error {e:e}");
@@ -337,16 +348,7 @@ fn gauss_newton_with_noisy_fixes_beats_the_linear_filter() {
     let mut rng = channel_rng(4, 0, 0);
     let rep = replay(&sc, &flight, &path, &mut rng, &[150.0]).unwrap();
     let s = rep.at_forced[0].unwrap();
-    let est = gauss_newton(
-        &sc,
-        &flight,
-        &rep.ins_at_first_fix,
-        &rep.fixes[..=s.fix],
-        &s.estimate,
-        10,
-        true,
-    )
-    .unwrap();
+    let est = gauss_newton_to(&sc, &flight, &rep, &s);
     assert!(
         est.costs.windows(2).all(|w| w[1] <= w[0] * (1.0 + 1e-12)),
         "{:?}",

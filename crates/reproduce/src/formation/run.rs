@@ -312,6 +312,26 @@ mod tests {
     use super::*;
     use aidnav_io::config::Validate;
 
+    /// `runs` flights of `duration_s` (30 s to settle), member 2 without
+    /// GNSS from 100 s to `denial_end_s`; the rest as the default.
+    fn member_2_denied_from_100_s(
+        runs: usize,
+        duration_s: f64,
+        denial_end_s: f64,
+    ) -> FormationScenario {
+        FormationScenario {
+            runs,
+            duration_s,
+            settle_s: 30.0,
+            denial: vec![Denial {
+                members: vec![2],
+                start_s: 100.0,
+                end_s: denial_end_s,
+            }],
+            ..FormationScenario::default()
+        }
+    }
+
     #[test]
     fn formation_truth_is_smooth_and_spaced() {
         let sc = FormationScenario::default();
@@ -417,17 +437,7 @@ mod tests {
     /// while alone it drifts.
     #[test]
     fn group_fusion_beats_stand_alone_and_bounds_the_denied_member() {
-        let sc = FormationScenario {
-            runs: 4,
-            duration_s: 300.0,
-            settle_s: 30.0,
-            denial: vec![Denial {
-                members: vec![2],
-                start_s: 100.0,
-                end_s: 250.0,
-            }],
-            ..FormationScenario::default()
-        };
+        let sc = member_2_denied_from_100_s(4, 300.0, 250.0);
         let r = run(&sc, &MonteCarlo::new(sc.runs, sc.seed).quiet()).unwrap();
         assert_eq!(r.members.len(), 5);
         for m in r.members.iter().filter(|m| !m.denied) {
@@ -465,17 +475,9 @@ mod tests {
         // The receiver-model Gauss–Markov stage 2 with the paper's motion
         // model, as measured (the default before the stage-1 reported one).
         let base = FormationScenario {
-            runs: 3,
-            duration_s: 240.0,
-            settle_s: 30.0,
-            denial: vec![Denial {
-                members: vec![2],
-                start_s: 100.0,
-                end_s: 180.0,
-            }],
             stage2_own_errors: Stage2OwnErrors::GaussMarkov,
             stage2_motion: Stage2Motion::Paper,
-            ..FormationScenario::default()
+            ..member_2_denied_from_100_s(3, 240.0, 180.0)
         };
         let go =
             |sc: &FormationScenario| run(sc, &MonteCarlo::new(sc.runs, sc.seed).quiet()).unwrap();
@@ -538,17 +540,7 @@ mod tests {
     /// position and velocity RMS below stage 1's.
     #[test]
     fn stage_one_reported_errors_make_stage_two_consistent_and_no_worse_than_stage_one() {
-        let sc = FormationScenario {
-            runs: 3,
-            duration_s: 240.0,
-            settle_s: 30.0,
-            denial: vec![Denial {
-                members: vec![2],
-                start_s: 100.0,
-                end_s: 180.0,
-            }],
-            ..FormationScenario::default()
-        };
+        let sc = member_2_denied_from_100_s(3, 240.0, 180.0);
         assert_eq!(sc.stage2_own_errors, Stage2OwnErrors::Stage1Reported);
         let r = run(&sc, &MonteCarlo::new(sc.runs, sc.seed).quiet()).unwrap();
         let keeping: Vec<&MemberScore> = r.members.iter().filter(|m| !m.denied).collect();
