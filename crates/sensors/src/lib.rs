@@ -15,7 +15,7 @@ pub mod merge;
 pub mod raw_gnss;
 
 pub use merge::{Merge, Timed, Timeline, merge};
-pub use raw_gnss::{Constellation, RawGnssEpoch, RawObservation, SatelliteId};
+pub use raw_gnss::{Constellation, Measured, RawGnssEpoch, RawObservation, SatelliteId};
 
 use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;

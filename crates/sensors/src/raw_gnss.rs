@@ -32,6 +32,15 @@ pub struct SatelliteId {
     pub number: u16,
 }
 
+/// A measured value and the σ the receiver gives it (when it does).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured {
+    /// The value.
+    pub value: f64,
+    /// Its σ, in the value's unit.
+    pub sigma: Option<f64>,
+}
+
 /// One signal of one satellite at an epoch. Each measurement is absent
 /// when the receiver marks it invalid.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,21 +53,15 @@ pub struct RawObservation {
     /// GLONASS frequency channel (−7 … 6; None for the other systems).
     pub glonass_channel: Option<i8>,
     /// Pseudorange \[m\].
-    pub pseudorange_m: Option<f64>,
-    /// σ of the pseudorange as the receiver estimates it \[m\].
-    pub pseudorange_sigma_m: Option<f64>,
-    /// Carrier phase \[cycles\].
-    pub carrier_phase_cycles: Option<f64>,
-    /// σ of the carrier phase \[cycles\].
-    pub carrier_phase_sigma_cycles: Option<f64>,
+    pub pseudorange_m: Option<Measured>,
+    /// Carrier phase \[cycles\], its half-cycle ambiguity resolved or not.
+    pub carrier_phase_cycles: Option<(Measured, bool)>,
     /// Doppler \[Hz\] (positive for an approaching satellite).
     pub doppler_hz: Option<f64>,
     /// Carrier-to-noise density ratio \[dB-Hz\].
     pub cn0_dbhz: f64,
     /// Time the carrier has been tracked without a cycle slip \[s\].
     pub lock_time_s: f64,
-    /// The half-cycle ambiguity of the phase is resolved.
-    pub half_cycle_resolved: bool,
 }
 
 /// Every raw observation of one receiver epoch.
@@ -106,14 +109,14 @@ mod tests {
             },
             signal: 0,
             glonass_channel: None,
-            pseudorange_m: range,
-            pseudorange_sigma_m: Some(3.0),
+            pseudorange_m: range.map(|value| Measured {
+                value,
+                sigma: Some(3.0),
+            }),
             carrier_phase_cycles: None,
-            carrier_phase_sigma_cycles: None,
             doppler_hz: Some(-512.0),
             cn0_dbhz: 40.0,
             lock_time_s: 1.0,
-            half_cycle_resolved: false,
         }
     }
 
