@@ -4,10 +4,9 @@
 //! [`Augmented::BaroBias`](crate::state::Augmented::BaroBias) (without it,
 //! the barometer's datum must be the ellipsoid's).
 
-use aidnav_estimation::EstimationError;
 use aidnav_sensors::BaroSample;
 
-use super::{AidSource, SampleQueue, SourceStatus, StepContext, fuse_gated};
+use super::{SampledSensor, SampledSource};
 use crate::measurements::Barometer;
 
 /// How the barometer source uses the samples.
@@ -22,55 +21,30 @@ pub struct BaroConfig {
 }
 
 /// Barometric heights as an aid source.
-#[derive(Debug, Clone)]
-pub struct BaroSource<'a> {
-    queue: SampleQueue<'a, BaroSample>,
-    config: BaroConfig,
-    status: SourceStatus,
-}
+pub type BaroSource<'a> = SampledSource<'a, BaroConfig>;
 
-impl<'a> BaroSource<'a> {
-    /// A source over time-sorted samples.
-    pub fn new(samples: &'a [BaroSample], config: BaroConfig) -> Self {
-        Self {
-            queue: SampleQueue::new(samples, config.min_interval_s),
-            config,
-            status: SourceStatus::new("barometer"),
-        }
-    }
-}
+impl SampledSensor for BaroConfig {
+    type Sample = BaroSample;
+    type Measurement = Barometer;
+    const NAME: &'static str = "barometer";
 
-impl<const N: usize> AidSource<N> for BaroSource<'_> {
-    fn name(&self) -> &'static str {
-        "barometer"
+    fn usable(sample: &BaroSample) -> bool {
+        sample.height_m.is_finite()
     }
 
-    fn start(&mut self, t_start_s: f64) {
-        self.queue.start(t_start_s);
-    }
-
-    fn next_time(&self) -> Option<f64> {
-        self.queue.next_time()
-    }
-
-    fn step(&mut self, ctx: &mut StepContext<'_, '_, N>) -> Result<(), EstimationError> {
-        let due = self
-            .queue
-            .take_due(ctx.time_s, &mut self.status, |s| s.height_m.is_finite());
-        let Some(sample) = due else {
-            return Ok(());
-        };
-        let floor = self.config.sigma_m;
-        let measurement = Barometer {
+    fn measurement(&self, sample: &BaroSample) -> Barometer {
+        let floor = self.sigma_m;
+        Barometer {
             height_m: sample.height_m,
             sigma_m: sample.sigma_m.map_or(floor, |s| s.max(floor)),
-        };
-        let source = ("barometer", sample.time_s);
-        let gate = self.config.gate_probability;
-        fuse_gated(ctx, &measurement, gate, source, &mut self.status)
+        }
     }
 
-    fn status(&self) -> SourceStatus {
-        self.status
+    fn gate_probability(&self) -> Option<f64> {
+        self.gate_probability
+    }
+
+    fn min_interval_s(&self) -> f64 {
+        self.min_interval_s
     }
 }

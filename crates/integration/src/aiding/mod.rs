@@ -9,25 +9,23 @@
 //! its measurement model ([`crate::measurements`]), its source here and its
 //! configuration section: nothing in the filter or the loop changes.
 
-use aidnav_estimation::{
-    AcceptAll, Chi2Gate, EstimationError, Outcome, UpdateRecord, nalgebra::Const,
-};
+use aidnav_estimation::{EstimationError, Outcome, UpdateRecord, nalgebra::Const};
 use aidnav_ins::samples::ImuSample;
-use aidnav_sensors::Timed;
 
-use crate::measurements::Measurement;
 use crate::ned::NedFilter;
 use crate::ned_loop::EpochObserver;
 
 mod barometer;
 mod gnss;
 mod non_holonomic;
+mod sampled;
 mod standstill;
 mod wheel_speed;
 
 pub use barometer::{BaroConfig, BaroSource};
 pub use gnss::{GnssConfig, GnssPolicies, GnssSource};
 pub use non_holonomic::{NonHolonomic, NonHolonomicSource};
+pub use sampled::{SampledSensor, SampledSource};
 pub use standstill::{StandstillSource, StandstillUpdates};
 pub use wheel_speed::{WheelSpeedConfig, WheelSpeedSource};
 
@@ -217,79 +215,4 @@ pub(crate) fn first_after<T>(samples: &[T], t: f64, time: impl Fn(&T) -> f64) ->
         .iter()
         .position(|s| time(s) > t)
         .unwrap_or(samples.len())
-}
-
-/// A time-sorted stream of samples that a source fuses one by one, at most
-/// one per `min_interval_s`: the control step the wheel-speed and the
-/// barometer sources share.
-#[derive(Debug, Clone)]
-pub(crate) struct SampleQueue<'a, T> {
-    samples: &'a [T],
-    next: usize,
-    last_fused_s: f64,
-    min_interval_s: f64,
-}
-
-impl<'a, T: Timed> SampleQueue<'a, T> {
-    pub(crate) fn new(samples: &'a [T], min_interval_s: f64) -> Self {
-        Self {
-            samples,
-            next: 0,
-            last_fused_s: f64::NEG_INFINITY,
-            min_interval_s,
-        }
-    }
-
-    /// Start after `t_start_s`.
-    pub(crate) fn start(&mut self, t_start_s: f64) {
-        self.next = first_after(self.samples, t_start_s, Timed::time_s);
-        self.last_fused_s = f64::NEG_INFINITY;
-    }
-
-    pub(crate) fn next_time(&self) -> Option<f64> {
-        self.samples.get(self.next).map(Timed::time_s)
-    }
-
-    /// The sample due at `t_s`, when it is to be fused: None when none is
-    /// due; a due sample too soon after the last fused one, or one that
-    /// `usable` refuses, is counted as skipped in `status`.
-    pub(crate) fn take_due(
-        &mut self,
-        t_s: f64,
-        status: &mut SourceStatus,
-        usable: impl Fn(&T) -> bool,
-    ) -> Option<&'a T> {
-        let sample = self.samples.get(self.next).filter(|s| s.time_s() <= t_s)?;
-        self.next += 1;
-        // 1 % slack: time tags a nominal interval apart (10 Hz against
-        // 0.1 s) differ by a rounding error either way, and a strict test
-        // would skip every other one of them.
-        let elapsed = sample.time_s() - self.last_fused_s;
-        if elapsed < 0.99 * self.min_interval_s || !usable(sample) {
-            status.skipped += 1;
-            return None;
-        }
-        self.last_fused_s = sample.time_s();
-        Some(sample)
-    }
-}
-
-/// Fuse `measurement` under a χ² gate of `gate_probability` (None: accept
-/// every measurement) and report the update.
-pub(crate) fn fuse_gated<const M: usize, const N: usize, Meas: Measurement<M, N>>(
-    ctx: &mut StepContext<'_, '_, N>,
-    measurement: &Meas,
-    gate_probability: Option<f64>,
-    (source, time_s): (&'static str, f64),
-    status: &mut SourceStatus,
-) -> Result<(), EstimationError> {
-    let rec = match gate_probability {
-        Some(probability) => ctx
-            .filter
-            .fuse(measurement, None, &mut Chi2Gate { probability })?,
-        None => ctx.filter.fuse(measurement, None, &mut AcceptAll)?,
-    };
-    let record = AidRecord::of(time_s, source, <Meas as Measurement<M, N>>::NAME, &rec);
-    ctx.report(status, &record);
-    Ok(())
 }

@@ -3,11 +3,10 @@
 //! odometer's scale-factor error is estimated when the filter's layout has
 //! [`Augmented::WheelSpeedScale`](crate::state::Augmented::WheelSpeedScale).
 
-use aidnav_estimation::EstimationError;
 use aidnav_frames::{Body, Vec3};
 use aidnav_sensors::WheelSpeedSample;
 
-use super::{AidSource, SampleQueue, SourceStatus, StepContext, fuse_gated};
+use super::{SampledSensor, SampledSource};
 use crate::measurements::WheelSpeed;
 
 /// How the wheel-speed source uses the samples.
@@ -24,56 +23,31 @@ pub struct WheelSpeedConfig {
 }
 
 /// Wheel-speed samples as an aid source.
-#[derive(Debug, Clone)]
-pub struct WheelSpeedSource<'a> {
-    queue: SampleQueue<'a, WheelSpeedSample>,
-    config: WheelSpeedConfig,
-    status: SourceStatus,
-}
+pub type WheelSpeedSource<'a> = SampledSource<'a, WheelSpeedConfig>;
 
-impl<'a> WheelSpeedSource<'a> {
-    /// A source over time-sorted samples.
-    pub fn new(samples: &'a [WheelSpeedSample], config: WheelSpeedConfig) -> Self {
-        Self {
-            queue: SampleQueue::new(samples, config.min_interval_s),
-            config,
-            status: SourceStatus::new("wheel_speed"),
-        }
-    }
-}
+impl SampledSensor for WheelSpeedConfig {
+    type Sample = WheelSpeedSample;
+    type Measurement = WheelSpeed;
+    const NAME: &'static str = "wheel_speed";
 
-impl<const N: usize> AidSource<N> for WheelSpeedSource<'_> {
-    fn name(&self) -> &'static str {
-        "wheel_speed"
+    fn usable(sample: &WheelSpeedSample) -> bool {
+        sample.speed_mps.is_finite()
     }
 
-    fn start(&mut self, t_start_s: f64) {
-        self.queue.start(t_start_s);
-    }
-
-    fn next_time(&self) -> Option<f64> {
-        self.queue.next_time()
-    }
-
-    fn step(&mut self, ctx: &mut StepContext<'_, '_, N>) -> Result<(), EstimationError> {
-        let due = self
-            .queue
-            .take_due(ctx.time_s, &mut self.status, |s| s.speed_mps.is_finite());
-        let Some(sample) = due else {
-            return Ok(());
-        };
-        let floor = self.config.sigma_mps;
-        let measurement = WheelSpeed {
+    fn measurement(&self, sample: &WheelSpeedSample) -> WheelSpeed {
+        let floor = self.sigma_mps;
+        WheelSpeed {
             speed_mps: sample.speed_mps,
             sigma_mps: sample.sigma_mps.map_or(floor, |s| s.max(floor)),
-            lever_arm_m: self.config.lever_arm_m,
-        };
-        let source = ("wheel_speed", sample.time_s);
-        let gate = self.config.gate_probability;
-        fuse_gated(ctx, &measurement, gate, source, &mut self.status)
+            lever_arm_m: self.lever_arm_m,
+        }
     }
 
-    fn status(&self) -> SourceStatus {
-        self.status
+    fn gate_probability(&self) -> Option<f64> {
+        self.gate_probability
+    }
+
+    fn min_interval_s(&self) -> f64 {
+        self.min_interval_s
     }
 }
