@@ -6,7 +6,11 @@ use aidnav_estimation::adaptive::DiagonalRule;
 use aidnav_estimation::gmdh::GmdhConfig;
 use aidnav_estimation::{Scheme, SchemeParameters};
 use aidnav_frames::Vec3;
-use aidnav_integration::aiding::{BaroConfig, BaroSource, WheelSpeedConfig, WheelSpeedSource};
+use aidnav_ins::standstill::StandstillThresholds;
+use aidnav_integration::aiding::{
+    BaroConfig, BaroSource, NonHolonomic, NonHolonomicSource, StandstillSource, StandstillUpdates,
+    WheelSpeedConfig, WheelSpeedSource,
+};
 use aidnav_integration::ned::RecoveryConfig;
 use aidnav_integration::state::{Augmented, BlockDynamics, StateLayout};
 use aidnav_sensors::{BaroSample, WheelSpeedSample};
@@ -1105,6 +1109,37 @@ impl ProcessConfig {
             .fold(StateLayout::base(), |layout, (kind, dynamics)| {
                 layout.with(kind, dynamics)
             })
+    }
+
+    /// The non-holonomic constraint's source (None: off).
+    pub fn non_holonomic_source(&self) -> Option<NonHolonomicSource> {
+        let nhc = &self.constraints;
+        self.non_holonomic().then(|| {
+            NonHolonomicSource::new(NonHolonomic {
+                rate_hz: nhc.non_holonomic_rate_hz,
+                sigma_mps: nhc.non_holonomic_sigma_mps,
+                min_speed_mps: nhc.min_speed_mps,
+            })
+        })
+    }
+
+    /// The standstill updates' source (None: off).
+    pub fn standstill_source(&self) -> Option<StandstillSource> {
+        let nhc = &self.constraints;
+        self.zero_velocity().then(|| {
+            let (accel, gyro) = self.standstill_thresholds();
+            StandstillSource::new(StandstillUpdates {
+                rate_hz: nhc.zero_velocity_rate_hz,
+                window_s: self.standstill.window_s,
+                max_speed_mps: self.standstill.max_speed_mps,
+                thresholds: StandstillThresholds {
+                    accel_std_mps2: accel,
+                    gyro_std_rad_s: gyro,
+                },
+                velocity_sigma_mps: nhc.zero_velocity_sigma_mps,
+                angular_rate_sigma_rad_s: nhc.zero_angular_rate_sigma_deg_s.to_radians(),
+            })
+        })
     }
 
     /// Whether the non-holonomic constraint is applied (the key, else the platform).

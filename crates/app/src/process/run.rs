@@ -8,10 +8,8 @@ use aidnav_estimation::{NoiseRule, Outcome};
 use aidnav_frames::earth::Geodetic;
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::ned::ImuIncrement;
-use aidnav_ins::standstill::StandstillThresholds;
 use aidnav_integration::aiding::{
-    AidRecord, AidSource, GnssConfig, GnssPolicies, GnssSource, NonHolonomic, NonHolonomicSource,
-    SourceStatus, StandstillSource, StandstillUpdates,
+    AidRecord, AidSource, GnssConfig, GnssPolicies, GnssSource, SourceStatus,
 };
 use aidnav_integration::bridge::BridgeObserver;
 use aidnav_integration::ned::FilterView;
@@ -375,37 +373,6 @@ fn gnss_config(cfg: &ProcessConfig, plan: &RunPlan) -> GnssConfig {
     }
 }
 
-/// The non-holonomic constraint's source (None: off).
-fn non_holonomic_source(cfg: &ProcessConfig) -> Option<NonHolonomicSource> {
-    let nhc = &cfg.constraints;
-    cfg.non_holonomic().then(|| {
-        NonHolonomicSource::new(NonHolonomic {
-            rate_hz: nhc.non_holonomic_rate_hz,
-            sigma_mps: nhc.non_holonomic_sigma_mps,
-            min_speed_mps: nhc.min_speed_mps,
-        })
-    })
-}
-
-/// The standstill updates' source (None: off).
-fn standstill_source(cfg: &ProcessConfig) -> Option<StandstillSource> {
-    let nhc = &cfg.constraints;
-    cfg.zero_velocity().then(|| {
-        let (accel, gyro) = cfg.standstill_thresholds();
-        StandstillSource::new(StandstillUpdates {
-            rate_hz: nhc.zero_velocity_rate_hz,
-            window_s: cfg.standstill.window_s,
-            max_speed_mps: cfg.standstill.max_speed_mps,
-            thresholds: StandstillThresholds {
-                accel_std_mps2: accel,
-                gyro_std_rad_s: gyro,
-            },
-            velocity_sigma_mps: nhc.zero_velocity_sigma_mps,
-            angular_rate_sigma_rad_s: nhc.zero_angular_rate_sigma_deg_s.to_radians(),
-        })
-    })
-}
-
 /// Stops the loop (see [`Cancel`]) at the first IMU increment after the
 /// token is set.
 struct CancelWatch<'a>(&'a Cancel);
@@ -621,8 +588,8 @@ fn forward<const N: usize>(
             velocity: &mut velocity_policy,
         },
     );
-    let mut nhc = non_holonomic_source(cfg);
-    let mut standstill = standstill_source(cfg);
+    let mut nhc = cfg.non_holonomic_source();
+    let mut standstill = cfg.standstill_source();
     let mut wheel_speed = (cfg.wheel_speed.as_ref()).map(|w| w.source(&inputs.wheel_speed));
     let mut barometer = (cfg.barometer.as_ref()).map(|b| b.source(&inputs.barometer));
     // The constraint, the standstill check, the fix, then the other
