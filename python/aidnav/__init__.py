@@ -168,6 +168,11 @@ class ProcessResult:
       without ``output.smooth``);
     * ``instruments`` – ``instruments.csv``'s (bias and scale-factor
       estimates per epoch);
+    * ``wheel_speed``, ``barometer`` – ``wheel_speed.csv``'s and
+      ``barometer.csv``'s (one row per update of those streams: innovation,
+      its σ, NIS, outcome; empty without the ``[wheel_speed]`` /
+      ``[barometer]`` tables); ``summary["result"]["aid_sources"]`` counts
+      every stream's updates;
     * ``scores`` – one row per outage length and solution (``filter``,
       ``smoothed``, ``free_ins``): windows, reference epochs, horizontal,
       vertical and 3-D drift RMS [m] (empty when not scored);
@@ -187,6 +192,8 @@ class ProcessResult:
         self.solution = table(native.solution(), as_frame)
         self.smoothed = table(native.smoothed(), as_frame)
         self.instruments = table(native.instruments(), as_frame)
+        self.wheel_speed = table(native.aid_updates("wheel_speed"), as_frame)
+        self.barometer = table(native.aid_updates("barometer"), as_frame)
         rows: List[Dict[str, Any]] = []
         for solution, key in (("filter", "outages"), ("smoothed", "outages_smoothed"), ("free_ins", "outages_free_ins")):
             for score in result.get(key) or []:

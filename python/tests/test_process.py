@@ -24,6 +24,12 @@ def test_same_summary_as_the_cli(drive_cli, drive_py):
     # coasts 10 s outages to metres (README, spec 40 results).
     assert 0.0 < ours["result"]["tracking_rms_m"] < 0.05
     assert len(ours["result"]["outages"]) == 3
+    # Every measurement stream is counted; the drive has no wheel-speed or
+    # barometer table, so their per-update tables are empty.
+    names = [s["name"] for s in ours["result"]["aid_sources"]]
+    assert names == ["non_holonomic", "zero_velocity", "zero_angular_rate", "gnss_position", "gnss_velocity"]
+    assert len(np.asarray(drive_py.wheel_speed["nis"])) == 0
+    assert len(np.asarray(drive_py.barometer["innovation [m]"])) == 0
 
 
 def test_tables_hold_the_files_columns(drive_cli, drive_py, tmp_path):

@@ -122,6 +122,20 @@ impl ProcessResult {
         )
     }
 
+    /// The columns of `wheel_speed.csv` or `barometer.csv` (`source`), one
+    /// row per update of that stream (empty when the configuration has no
+    /// such table).
+    fn aid_updates<'py>(&self, py: Python<'py>, source: &str) -> PyResult<Bound<'py, PyDict>> {
+        let updates = &self.run.result.aid_updates;
+        let t =
+            aidnav::app::process::export::aid_updates_table(updates, source).ok_or_else(|| {
+                PyValueError::new_err(format!(
+                    "no per-update table for {source:?}: \"wheel_speed\" or \"barometer\""
+                ))
+            })?;
+        table(py, t)
+    }
+
     /// `summary.json` as a Python value (no file listed).
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let report = self.run.report(Vec::new(), Vec::new());

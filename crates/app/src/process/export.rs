@@ -116,10 +116,13 @@ pub fn write_forward_files(
     let mut others = vec![selected, trajectory, instruments, innovations];
     others.extend(drift);
     let mut other_warnings = other_warnings;
-    for (source, unit) in AID_UPDATE_FILES {
-        if result.aid_sources.iter().any(|s| s.name == source) {
+    for (source, _) in AID_UPDATE_FILES {
+        let table = aid_updates_table(&result.aid_updates, source);
+        if let Some((header, rows)) =
+            table.filter(|_| result.aid_sources.iter().any(|s| s.name == source))
+        {
             let path = out.join(format!("{source}.csv"));
-            other_warnings.extend(write_aid_updates(&path, &result.aid_updates, source, unit)?);
+            other_warnings.extend(aidnav_io::writers::write_rows(&path, &header, rows)?);
             others.push(path);
         }
     }
@@ -165,37 +168,53 @@ pub fn write_smoothed_file(
 }
 
 /// The sources whose every update has a file of its own
-/// ([`write_aid_updates`]), with the unit of their innovations.
-const AID_UPDATE_FILES: [(&str, &str); 2] = [("wheel_speed", "m/s"), ("barometer", "m")];
+/// (`<source>.csv`, [`aid_updates_table`]), with its header.
+const AID_UPDATE_FILES: [(&str, [&str; 5]); 2] = [
+    (
+        "wheel_speed",
+        [
+            "time [s GPST since 1970]",
+            "innovation [m/s]",
+            "innovation_sigma [m/s]",
+            "nis",
+            "outcome (1 accepted, 2 limited, 3 rejected, 4 reset)",
+        ],
+    ),
+    (
+        "barometer",
+        [
+            "time [s GPST since 1970]",
+            "innovation [m]",
+            "innovation_sigma [m]",
+            "nis",
+            "outcome (1 accepted, 2 limited, 3 rejected, 4 reset)",
+        ],
+    ),
+];
 
-/// Write `<source>.csv` (`wheel_speed.csv`, `barometer.csv`): one row per
-/// update of the source — its time, the innovation (predicted minus
-/// measured), its σ, the NIS and the outcome.
-pub fn write_aid_updates(
-    path: &Path,
+/// `<source>.csv`'s columns (`wheel_speed.csv`, `barometer.csv`): one row
+/// per update of the source — its time, the innovation (predicted minus
+/// measured), its σ, the NIS and the outcome. None for a source without
+/// such a file.
+pub fn aid_updates_table(
     updates: &[AidRecord],
     source: &str,
-    unit: &str,
-) -> Result<Vec<String>, IoError> {
-    let innovation = format!("innovation [{unit}]");
-    let sigma = format!("innovation_sigma [{unit}]");
-    let header = [
-        "time [s GPST since 1970]",
-        innovation.as_str(),
-        sigma.as_str(),
-        "nis",
-        "outcome (1 accepted, 2 limited, 3 rejected, 4 reset)",
-    ];
-    let rows = updates.iter().filter(|u| u.source == source).map(|u| {
-        [
-            u.time_s,
-            u.innovation[0],
-            u.innovation_sigma[0],
-            u.nis,
-            outcome_code(Some(u.outcome)),
-        ]
-    });
-    aidnav_io::writers::write_rows(path, &header, rows)
+) -> Option<(Vec<&'static str>, Vec<Vec<f64>>)> {
+    let (_, header) = AID_UPDATE_FILES.iter().find(|(s, _)| *s == source)?;
+    let rows = updates
+        .iter()
+        .filter(|u| u.source == source)
+        .map(|u| {
+            vec![
+                u.time_s,
+                u.innovation[0],
+                u.innovation_sigma[0],
+                u.nis,
+                outcome_code(Some(u.outcome)),
+            ]
+        })
+        .collect();
+    Some((header.to_vec(), rows))
 }
 
 /// The outcome column of `solution.csv` and the aid-update files.
