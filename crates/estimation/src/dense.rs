@@ -1360,11 +1360,11 @@ pub(crate) const MAX_FUSED_STATES: usize = SMALL_DYN;
 /// overlap (matrices reached through a struct's fields lose that, and the
 /// output columns are no longer kept in registers).
 ///
-/// Public (re-exported at the crate root) for model crates whose own
-/// element-wise kernels gain from the same dispatch; the work must not
-/// depend on the vector width (no reassociated sums), so that its result is
-/// the same on every CPU.
-pub trait Widened {
+/// The work must not depend on the vector width (no reassociated sums), so
+/// that its result is the same on every CPU. Crate-private: what other
+/// crates need of it is a product with a stated result (such as
+/// [`SecondOrderPattern`](crate::SecondOrderPattern)), not the dispatch.
+pub(crate) trait Widened {
     /// Do the work.
     fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]);
 }
@@ -1381,7 +1381,13 @@ pub trait Widened {
 /// multiply and an add anyway), so only the number of elements per
 /// instruction changes.
 #[inline(always)]
-pub fn run_widest<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
+pub(crate) fn run_widest<W: Widened>(
+    work: W,
+    out: &mut [f64],
+    scratch: &mut [f64],
+    a: &[f64],
+    b: &[f64],
+) {
     #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
     if std::arch::is_x86_feature_detected!("avx2") {
         #[allow(unsafe_code)]
