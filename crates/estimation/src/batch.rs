@@ -1070,12 +1070,57 @@ mod tests {
         );
     }
 
+    /// The plain and the χ²-gated (`probability`) batch from `prior` on the
+    /// batch's own (Φ, Q, H) against [`step_by_step`] from (x0, P0) on the
+    /// run-time sized model, R the model's: the same states, outcomes and
+    /// NIS bit for bit; the gate rejects something.
+    fn assert_batch_is_step_by_step<N: Dim>(
+        prior: &KalmanFilter<N>,
+        (phi, q, h): BatchModel<'_, N>,
+        (x0, p0, model): (&DVector<f64>, &DMatrix<f64>, StepModel<'_>),
+        z: &[f64],
+        probability: f64,
+    ) where
+        DefaultAllocator: FixedBatchAllocator<N>,
+    {
+        let (r, keep) = (model.3, BatchKeep::default());
+        let plain = filter_batch_plain(&mut prior.clone(), phi, q, h, r, z, true, keep).unwrap();
+        let (states, nis, outcomes) = step_by_step(x0, p0, model, z, &mut AcceptAll);
+        assert_eq!(plain.states, states);
+        assert_eq!(plain.outcomes, outcomes);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&plain.nis), bits(&nis));
+        let gate = || Chi2Gate { probability };
+        let mut policy = gate();
+        let gated = filter_batch(&mut prior.clone(), phi, q, h, r, z, true, &mut policy, keep);
+        let gated = gated.unwrap();
+        let (states, _, outcomes) = step_by_step(x0, p0, model, z, &mut gate());
+        assert_eq!(gated.states, states);
+        assert_eq!(gated.outcomes, outcomes);
+        assert!(outcomes.contains(&Outcome::Rejected));
+    }
+
+    /// (Φ, Q, H) of a batch.
+    type BatchModel<'a, N> = (
+        &'a OMatrix<f64, N, N>,
+        &'a OMatrix<f64, N, N>,
+        &'a OMatrix<f64, Dyn, N>,
+    );
+
+    /// (Φ, Q, H, R) of [`step_by_step`].
+    type StepModel<'a> = (
+        &'a DMatrix<f64>,
+        &'a DMatrix<f64>,
+        &'a DMatrix<f64>,
+        &'a DMatrix<f64>,
+    );
+
     /// The step-by-step reference: a run-time sized filter updated with
     /// the rows present selected into run-time sized matrices.
     fn step_by_step(
         x0: &DVector<f64>,
         p0: &DMatrix<f64>,
-        (phi, q, h, r): (&DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>),
+        (phi, q, h, r): StepModel<'_>,
         z: &[f64],
         policy: &mut dyn MeasurementPolicy<Dyn>,
     ) -> (Vec<f64>, Vec<f64>, Vec<Outcome>) {
@@ -1156,36 +1201,9 @@ mod tests {
         );
         let h_d = OMatrix::<f64, Dyn, Const<4>>::from_column_slice(h.as_slice());
         let model = (&phi, &q, &h, &r);
+        let batch = (&phi_s, &q_s, &h_d);
+        assert_batch_is_step_by_step(&fixed, batch, (&x0, &p0, model), &z, 0.99);
         let keep = BatchKeep::default();
-        let plain =
-            filter_batch_plain(&mut fixed.clone(), &phi_s, &q_s, &h_d, &r, &z, true, keep).unwrap();
-        let (states, nis, outcomes) = step_by_step(&x0, &p0, model, &z, &mut AcceptAll);
-        assert_eq!(plain.states, states);
-        assert_eq!(plain.outcomes, outcomes);
-        assert!(
-            plain
-                .nis
-                .iter()
-                .zip(&nis)
-                .all(|(a, b)| a.to_bits() == b.to_bits())
-        );
-        let gate = || Chi2Gate { probability: 0.99 };
-        let gated = filter_batch(
-            &mut fixed.clone(),
-            &phi_s,
-            &q_s,
-            &h_d,
-            &r,
-            &z,
-            true,
-            &mut gate(),
-            keep,
-        )
-        .unwrap();
-        let (states, _, outcomes) = step_by_step(&x0, &p0, model, &z, &mut gate());
-        assert_eq!(gated.states, states);
-        assert_eq!(gated.outcomes, outcomes);
-        assert!(outcomes.contains(&Outcome::Rejected));
         // R of the wrong size is refused.
         let r6 = DMatrix::identity(6, 6);
         assert!(
@@ -1478,36 +1496,7 @@ mod tests {
             );
             let model = (&phi, q, &h, r);
             let prior = KalmanFilter::<Dyn>::new(x0.clone(), p0.clone()).unwrap();
-            let keep = BatchKeep::default();
-            let plain =
-                filter_batch_plain(&mut prior.clone(), &phi, q, &h, r, &z, true, keep).unwrap();
-            let (states, nis, outcomes) = step_by_step(&x0, &p0, model, &z, &mut AcceptAll);
-            assert_eq!(plain.states, states);
-            assert_eq!(plain.outcomes, outcomes);
-            assert!(
-                plain
-                    .nis
-                    .iter()
-                    .zip(&nis)
-                    .all(|(a, b)| a.to_bits() == b.to_bits())
-            );
-            let gate = || Chi2Gate { probability: 0.999 };
-            let gated = filter_batch(
-                &mut prior.clone(),
-                &phi,
-                q,
-                &h,
-                r,
-                &z,
-                true,
-                &mut gate(),
-                keep,
-            )
-            .unwrap();
-            let (states, _, outcomes) = step_by_step(&x0, &p0, model, &z, &mut gate());
-            assert_eq!(gated.states, states);
-            assert_eq!(gated.outcomes, outcomes);
-            assert!(outcomes.contains(&Outcome::Rejected));
+            assert_batch_is_step_by_step(&prior, (&phi, q, &h), (&x0, &p0, model), &z, 0.999);
         }
         let prior = KalmanFilter::<Dyn>::new(x0, p0).unwrap();
         let keep = BatchKeep::default();

@@ -1,7 +1,7 @@
 //! Input and output checks shared by every step of the engine.
 
 use nalgebra::{
-    DefaultAllocator, Dim, IsContiguous, Matrix as NaMatrix, OMatrix, RawStorage,
+    DefaultAllocator, Dim, IsContiguous, Matrix as NaMatrix, OMatrix, OVector, RawStorage,
     allocator::Allocator,
 };
 
@@ -106,6 +106,33 @@ pub(crate) fn shape<R: Dim, C: Dim, S: RawStorage<f64, R, C>>(
             expected_cols: expected.1,
         })
     }
+}
+
+/// A measurement's z, H and R.
+type MeasurementRef<'a, M, N> = (
+    &'a OVector<f64, M>,
+    &'a OMatrix<f64, M, N>,
+    &'a OMatrix<f64, M, M>,
+);
+
+/// Error unless a measurement of m = z.len() components on n states is
+/// well formed: H m × n and R m × m, then z, H and R finite, checked in
+/// that order (the error names the first that fails). Returns m.
+pub(crate) fn measurement<M: Dim, N: Dim>(
+    (z, h, r): MeasurementRef<'_, M, N>,
+    n: usize,
+    step: Step,
+) -> Result<usize>
+where
+    DefaultAllocator: Allocator<M> + Allocator<M, N> + Allocator<M, M>,
+{
+    let m = z.len();
+    shape(h, (m, n), step, Matrix::H)?;
+    shape(r, (m, m), step, Matrix::R)?;
+    finite(z, step, Matrix::Z)?;
+    finite(h, step, Matrix::H)?;
+    finite(r, step, Matrix::R)?;
+    Ok(m)
 }
 
 /// Error unless the square matrix is symmetric to [`SYMMETRY_RTOL`] of its

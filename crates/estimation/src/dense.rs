@@ -113,7 +113,9 @@ fn axpy(o: &mut [f64], x: &[f64], s: f64) {
     }
 }
 
-/// out = α · a · B + β · out (see [`columns`]); with `lower`, a square out's
+/// out = α · a · B + β · out (see [`columns`]), each output column started
+/// from `init`'s when it is given (`start` = (β, init): α a B + β init,
+/// out's own values unread); with `lower`, a square out's
 /// lower triangle only, in [`LOWER_BLOCKS`] column blocks that each start at
 /// an even row at or above their first column (so a block's row count is a
 /// constant for fixed sizes, and vectors stay aligned to pairs): 37 % of the
@@ -122,23 +124,6 @@ fn axpy(o: &mut [f64], x: &[f64], s: f64) {
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn kernel<I: Iterator<Item = usize> + Clone>(
-    (r, c): (usize, usize),
-    inner: I,
-    alpha: f64,
-    a: &[f64],
-    b: impl Fn(usize, usize) -> f64,
-    beta: f64,
-    out: &mut [f64],
-    lower: bool,
-) {
-    kernel_from((r, c), inner, alpha, a, b, (beta, None), out, lower);
-}
-
-/// [`kernel`] with each output column started from `init`'s (see
-/// [`columns`]) when it is given: `α a B + β init`, out's own values unread.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn kernel_from<I: Iterator<Item = usize> + Clone>(
     (r, c): (usize, usize),
     inner: I,
     alpha: f64,
@@ -156,7 +141,7 @@ fn kernel_from<I: Iterator<Item = usize> + Clone>(
 }
 
 /// The lower triangle of the leading `rows` × `rows` block of a square
-/// r × r `out` (see [`kernel_from`], `lower`), in [`LOWER_BLOCKS`] column
+/// r × r `out` (see [`kernel`], `lower`), in [`LOWER_BLOCKS`] column
 /// blocks.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -191,6 +176,29 @@ pub(crate) fn lower_block_starts(r: usize) -> (usize, usize, usize) {
 /// Column blocks of a lower-triangle product (the four calls in [`kernel`]).
 const LOWER_BLOCKS: usize = 4;
 
+/// `out = α a B + β out` for an r × k a through [`kernel`] (B's element
+/// (kk, j) read by `read`; the lower triangle only with `lower`) where
+/// [`use_kernel`] takes the sizes, else through `packed`, nalgebra's
+/// product.
+#[inline(always)]
+fn product<R: Dim, K: Dim, C: Dim>(
+    out: &mut OMatrix<f64, R, C>,
+    (r, k, c): (usize, usize, usize),
+    (alpha, a): (f64, &[f64]),
+    read: impl Fn(usize, usize) -> f64,
+    (beta, lower): (f64, bool),
+    packed: impl FnOnce(&mut OMatrix<f64, R, C>),
+) where
+    DefaultAllocator: Allocator<R, C>,
+{
+    if use_kernel::<R, K, C>(r, k, c) {
+        let out = out.as_mut_slice();
+        kernel((r, c), 0..k, alpha, a, read, (beta, None), out, lower);
+    } else {
+        packed(out);
+    }
+}
+
 /// `out = α a b + β out`.
 #[inline]
 pub(crate) fn gemm<R: Dim, K: Dim, C: Dim>(
@@ -203,22 +211,43 @@ pub(crate) fn gemm<R: Dim, K: Dim, C: Dim>(
     DefaultAllocator: Allocator<R, C> + Allocator<R, K> + Allocator<K, C>,
 {
     let (r, k, c) = (a.nrows(), a.ncols(), b.ncols());
-    if use_kernel::<R, K, C>(r, k, c) {
-        let b = b.as_slice();
-        let read = |kk: usize, j: usize| b[j * k + kk];
-        kernel(
-            (r, c),
-            0..k,
-            alpha,
-            a.as_slice(),
-            read,
-            beta,
-            out.as_mut_slice(),
-            false,
-        );
-    } else {
-        out.gemm(alpha, a, b, beta);
-    }
+    let bs = b.as_slice();
+    let read = |kk: usize, j: usize| bs[j * k + kk];
+    let packed = |out: &mut OMatrix<f64, R, C>| out.gemm(alpha, a, b, beta);
+    product::<R, K, C>(
+        out,
+        (r, k, c),
+        (alpha, a.as_slice()),
+        read,
+        (beta, false),
+        packed,
+    );
+}
+
+/// `out = α a bᵀ + β out`; with `lower` (a square `out`) its lower triangle
+/// only, the elements above the diagonal left unspecified (follow with
+/// [`mirror_lower`]): for products known to be symmetric.
+#[inline]
+fn product_nt<R: Dim, K: Dim, C: Dim>(
+    out: &mut OMatrix<f64, R, C>,
+    (alpha, a): (f64, &OMatrix<f64, R, K>),
+    b: &OMatrix<f64, C, K>,
+    (beta, lower): (f64, bool),
+) where
+    DefaultAllocator: Allocator<R, C> + Allocator<R, K> + Allocator<C, K> + Allocator<K, C>,
+{
+    let (r, k, c) = (a.nrows(), a.ncols(), b.nrows());
+    let bs = b.as_slice();
+    let read = |kk: usize, j: usize| bs[kk * c + j];
+    let packed = |out: &mut OMatrix<f64, R, C>| out.gemm(alpha, a, &b.transpose(), beta);
+    product::<R, K, C>(
+        out,
+        (r, k, c),
+        (alpha, a.as_slice()),
+        read,
+        (beta, lower),
+        packed,
+    );
 }
 
 /// `out = α a bᵀ + β out`.
@@ -232,28 +261,11 @@ pub(crate) fn gemm_nt<R: Dim, K: Dim, C: Dim>(
 ) where
     DefaultAllocator: Allocator<R, C> + Allocator<R, K> + Allocator<C, K> + Allocator<K, C>,
 {
-    let (r, k, c) = (a.nrows(), a.ncols(), b.nrows());
-    if use_kernel::<R, K, C>(r, k, c) {
-        let b = b.as_slice();
-        let read = |kk: usize, j: usize| b[kk * c + j];
-        kernel(
-            (r, c),
-            0..k,
-            alpha,
-            a.as_slice(),
-            read,
-            beta,
-            out.as_mut_slice(),
-            false,
-        );
-    } else {
-        out.gemm(alpha, a, &b.transpose(), beta);
-    }
+    product_nt(out, (alpha, a), b, (beta, false));
 }
 
-/// The lower triangle of `out = α a bᵀ + β out` for a square `out` (the
-/// elements above the diagonal are left unspecified: follow with
-/// [`mirror_lower`]). For products known to be symmetric.
+/// The lower triangle of `out = α a bᵀ + β out` for a square `out` (see
+/// [`product_nt`]).
 #[inline]
 pub(crate) fn gemm_nt_lower<D: Dim, K: Dim>(
     out: &mut OMatrix<f64, D, D>,
@@ -264,23 +276,7 @@ pub(crate) fn gemm_nt_lower<D: Dim, K: Dim>(
 ) where
     DefaultAllocator: Allocator<D, D> + Allocator<D, K> + Allocator<K, D>,
 {
-    let (r, k) = (a.nrows(), a.ncols());
-    if use_kernel::<D, K, D>(r, k, r) {
-        let b = b.as_slice();
-        let read = |kk: usize, j: usize| b[kk * r + j];
-        kernel(
-            (r, r),
-            0..k,
-            alpha,
-            a.as_slice(),
-            read,
-            beta,
-            out.as_mut_slice(),
-            true,
-        );
-    } else {
-        out.gemm(alpha, a, &b.transpose(), beta);
-    }
+    product_nt(out, (alpha, a), b, (beta, true));
 }
 
 /// The columns of `h` (m × n) that hold a nonzero element, in order, written
@@ -308,6 +304,20 @@ where
     (count < n).then_some(&list[..count])
 }
 
+/// `out = a B` (r × c) summing over the inner indices in `list` only
+/// ([`kernel`], B's element (kk, j) read by `read`).
+#[inline(always)]
+fn listed(
+    (r, c): (usize, usize),
+    list: &[usize],
+    a: &[f64],
+    read: impl Fn(usize, usize) -> f64,
+    out: &mut [f64],
+) {
+    let inner = list.iter().copied();
+    kernel((r, c), inner, 1.0, a, read, (0.0, None), out, false);
+}
+
 /// `out = h p` (m × n) for a symmetric `p` (n × n), summing over the columns
 /// of h in `columns` (all when `None`): the terms left out are exact zeros.
 pub(crate) fn h_times_symmetric<M: Dim, N: Dim>(
@@ -325,17 +335,7 @@ pub(crate) fn h_times_symmetric<M: Dim, N: Dim>(
             // p is symmetric: p(kk, j) = p(j, kk), the contiguous read.
             let ps = p.as_slice();
             let read = |kk: usize, j: usize| ps[kk * n + j];
-            let inner = list.iter().copied();
-            kernel(
-                (m, n),
-                inner,
-                1.0,
-                h.as_slice(),
-                read,
-                0.0,
-                out.as_mut_slice(),
-                false,
-            );
+            listed((m, n), list, h.as_slice(), read, out.as_mut_slice());
         }
     }
 }
@@ -356,17 +356,7 @@ pub(crate) fn times_h_transpose<M: Dim, N: Dim>(
             let m = u.nrows();
             let hs = h.as_slice();
             let read = |kk: usize, j: usize| hs[kk * m + j];
-            let inner = list.iter().copied();
-            kernel(
-                (m, m),
-                inner,
-                1.0,
-                u.as_slice(),
-                read,
-                0.0,
-                out.as_mut_slice(),
-                false,
-            );
+            listed((m, m), list, u.as_slice(), read, out.as_mut_slice());
         }
     }
 }
@@ -495,100 +485,79 @@ fn rank_2k_columns(
     }
 }
 
-/// `out = p hᵀ` (n × m) for a symmetric `p` (n × n) and h (m × n): column i
-/// of out sums the columns k of p weighted by h(i, k), over the nonzero
-/// h(i, k) only (a navigation filter's H selects a few states), in
-/// increasing k from 0. The transpose of [`h_times_symmetric`]'s H P bit for
-/// bit: each product is the same, and a left-out term is an exact zero
-/// added to a sum that started at +0 and so is never −0, which leaves it
-/// unchanged (p is finite).
-pub(crate) fn symmetric_times_h_transpose<M: Dim, N: Dim>(
-    out: &mut OMatrix<f64, N, M>,
+/// `cross = p hᵀ` (n × m) for a symmetric `p` (n × n) and h (m × n),
+/// then `hph = h cross` (m × m), H P Hᵀ. Column i of P Hᵀ sums the
+/// columns k of p weighted by h(i, k), over the nonzero h(i, k) only (a
+/// navigation filter's H selects a few states), in increasing k from 0:
+/// the transpose of [`h_times_symmetric`]'s H P bit for bit (each product
+/// is the same, and a left-out term is an exact zero added to a sum that
+/// started at +0 and so is never −0, which leaves it unchanged; p is
+/// finite). Likewise `hph(i, j) = Σ_k cross(k, i) h(j, k)` over the
+/// nonzero h(j, k) in increasing k, bit for bit what
+/// [`times_h_transpose`] gives from H P.
+pub(crate) fn measured_covariances<M: Dim, N: Dim>(
+    (cross, hph): (&mut OMatrix<f64, N, M>, &mut OMatrix<f64, M, M>),
     p: &OMatrix<f64, N, N>,
     h: &OMatrix<f64, M, N>,
 ) where
-    DefaultAllocator: Allocator<M, N> + Allocator<N, N> + Allocator<N, M>,
+    DefaultAllocator: Allocator<M, N> + Allocator<N, N> + Allocator<N, M> + Allocator<M, M>,
 {
     let (md, nd) = h.shape_generic();
-    run_widest(
-        CrossCovariance { n: nd, m: md },
-        out.as_mut_slice(),
-        &mut [],
-        p.as_slice(),
-        h.as_slice(),
-    );
+    let (out, hs) = (cross.as_mut_slice(), h.as_slice());
+    let work = MeasuredProduct::<_, _, true> { n: nd, m: md };
+    run_widest(work, out, &mut [], p.as_slice(), hs);
+    let work = MeasuredProduct::<_, _, false> { n: nd, m: md };
+    run_widest(work, hph.as_mut_slice(), &mut [], hs, cross.as_slice());
 }
 
-/// [`symmetric_times_h_transpose`] on the column-major slices: `out` =
-/// P Hᵀ (n × m), `a` = P (n × n), `b` = H (m × n); no scratch.
-struct CrossCovariance<N: Dim, M: Dim> {
+/// The two products of [`measured_covariances`] (P Hᵀ with `CROSS`) on the
+/// column-major slices, no scratch: `out` = P Hᵀ (n × m), `a` = P (n × n),
+/// `b` = H (m × n); or `out` = H P Hᵀ (m × m), `a` = H (m × n), `b` = P Hᵀ
+/// (n × m).
+struct MeasuredProduct<N: Dim, M: Dim, const CROSS: bool> {
     n: N,
     m: M,
 }
 
-impl<N: Dim, M: Dim> Widened for CrossCovariance<N, M> {
+impl<N: Dim, M: Dim, const CROSS: bool> Widened for MeasuredProduct<N, M, CROSS> {
     #[inline(always)]
     fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
         let (n, m) = (self.n.value(), self.m.value());
-        let (os, ps, hs) = (&mut out[..n * m], &a[..n * n], &b[..m * n]);
-        for i in 0..m {
-            let oc = &mut os[i * n..][..n];
-            oc.fill(0.0);
-            for k in 0..n {
-                let hv = hs[k * m + i];
-                if hv != 0.0 {
-                    let pc = &ps[k * n..][..n];
-                    for (o, &x) in oc.iter_mut().zip(pc) {
-                        *o += hv * x;
-                    }
+        if CROSS {
+            let (ps, hs) = (&a[..n * n], &b[..m * n]);
+            over_nonzero_h(&mut out[..n * m], n, (n, m), hs, |oc, k, hv| {
+                for (o, &x) in oc.iter_mut().zip(&ps[k * n..][..n]) {
+                    *o += hv * x;
                 }
-            }
+            });
+        } else {
+            let (hs, ws) = (&a[..m * n], &b[..n * m]);
+            over_nonzero_h(&mut out[..m * m], m, (n, m), hs, |oc, k, hv| {
+                for (i, o) in oc.iter_mut().enumerate() {
+                    *o += ws[i * n + k] * hv;
+                }
+            });
         }
     }
 }
 
-/// `out(i, j) = Σ_k w(k, i) h(j, k)` (m × m) for w = P Hᵀ (n × m), over the
-/// nonzero h(j, k) in increasing k: H P Hᵀ, bit for bit what
-/// [`times_h_transpose`] gives from H P (see [`symmetric_times_h_transpose`]).
-pub(crate) fn h_times_cross<M: Dim, N: Dim>(
-    out: &mut OMatrix<f64, M, M>,
-    h: &OMatrix<f64, M, N>,
-    w: &OMatrix<f64, N, M>,
-) where
-    DefaultAllocator: Allocator<M, N> + Allocator<N, M> + Allocator<M, M>,
-{
-    let (md, nd) = h.shape_generic();
-    run_widest(
-        MeasuredCovariance { n: nd, m: md },
-        out.as_mut_slice(),
-        &mut [],
-        h.as_slice(),
-        w.as_slice(),
-    );
-}
-
-/// [`h_times_cross`] on the column-major slices: `out` = H P Hᵀ (m × m),
-/// `a` = H (m × n), `b` = P Hᵀ (n × m); no scratch.
-struct MeasuredCovariance<N: Dim, M: Dim> {
-    n: N,
-    m: M,
-}
-
-impl<N: Dim, M: Dim> Widened for MeasuredCovariance<N, M> {
-    #[inline(always)]
-    fn run(self, out: &mut [f64], _: &mut [f64], a: &[f64], b: &[f64]) {
-        let (n, m) = (self.n.value(), self.m.value());
-        let (os, hs, ws) = (&mut out[..m * m], &a[..m * n], &b[..n * m]);
-        for j in 0..m {
-            let oc = &mut os[j * m..][..m];
-            oc.fill(0.0);
-            for k in 0..n {
-                let hv = hs[k * m + j];
-                if hv != 0.0 {
-                    for (i, o) in oc.iter_mut().enumerate() {
-                        *o += ws[i * n + k] * hv;
-                    }
-                }
+/// Each column i of `out` (columns of `len`) from +0, gaining `term(column,
+/// k, h(i, k))` for the nonzero h(i, k) of the m × n `hs` in increasing k.
+#[inline(always)]
+fn over_nonzero_h(
+    out: &mut [f64],
+    len: usize,
+    (n, m): (usize, usize),
+    hs: &[f64],
+    term: impl Fn(&mut [f64], usize, f64),
+) {
+    for i in 0..m {
+        let oc = &mut out[i * len..][..len];
+        oc.fill(0.0);
+        for k in 0..n {
+            let hv = hs[k * m + i];
+            if hv != 0.0 {
+                term(oc, k, hv);
             }
         }
     }
@@ -783,26 +752,13 @@ pub(crate) fn add_congruence<D: Dim>(
     congruence(out, None, phi, p, &mut phi_p);
 }
 
-/// `out = Φ p Φᵀ + q`, [`add_congruence`] on a copy of `q` bit for bit,
-/// out's values on entry unread, `phi_p` the scratch for Φ P (its values
-/// on entry unread too): each column of out starts from q's inside the
-/// kernel instead of out being a copy of q made beforehand (the batch's
-/// time update, a copy of P fewer).
-pub(crate) fn congruence_onto<D: Dim>(
-    out: &mut OMatrix<f64, D, D>,
-    q: &OMatrix<f64, D, D>,
-    phi: &OMatrix<f64, D, D>,
-    p: &OMatrix<f64, D, D>,
-    phi_p: &mut OMatrix<f64, D, D>,
-) where
-    DefaultAllocator: Allocator<D, D>,
-{
-    congruence(out, Some(q), phi, p, phi_p);
-}
-
-/// [`add_congruence`] (`base` None: onto out's values) or
-/// [`congruence_onto`] (onto `base`).
-fn congruence<D: Dim>(
+/// [`add_congruence`] (`base` None: onto out's values) or `out = Φ p Φᵀ +
+/// base`, [`add_congruence`] on a copy of `base` bit for bit, out's values
+/// on entry unread, `phi_p` the scratch for Φ P (its values on entry
+/// unread too): each column of out starts from base's inside the kernel
+/// instead of out being a copy of it made beforehand (the batch's time
+/// update, a copy of P fewer).
+pub(crate) fn congruence<D: Dim>(
     out: &mut OMatrix<f64, D, D>,
     base: Option<&OMatrix<f64, D, D>>,
     phi: &OMatrix<f64, D, D>,
@@ -859,8 +815,8 @@ impl<D: Dim> Widened for Congruence<'_, D> {
         // (Φ P) Φᵀ, lower, as gemm_nt_lower: b(kk, j) = Φ(j, kk).
         let read_phi = |kk: usize, j: usize| phi[kk * n + j];
         if !last_row_apart(n) {
-            kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
-            kernel_from((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
+            kernel((n, n), 0..n, 1.0, phi, read_p, (0.0, None), phi_p, false);
+            kernel((n, n), 0..n, 1.0, phi_p, read_phi, (1.0, base), out, true);
             mirror_lower_slice(n, out);
             return;
         }
@@ -887,7 +843,7 @@ impl<D: Dim> Widened for Congruence<'_, D> {
                 axpy(phi_p_last, &p[kk * n..][..n], phi[kk * n + last]);
             }
         } else {
-            kernel((n, n), 0..n, 1.0, phi, read_p, 0.0, phi_p, false);
+            kernel((n, n), 0..n, 1.0, phi, read_p, (0.0, None), phi_p, false);
             for (k, v) in phi_p_last.iter_mut().enumerate() {
                 *v = phi_p[k * n + last];
             }
@@ -958,41 +914,15 @@ fn mirror_with_last_column(n: usize, s: &mut [f64]) {
     }
 }
 
-/// The Joseph update's covariance in place, `p + V Kᵀ + K Vᵀ` with
+/// The Joseph update's covariance, `prior + V Kᵀ + K Vᵀ` into `p` with
 /// `V = α K S + β W` (`v` holds W on entry, V on return): V as [`gemm`]
 /// computes it, then [`add_rank_2k_lower`] and [`mirror_lower`]: the same
 /// operations in the same order, bit for bit, through [`run_widest`].
+/// `prior` None: in place, onto p's values; else onto `prior`'s, bit for
+/// bit the same as onto a copy of it, p's values on entry unread (each
+/// column of p starts from prior's inside the kernel: the batch's update,
+/// a copy of P fewer).
 pub(crate) fn joseph_rank_2k<N: Dim, M: Dim>(
-    p: &mut OMatrix<f64, N, N>,
-    v: &mut OMatrix<f64, N, M>,
-    gain: &OMatrix<f64, N, M>,
-    s: &OMatrix<f64, M, M>,
-    coefficients: (f64, f64),
-) where
-    DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
-{
-    joseph(p, None, v, (gain, s), coefficients);
-}
-
-/// `out = prior + V Kᵀ + K Vᵀ`: [`joseph_rank_2k`] on a copy of `prior`
-/// bit for bit, out's values on entry unread (each column of out starts
-/// from prior's inside the kernel: the batch's update, a copy of P fewer).
-pub(crate) fn joseph_rank_2k_onto<N: Dim, M: Dim>(
-    out: &mut OMatrix<f64, N, N>,
-    prior: &OMatrix<f64, N, N>,
-    v: &mut OMatrix<f64, N, M>,
-    gain: &OMatrix<f64, N, M>,
-    s: &OMatrix<f64, M, M>,
-    coefficients: (f64, f64),
-) where
-    DefaultAllocator: Allocator<N, N> + Allocator<N, M> + Allocator<M, N> + Allocator<M, M>,
-{
-    joseph(out, Some(prior), v, (gain, s), coefficients);
-}
-
-/// [`joseph_rank_2k`] (`prior` None: onto p's values) or
-/// [`joseph_rank_2k_onto`] (onto `prior`).
-fn joseph<N: Dim, M: Dim>(
     p: &mut OMatrix<f64, N, N>,
     prior: Option<&OMatrix<f64, N, N>>,
     v: &mut OMatrix<f64, N, M>,
@@ -1051,7 +981,16 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<'_, N, M> {
         let prior = self.prior.map(|q| &q[..n * n]);
         // V = α K S + β W, as gemm: b(kk, j) = S(kk, j).
         let read_s = |kk: usize, j: usize| s[j * m + kk];
-        kernel((n, m), 0..m, self.alpha, gain, read_s, self.beta, v, false);
+        kernel(
+            (n, m),
+            0..m,
+            self.alpha,
+            gain,
+            read_s,
+            (self.beta, None),
+            v,
+            false,
+        );
         if !last_row_apart(n) {
             rank_2k_lower_kernel((n, n), m, (v, gain), prior, p);
             mirror_lower_slice(n, p);
@@ -1073,6 +1012,56 @@ impl<N: Dim, M: Dim> Widened for JosephRank2k<'_, N, M> {
     }
 }
 
+/// Defines a function whose body runs with the widest vectors worth having
+/// on this CPU: on x86-64 when AVX2 is not enabled at compile time (the
+/// default, portable build) but the CPU has it (detected once, then a
+/// cached load), the body compiled with AVX2; otherwise as compiled. One
+/// definition for every such dispatch ([`run_widest`], [`accepted_update`],
+/// [`predicted_aside`]): `fn name [generics] [generic arguments] (args) ->
+/// type { body }`, each argument a name (destructure in the body).
+///
+/// The body must not depend on the vector width (element-wise loops, no
+/// reassociated sums; FMA is not enabled and Rust never contracts a
+/// multiply and an add), so that only the number of elements per
+/// instruction changes and the result is the same bit for bit. Every slice
+/// is an argument of the dispatching function, so that the compiler knows
+/// they do not overlap.
+macro_rules! widest {
+    (
+        $(#[$attr:meta])*
+        $vis:vis fn $name:ident [$($generics:tt)*] [$($arguments:tt)*]
+            ($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty $body:block
+    ) => {
+        $(#[$attr])*
+        #[inline(always)]
+        #[allow(clippy::too_many_arguments)]
+        $vis fn $name<$($generics)*>($($arg: $ty),*) -> $ret {
+            /// The body, inlined into both builds.
+            #[inline(always)]
+            #[allow(clippy::too_many_arguments)]
+            fn body<$($generics)*>($($arg: $ty),*) -> $ret $body
+
+            /// The body compiled with AVX2.
+            #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+            #[target_feature(enable = "avx2")]
+            #[allow(clippy::too_many_arguments)]
+            fn avx2<$($generics)*>($($arg: $ty),*) -> $ret {
+                body::<$($arguments)*>($($arg),*)
+            }
+
+            #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                #[allow(unsafe_code)]
+                // SAFETY: `avx2`'s only requirement is that the CPU
+                // executes AVX2 instructions, which was just detected at
+                // run time.
+                return unsafe { avx2::<$($arguments)*>($($arg),*) };
+            }
+            body::<$($arguments)*>($($arg),*)
+        }
+    };
+}
+
 /// How [`accepted_update`] ended: the check that failed, in the order of
 /// the update's own checks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1089,10 +1078,11 @@ pub(crate) enum AcceptedStatus {
     CovarianceNonFinite,
 }
 
+widest! {
 /// The accepted Joseph update from P⁻ of a fixed-size measurement (`M`
 /// components, up to [`MAX_GAIN_SOLVE`]), whole, in one dispatch to its
-/// AVX2 build (as [`run_widest`]): P Hᵀ ([`CrossCovariance`]), H P Hᵀ
-/// ([`MeasuredCovariance`]) symmetrised as `check::symmetrize` does,
+/// AVX2 build (as [`run_widest`]): P Hᵀ and H P Hᵀ
+/// ([`MeasuredProduct`]) symmetrised as `check::symmetrize` does,
 /// S = H P Hᵀ + R, its Cholesky factor (the smoother's in-place factor,
 /// nalgebra's operations), the NIS ([`cholesky_solve_vector`] and
 /// nalgebra's dot), the gain ([`GainSolve`] on a copy of P Hᵀ),
@@ -1110,70 +1100,17 @@ pub(crate) enum AcceptedStatus {
 /// `hph`, `s`, `factor` (S's Cholesky factor in its lower triangle, S's
 /// values above: nalgebra's layout) and `gain` written. Returns the NIS
 /// and how the update ended.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn accepted_update<N: Dim, const M: usize>(
-    n: N,
-    (p, cross): (&mut [f64], &mut [f64]),
-    (prior, h, r, residual): (&[f64], &[f64], &[f64], &[f64]),
-    x: &mut [f64],
-    hph: &mut [f64],
-    s: &mut [f64],
-    factor: &mut [f64],
-    gain: &mut [f64],
-) -> (f64, AcceptedStatus) {
-    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: `accepted_update_avx2`'s only requirement is that the
-        // CPU executes AVX2 instructions, which was just detected.
-        return unsafe {
-            accepted_update_avx2::<N, M>(
-                n, p, cross, prior, h, r, residual, x, hph, s, factor, gain,
-            )
-        };
-    }
-    accepted_update_body::<N, M>(n, p, cross, prior, h, r, residual, x, hph, s, factor, gain)
-}
-
-/// [`accepted_update`] compiled with AVX2.
-#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
-#[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-fn accepted_update_avx2<N: Dim, const M: usize>(
-    n: N,
-    p: &mut [f64],
-    cross: &mut [f64],
-    prior: &[f64],
-    h: &[f64],
-    r: &[f64],
-    residual: &[f64],
-    x: &mut [f64],
-    hph: &mut [f64],
-    s: &mut [f64],
-    factor: &mut [f64],
-    gain: &mut [f64],
-) -> (f64, AcceptedStatus) {
-    accepted_update_body::<N, M>(n, p, cross, prior, h, r, residual, x, hph, s, factor, gain)
-}
-
-/// The body of [`accepted_update`].
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn accepted_update_body<N: Dim, const M: usize>(
+pub(crate) fn accepted_update [N: Dim, const M: usize] [N, M] (
     nd: N,
-    p: &mut [f64],
-    cross: &mut [f64],
-    prior: &[f64],
-    h: &[f64],
-    r: &[f64],
-    residual: &[f64],
+    written: (&mut [f64], &mut [f64]),
+    read: (&[f64], &[f64], &[f64], &[f64]),
     x: &mut [f64],
     hph: &mut [f64],
     s: &mut [f64],
     factor: &mut [f64],
     gain: &mut [f64],
 ) -> (f64, AcceptedStatus) {
+    let ((p, cross), (prior, h, r, residual)) = (written, read);
     let n = nd.value();
     let (p, cross, prior, h) = (
         &mut p[..n * n],
@@ -1189,8 +1126,8 @@ fn accepted_update_body<N: Dim, const M: usize>(
         &mut gain[..n * M],
     );
     let md = nalgebra::Const::<M>;
-    CrossCovariance { n: nd, m: md }.run(cross, &mut [], prior, h);
-    MeasuredCovariance { n: nd, m: md }.run(hph, &mut [], h, cross);
+    MeasuredProduct::<_, _, true> { n: nd, m: md }.run(cross, &mut [], prior, h);
+    MeasuredProduct::<_, _, false> { n: nd, m: md }.run(hph, &mut [], h, cross);
     // check::symmetrize: ½ (m(i, j) + m(j, i)) to both.
     for i in 0..M {
         for j in (i + 1)..M {
@@ -1256,6 +1193,7 @@ fn accepted_update_body<N: Dim, const M: usize>(
     };
     (nis, status)
 }
+}
 
 /// How [`predicted_aside`] ended: the check that failed, in the order of
 /// the time update's own checks.
@@ -1269,60 +1207,25 @@ pub(crate) enum PredictedStatus {
     CovarianceNonFinite,
 }
 
+widest! {
 /// The batch's time update with P⁻ kept aside, whole, in one dispatch to
 /// its AVX2 build (as [`accepted_update`]): x⁻ = Φ x ([`MatrixVector`],
 /// nalgebra's product) and its check, then P⁻ = Φ P Φᵀ + Q
 /// ([`Congruence`] onto Q) and its check — the operations and checks of
-/// `predict_state_prechecked` and `congruence_onto` followed by
+/// `predict_state_prechecked` and `congruence` onto Q followed by
 /// `check::finite`, in their order, without the two dispatches, the calls
 /// and the copy of x between them. `x` holds x on entry, x⁻ on return;
 /// `predicted` (P⁻) and `phi_p` (scratch for Φ P) are written, their
 /// values on entry unread; n at most [`MAX_FUSED_STATES`]; `p_symmetric`:
 /// P is known to be symmetric bit for bit (see [`Congruence`]).
-#[inline(always)]
-pub(crate) fn predicted_aside<D: Dim>(
-    (n, p_symmetric): (D, bool),
-    x: &mut [f64],
-    (phi, q, p): (&[f64], &[f64], &[f64]),
-    predicted: &mut [f64],
-    phi_p: &mut [f64],
-) -> PredictedStatus {
-    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: `predicted_aside_avx2`'s only requirement is that the
-        // CPU executes AVX2 instructions, which was just detected.
-        return unsafe { predicted_aside_avx2((n, p_symmetric), x, phi, q, p, predicted, phi_p) };
-    }
-    predicted_aside_body((n, p_symmetric), x, phi, q, p, predicted, phi_p)
-}
-
-/// [`predicted_aside`] compiled with AVX2.
-#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
-#[target_feature(enable = "avx2")]
-fn predicted_aside_avx2<D: Dim>(
+pub(crate) fn predicted_aside [D: Dim] [D] (
     size: (D, bool),
     x: &mut [f64],
-    phi: &[f64],
-    q: &[f64],
-    p: &[f64],
+    read: (&[f64], &[f64], &[f64]),
     predicted: &mut [f64],
     phi_p: &mut [f64],
 ) -> PredictedStatus {
-    predicted_aside_body(size, x, phi, q, p, predicted, phi_p)
-}
-
-/// The body of [`predicted_aside`].
-#[inline(always)]
-fn predicted_aside_body<D: Dim>(
-    (nd, p_symmetric): (D, bool),
-    x: &mut [f64],
-    phi: &[f64],
-    q: &[f64],
-    p: &[f64],
-    predicted: &mut [f64],
-    phi_p: &mut [f64],
-) -> PredictedStatus {
+    let ((nd, p_symmetric), (phi, q, p)) = (size, read);
     let n = nd.value();
     let mut x_predicted = [0.0; MAX_FUSED_STATES];
     let x_predicted = &mut x_predicted[..n];
@@ -1344,6 +1247,7 @@ fn predicted_aside_body<D: Dim>(
         PredictedStatus::CovarianceNonFinite
     }
 }
+}
 
 /// Largest number of states [`accepted_update`] and [`predicted_aside`]
 /// take (a vector of n on the stack): the kernels' run-time limit.
@@ -1360,15 +1264,16 @@ pub(crate) const MAX_FUSED_STATES: usize = SMALL_DYN;
 /// overlap (matrices reached through a struct's fields lose that, and the
 /// output columns are no longer kept in registers).
 ///
-/// Public (re-exported at the crate root) for model crates whose own
-/// element-wise kernels gain from the same dispatch; the work must not
-/// depend on the vector width (no reassociated sums), so that its result is
-/// the same on every CPU.
-pub trait Widened {
+/// The work must not depend on the vector width (no reassociated sums), so
+/// that its result is the same on every CPU. Crate-private: what other
+/// crates need of it is a product with a stated result (such as
+/// [`SecondOrderPattern`](crate::SecondOrderPattern)), not the dispatch.
+pub(crate) trait Widened {
     /// Do the work.
     fn run(self, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]);
 }
 
+widest! {
 /// Run `work` with the widest vectors worth having on this CPU: on x86-64
 /// when AVX2 is not enabled at compile time (the default, portable build)
 /// but the CPU has it (detected once, then a cached load), the work
@@ -1380,26 +1285,15 @@ pub trait Widened {
 /// FMA is not enabled (AVX2 does not imply it, and Rust never contracts a
 /// multiply and an add anyway), so only the number of elements per
 /// instruction changes.
-#[inline(always)]
-pub fn run_widest<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
-    #[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        #[allow(unsafe_code)]
-        // SAFETY: `run_avx2`'s only requirement is that the CPU executes
-        // AVX2 instructions, which was just detected at run time.
-        unsafe {
-            run_avx2(work, out, scratch, a, b)
-        };
-        return;
-    }
-    work.run(out, scratch, a, b);
+pub(crate) fn run_widest [W: Widened] [W] (
+    work: W,
+    out: &mut [f64],
+    scratch: &mut [f64],
+    a: &[f64],
+    b: &[f64],
+) -> () {
+    work.run(out, scratch, a, b)
 }
-
-/// `work` compiled with AVX2 (see [`run_widest`]).
-#[cfg(all(target_arch = "x86_64", not(target_feature = "avx2")))]
-#[target_feature(enable = "avx2")]
-fn run_avx2<W: Widened>(work: W, out: &mut [f64], scratch: &mut [f64], a: &[f64], b: &[f64]) {
-    work.run(out, scratch, a, b);
 }
 
 /// Copy the lower triangle of a square matrix onto the upper one.
@@ -1685,11 +1579,9 @@ mod tests {
             h_times_symmetric(&mut hp, &h, &p, columns);
             let mut hph = DMatrix::zeros(m, m);
             times_h_transpose(&mut hph, &hp, &h, columns);
-            let mut cross = DMatrix::zeros(n, m);
-            symmetric_times_h_transpose(&mut cross, &p, &h);
+            let (mut cross, mut hph_sparse) = (DMatrix::zeros(n, m), DMatrix::zeros(m, m));
+            measured_covariances((&mut cross, &mut hph_sparse), &p, &h);
             assert_eq!(cross, hp.transpose(), "P Hᵀ, {m}×{n}");
-            let mut hph_sparse = DMatrix::zeros(m, m);
-            h_times_cross(&mut hph_sparse, &h, &cross);
             assert_eq!(hph_sparse, hph, "H P Hᵀ, {m}×{n}");
             // And both agree with nalgebra's product to rounding.
             let reference = &h * &p * h.transpose();
@@ -1826,7 +1718,7 @@ mod tests {
             );
             let mut onto = square(DMatrix::repeat(n, n, f64::NAN));
             let mut scratch = square(DMatrix::repeat(n, n, f64::NAN));
-            congruence_onto(&mut onto, &q, &phi, &p, &mut scratch);
+            congruence(&mut onto, Some(&q), &phi, &p, &mut scratch);
             assert_eq!(
                 bits(onto.as_slice()),
                 bits(full.as_slice()),
@@ -1866,14 +1758,14 @@ mod tests {
             add_rank_2k_lower(&mut full, &v, &gain);
             mirror_lower(&mut full);
             let (mut apart, mut v_apart) = (p.clone(), w.clone());
-            joseph_rank_2k(&mut apart, &mut v_apart, &gain, &s, (0.5, -1.0));
+            joseph_rank_2k(&mut apart, None, &mut v_apart, (&gain, &s), (0.5, -1.0));
             assert_eq!(
                 bits(apart.as_slice()),
                 bits(full.as_slice()),
                 "Joseph, {n}×{m}"
             );
             let (mut onto, mut v_onto) = (square(DMatrix::repeat(n, n, f64::NAN)), w.clone());
-            joseph_rank_2k_onto(&mut onto, &p, &mut v_onto, &gain, &s, (0.5, -1.0));
+            joseph_rank_2k(&mut onto, Some(&p), &mut v_onto, (&gain, &s), (0.5, -1.0));
             assert_eq!(
                 bits(onto.as_slice()),
                 bits(full.as_slice()),
@@ -1968,7 +1860,7 @@ mod tests {
                 // Onto Q from outside, out and the scratch NaN on entry.
                 let mut onto = DMatrix::repeat(n, n, f64::NAN);
                 let mut phi_p = DMatrix::repeat(n, n, f64::NAN);
-                congruence_onto(&mut onto, &q, &phi, &p, &mut phi_p);
+                congruence(&mut onto, Some(&q), &phi, &p, &mut phi_p);
                 assert_eq!(onto, dispatched, "Φ P Φᵀ + Q onto Q, n = {n}");
                 let reference = &phi * &p * phi.transpose() + &q;
                 let scale = reference.abs().max();
@@ -1981,7 +1873,13 @@ mod tests {
                 let s = random_covariance(&mut rng, m) + DMatrix::identity(m, m);
                 let w = random_matrix(&mut rng, n, m);
                 let (mut p_dispatched, mut v_dispatched) = (p.clone(), w.clone());
-                joseph_rank_2k(&mut p_dispatched, &mut v_dispatched, &gain, &s, (0.5, -1.0));
+                joseph_rank_2k(
+                    &mut p_dispatched,
+                    None,
+                    &mut v_dispatched,
+                    (&gain, &s),
+                    (0.5, -1.0),
+                );
                 let (mut p_portable, mut v_portable) = (p.clone(), w.clone());
                 let work = JosephRank2k {
                     n: Dyn(n),
@@ -2001,14 +1899,14 @@ mod tests {
                 assert_eq!(p_dispatched, p_dispatched.transpose());
                 // Onto P from outside, out NaN on entry.
                 let (mut p_onto, mut v_onto) = (DMatrix::repeat(n, n, f64::NAN), w.clone());
-                joseph_rank_2k_onto(&mut p_onto, &p, &mut v_onto, &gain, &s, (0.5, -1.0));
+                joseph_rank_2k(&mut p_onto, Some(&p), &mut v_onto, (&gain, &s), (0.5, -1.0));
                 assert_eq!(p_onto, p_dispatched, "Joseph P onto P⁻, {n}×{m}");
                 // Innovation: P Hᵀ, H P Hᵀ and the gain solve.
                 let h = measurement_test_matrix(m, n);
-                let mut cross = DMatrix::zeros(n, m);
-                symmetric_times_h_transpose(&mut cross, &p, &h);
+                let (mut cross, mut hph) = (DMatrix::zeros(n, m), DMatrix::zeros(m, m));
+                measured_covariances((&mut cross, &mut hph), &p, &h);
                 let mut cross_portable = DMatrix::zeros(n, m);
-                CrossCovariance {
+                MeasuredProduct::<_, _, true> {
                     n: Dyn(n),
                     m: Dyn(m),
                 }
@@ -2019,10 +1917,8 @@ mod tests {
                     h.as_slice(),
                 );
                 assert_eq!(cross, cross_portable, "P Hᵀ, {n}×{m}");
-                let mut hph = DMatrix::zeros(m, m);
-                h_times_cross(&mut hph, &h, &cross);
                 let mut hph_portable = DMatrix::zeros(m, m);
-                MeasuredCovariance {
+                MeasuredProduct::<_, _, false> {
                     n: Dyn(n),
                     m: Dyn(m),
                 }

@@ -297,13 +297,7 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         let step = Step::Update;
-        let m = z.len();
-        let n = self.dim();
-        check::shape(h, (m, n), step, Matrix::H)?;
-        check::shape(r, (m, m), step, Matrix::R)?;
-        check::finite(z, step, Matrix::Z)?;
-        check::finite(h, step, Matrix::H)?;
-        check::finite(r, step, Matrix::R)?;
+        check::measurement((z, h, r), self.dim(), step)?;
         check::symmetric(r, step, Matrix::R)?;
         self.innovate_prechecked(&self.p, z, h, r)
     }
@@ -349,8 +343,7 @@ where
         if dense::use_kernel::<M, N, N>(m, n, n) {
             // Only H's nonzero elements enter P Hᵀ and H P Hᵀ (a navigation
             // filter's H selects a few states); the rest are exact zeros.
-            dense::symmetric_times_h_transpose(&mut innov.cross, p, h);
-            dense::h_times_cross(&mut innov.hph, h, &innov.cross);
+            dense::measured_covariances((&mut innov.cross, &mut innov.hph), p, h);
         } else {
             let mut listed = [0; dense::MAX_LISTED];
             let columns = dense::nonzero_columns(h, &mut listed);
@@ -614,12 +607,7 @@ where
             CovarianceUpdate::Joseph => {
                 // V = ½ K S − Uᵀ, then P + V Kᵀ + K Vᵀ, lower triangle.
                 let mut v = cross.clone();
-                match prior {
-                    Some(prior) => {
-                        dense::joseph_rank_2k_onto(p, prior, &mut v, gain, s_used, (0.5, -1.0))
-                    }
-                    None => dense::joseph_rank_2k(p, &mut v, gain, s_used, (0.5, -1.0)),
-                }
+                dense::joseph_rank_2k(p, prior, &mut v, (gain, s_used), (0.5, -1.0));
             }
             CovarianceUpdate::Standard => {
                 if let Some(prior) = prior {
@@ -649,13 +637,7 @@ where
         DefaultAllocator: FilterAllocator<N, M>,
     {
         let step = Step::SequentialUpdate;
-        let m = z.len();
-        let n = self.dim();
-        check::shape(h, (m, n), step, Matrix::H)?;
-        check::shape(r, (m, m), step, Matrix::R)?;
-        check::finite(z, step, Matrix::Z)?;
-        check::finite(h, step, Matrix::H)?;
-        check::finite(r, step, Matrix::R)?;
+        let m = check::measurement((z, h, r), self.dim(), step)?;
         for i in 0..m {
             for j in 0..m {
                 if i != j && r[(i, j)] != 0.0 {
@@ -909,7 +891,7 @@ where
         let (nd, _) = phi.shape_generic();
         if nd.value() > dense::MAX_FUSED_STATES {
             self.predict_state_prechecked(phi)?;
-            dense::congruence_onto(predicted, q_symmetric, phi, &self.p, phi_p);
+            dense::congruence(predicted, Some(q_symmetric), phi, &self.p, phi_p);
             return check::finite(predicted, Step::Predict, Matrix::P);
         }
         // One dispatch for x⁻, P⁻ and their checks (the same operations).

@@ -17,6 +17,11 @@
 //! - time update for a Φ whose trailing rows are diagonal (states that
 //!   evolve on their own), at the cost of its leading rows only
 //!   ([`KalmanFilter::predict_structured`], [`TrailingDiagonal`]).
+//! - second-order discretisation (Φ, Q) of a sparse linear model whose
+//!   trailing states evolve on their own ([`SecondOrderPattern`]).
+//! - the lower triangle of a symmetric matrix packed and read back, and its
+//!   bit-for-bit symmetry ([`push_lower_triangle`], [`read_lower_triangle`],
+//!   [`symmetric_bits`]), for recording covariances compactly.
 //! - information form and the Fisher / Cramér–Rao recursion ([`InformationFilter`],
 //!   [`FisherInformation`]).
 //! - information-form update for many sparse observations on a dense
@@ -58,6 +63,7 @@ pub mod cancel;
 mod check;
 pub mod consistency;
 mod dense;
+pub mod discretise;
 pub mod error;
 pub mod gmdh;
 pub mod information;
@@ -81,7 +87,8 @@ pub use batch::{
 pub use cancel::{Cancel, Cancelled};
 pub use check::all_finite;
 pub use consistency::{Chi2Mean, chi2_quantile, mean_chi2_bounds, nees};
-pub use dense::{Widened, push_lower_triangle, read_lower_triangle, run_widest, symmetric_bits};
+pub use dense::{push_lower_triangle, read_lower_triangle, symmetric_bits};
+pub use discretise::SecondOrderPattern;
 pub use error::{EstimationError, Matrix, Result, Step};
 pub use information::{FisherInformation, InformationFilter};
 pub use kalman::{

@@ -29,7 +29,7 @@
 //! assert_eq!(f[(3, 6 + 1)], 9.8);
 //! ```
 
-use aidnav_estimation::TrailingDiagonal;
+use aidnav_estimation::{SecondOrderPattern, TrailingDiagonal};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -238,29 +238,13 @@ const F_ROW_MASKS: [u32; STATES] = {
     masks
 };
 
-/// For each column j, the rows k of F that may hold a nonzero in it
-/// (increasing; the first `count` entries): the terms k of (FΔt)²[·, j] =
-/// Σ_k FΔt[·, k] FΔt[k, j] that [`NedErrorModel::discrete`] sums.
-const F_COLUMN_ROWS: [([usize; STATES], usize); STATES] = {
-    let mut columns = [([0; STATES], 0); STATES];
-    let mut j = 0;
-    while j < STATES {
-        let mut k = 0;
-        while k < STATES {
-            if F_ROW_MASKS[k] & (1 << j) != 0 {
-                columns[j].0[columns[j].1] = k;
-                columns[j].1 += 1;
-            }
-            k += 1;
-        }
-        j += 1;
-    }
-    columns
-};
-
-/// The rows of F that may hold a nonzero off the diagonal: position,
-/// velocity, attitude (the instruments' rows hold only their diagonal).
-const COUPLED: usize = GYRO_BIAS;
+/// Where F and Q_c may hold nonzeros, for the engine's second-order
+/// discretisation: the rows of position, velocity and attitude may couple
+/// ([`F_ROW_COLUMNS`]), Q_c has a velocity and an attitude block
+/// ([`block_of`]; none for position), the instruments' rows (from
+/// [`GYRO_BIAS`] on) hold only their diagonal.
+static DISCRETISATION: SecondOrderPattern<STATES, GYRO_BIAS> =
+    SecondOrderPattern::new(F_ROW_COLUMNS, &[VELOCITY..ATTITUDE, ATTITUDE..GYRO_BIAS]);
 
 /// Whether every nonzero of `f` lies in [`F_ROW_COLUMNS`].
 fn follows_pattern(f: &Matrix21) -> bool {
@@ -318,11 +302,8 @@ fn all_finite(values: &[f64]) -> bool {
 /// skips for an exact zero a or b are ±0 here, and adding ±0 changes no
 /// sum (a sum that starts at +0 or at Φ's first-order term is never −0:
 /// x + y = 0 rounds to +0), so the results are equal to the bit. Likewise
-/// F Q_c. Columns: Φ(·, j) gains Σ_k FΔt(·, k) FΔt(k, j) over the rows k
-/// of F that may hold column j ([`F_COLUMN_ROWS`]), a contiguous update of
-/// the coupled rows (position, velocity, attitude); the instruments' rows
-/// gain their diagonal term. Q is computed by its formula at every element
-/// (symmetric in i and j, Q_c exactly symmetric).
+/// F Q_c. The engine sums them over [`DISCRETISATION`]
+/// ([`SecondOrderPattern::discretise`]).
 fn discrete_of_pattern(fdt: &Matrix21, qc: &Matrix21, dt: f64) -> (Matrix21, Matrix21) {
     let (mut phi, mut q) = (Matrix21::zeros(), Matrix21::zeros());
     discrete_of_pattern_into(fdt, qc, dt, &mut phi, &mut q);
@@ -338,125 +319,7 @@ fn discrete_of_pattern_into(
     phi: &mut Matrix21,
     q: &mut Matrix21,
 ) {
-    // Φ and F Q_c with the widest vectors the CPU has (the same operations
-    // on each element in the same order, so the same bits).
-    let mut fq = Matrix21::zeros();
-    aidnav_estimation::run_widest(
-        PatternProducts,
-        phi.as_mut_slice(),
-        fq.as_mut_slice(),
-        fdt.as_slice(),
-        qc.as_slice(),
-    );
-    // Each element by the formula (symmetric in i and j, Q_c exactly
-    // symmetric, so the upper triangle equals the lower to the bit).
-    aidnav_estimation::run_widest(
-        NoiseFormula { dt },
-        q.as_mut_slice(),
-        &mut [],
-        qc.as_slice(),
-        fq.as_slice(),
-    );
-}
-
-/// Q = Q_c Δt + (F Q_c + (F Q_c)ᵀ) Δt/2 element by element, on column-major
-/// slices: `out` = Q, `a` = Q_c, `b` = F Q_c as [`PatternProducts`] leaves
-/// it. Its rows from [`COUPLED`] on are +0.0 off the diagonal (only the
-/// coupled rows and the diagonal are written), so in a column j from
-/// [`COUPLED`] on the transposed term (F Q_c)(j, i) is that +0.0 for
-/// every i but j: added as the constant, the column is read down
-/// (contiguous, it vectorises) instead of across, with the same
-/// operations on the same values. The coupled columns read (F Q_c)ᵀ across.
-struct NoiseFormula {
-    dt: f64,
-}
-
-impl aidnav_estimation::Widened for NoiseFormula {
-    #[inline(always)]
-    fn run(self, q: &mut [f64], _: &mut [f64], qc: &[f64], fq: &[f64]) {
-        const N: usize = STATES;
-        let (e, c, g) = (&mut q[..N * N], &qc[..N * N], &fq[..N * N]);
-        let (dt, half_dt) = (self.dt, 0.5 * self.dt);
-        for j in 0..COUPLED {
-            for i in 0..N {
-                e[j * N + i] = c[j * N + i] * dt + half_dt * (g[j * N + i] + g[i * N + j]);
-            }
-        }
-        for j in COUPLED..N {
-            let column = j * N..(j + 1) * N;
-            for ((o, &cv), &gv) in e[column.clone()]
-                .iter_mut()
-                .zip(&c[column.clone()])
-                .zip(&g[column])
-            {
-                *o = cv * dt + half_dt * (gv + 0.0);
-            }
-            let d = j * (N + 1);
-            e[d] = c[d] * dt + half_dt * (g[d] + g[d]);
-        }
-    }
-}
-
-/// The products of [`discrete_of_pattern_into`] on column-major slices:
-/// `out` = Φ = I + FΔt + (FΔt)²/2, `scratch` = FΔt Q_c (zeros on entry),
-/// `a` = FΔt, `b` = Q_c.
-struct PatternProducts;
-
-impl aidnav_estimation::Widened for PatternProducts {
-    #[inline(always)]
-    fn run(self, phi: &mut [f64], fq: &mut [f64], fdt: &[f64], qc: &[f64]) {
-        pattern_products(phi, fq, fdt, qc);
-    }
-}
-
-/// See [`PatternProducts`].
-#[inline(always)]
-fn pattern_products(phi: &mut [f64], fq: &mut [f64], fdt: &[f64], qc: &[f64]) {
-    const N: usize = STATES;
-    // Column-major slices: element (i, j) at j N + i, the diagonal every
-    // (N + 1)-th.
-    let (phi, fq, f, c) = (
-        &mut phi[..N * N],
-        &mut fq[..N * N],
-        &fdt[..N * N],
-        &qc[..N * N],
-    );
-    // I + FΔt (0 + a, as the identity's zeros add: −0 becomes +0).
-    let p = phi;
-    for (o, &a) in p.iter_mut().zip(f) {
-        *o = 0.0 + a;
-    }
-    for d in (0..N).map(|i| i * (N + 1)) {
-        p[d] = 1.0 + f[d];
-    }
-    for (j, (rows, count)) in F_COLUMN_ROWS.iter().enumerate() {
-        let out = &mut p[j * N..j * N + COUPLED];
-        for &k in &rows[..*count] {
-            let b = f[j * N + k];
-            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
-                *o += 0.5 * a * b;
-            }
-        }
-    }
-    for d in (COUPLED..N).map(|i| i * (N + 1)) {
-        let a = f[d];
-        p[d] += 0.5 * a * a;
-    }
-    // F Q_c: Q_c's velocity and attitude blocks, its diagonal beyond.
-    let g = fq;
-    for j in VELOCITY..N {
-        let out = &mut g[j * N..j * N + COUPLED];
-        for k in block_of(j) {
-            let b = c[j * N + k];
-            for (o, &a) in out.iter_mut().zip(&f[k * N..k * N + COUPLED]) {
-                *o += a * b;
-            }
-        }
-        if j >= COUPLED {
-            let d = j * (N + 1);
-            g[d] += f[d] * c[d];
-        }
-    }
+    DISCRETISATION.discretise(fdt, qc, dt, phi, q);
 }
 
 /// [`NedErrorModel::discrete`] for any F: (FΔt)² and F Q_c summed over
@@ -815,71 +678,6 @@ mod tests {
             let bits = |a: &Matrix21| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&phi), bits(&phi_ref));
             assert_eq!(bits(&q), bits(&q_ref));
-        }
-    }
-
-    /// [`NoiseFormula`] (the columns from [`COUPLED`] on read down, the
-    /// transposed term the +0.0 it is there) equals the formula read
-    /// across at every element, to the bit, on the F Q_c that
-    /// [`pattern_products`] leaves for random F of the pattern (exact zeros
-    /// and −0 inside it) and Q_c, and Δt of both signs.
-    #[test]
-    fn the_noise_formula_read_down_equals_the_formula_read_across_bitwise() {
-        use rand::{RngExt, SeedableRng};
-        const N: usize = STATES;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
-        for case in 0..200 {
-            let m = NedErrorModel::default();
-            let c = random_attitude(&mut rng);
-            let mut f = m.continuous(
-                &c,
-                &random_vector(&mut rng, 12.0),
-                &random_vector(&mut rng, 1.0),
-                &random_vector(&mut rng, 7.3e-5),
-                &random_vector(&mut rng, 1e-5),
-                0.6,
-            );
-            for (i, row) in F_ROW_COLUMNS.iter().enumerate() {
-                for &j in row.iter() {
-                    match rng.random_range(0..8) {
-                        0 => f[(i, j)] = 0.0,
-                        1 => f[(i, j)] = -0.0,
-                        _ => {}
-                    }
-                }
-            }
-            let dt = if case % 3 == 0 {
-                -0.05
-            } else {
-                rng.random_range(1e-3..0.2)
-            };
-            let fdt = f.map(|v| v * dt);
-            let qc = m.spectral_density(&c);
-            let (mut phi, mut fq) = (Matrix21::zeros(), Matrix21::zeros());
-            pattern_products(
-                phi.as_mut_slice(),
-                fq.as_mut_slice(),
-                fdt.as_slice(),
-                qc.as_slice(),
-            );
-            let (cs, g) = (qc.as_slice(), fq.as_slice());
-            let mut across = Matrix21::zeros();
-            let e = across.as_mut_slice();
-            for j in 0..N {
-                for i in 0..N {
-                    e[j * N + i] = cs[j * N + i] * dt + 0.5 * dt * (g[j * N + i] + g[i * N + j]);
-                }
-            }
-            let mut down = Matrix21::from_element(f64::NAN);
-            aidnav_estimation::Widened::run(
-                NoiseFormula { dt },
-                down.as_mut_slice(),
-                &mut [],
-                cs,
-                g,
-            );
-            let bits = |a: &Matrix21| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&down), bits(&across), "case {case}");
         }
     }
 
