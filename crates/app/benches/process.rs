@@ -6,7 +6,7 @@
 //! with the RTS smoother, and writing the solution CSV.
 //! Divide 54 858 by the time for IMU epochs per second.
 //!
-//! `cargo bench -p aidnav --bench process` (reads data/ of the
+//! `cargo bench -p aidnav-app --bench process` (reads data/ of the
 //! repository).
 
 use std::hint::black_box;

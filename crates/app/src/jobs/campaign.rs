@@ -458,7 +458,7 @@ mod tests {
 
     /// The two long experiments (a minute or more in the test profile).
     #[test]
-    #[ignore = "long: cargo test -p aidnav -- --ignored"]
+    #[ignore = "long: cargo test -p aidnav-app -- --ignored"]
     fn long_campaigns_in_chunks_give_the_whole_summary_bit_for_bit() {
         chunks_give_the_whole_summary(Experiment::Outages, None, 3);
         chunks_give_the_whole_summary(Experiment::ExtendedState, None, 3);

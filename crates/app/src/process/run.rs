@@ -732,7 +732,7 @@ mod tests {
     /// and was refused beyond 4 GiB. Measured 2026-11-29 on the 2-core EPYC:
     /// 1223 MiB peak, 9.8 s for filter and smoother. Slow in the debug-ish
     /// test profile, so ignored by default:
-    /// `cargo test --release -p aidnav --lib ten_hour -- --ignored --nocapture`.
+    /// `cargo test --release -p aidnav-app --lib ten_hour -- --ignored --nocapture`.
     #[test]
     #[ignore = "a 10-hour log: 10 s with --release, longer without"]
     fn a_ten_hour_log_smooths_within_two_gib() {
