@@ -400,13 +400,13 @@ pub struct WheelSpeedSection {
     pub file: PathBuf,
     /// Its format. Default `generic_csv` (see `--help`).
     pub format: WheelSpeedFormat,
-    /// Added to the file's time [s] (a logging delay).
+    /// Added to the file's time \[s\] (a logging delay).
     pub time_offset_s: f64,
     /// σ of a sample without its own, and the floor of a given σ [m/s].
     /// Default 0.1 (slip, tyre deflection and quantisation together).
     pub sigma_mps: f64,
     /// Lever arm from the IMU to the wheel's contact point (body frame:
-    /// forward, right, down) [m]. Default 0 (a rear-axle centre behind the
+    /// forward, right, down) \[m\]. Default 0 (a rear-axle centre behind the
     /// IMU is e.g. [-1.3, 0, 0.3]).
     #[serde(deserialize_with = "exact_array")]
     pub lever_arm_m: [f64; 3],
@@ -423,7 +423,7 @@ pub struct WheelSpeedSection {
     /// χ² gate probability of each update (1: every sample accepted).
     /// Default 0.999.
     pub gate_probability: f64,
-    /// Fuse at most one sample per this interval [s] (0: every sample).
+    /// Fuse at most one sample per this interval \[s\] (0: every sample).
     /// Default 0.1: the wheel's errors are correlated over tenths of a
     /// second, so faster updates count the same error again.
     pub min_interval_s: f64,
@@ -487,16 +487,16 @@ pub struct BarometerSection {
     /// Its format. Default `generic_csv` (see `--help`; a pressure column
     /// becomes a height by the ISA standard atmosphere).
     pub format: BaroFormat,
-    /// Added to the file's time [s] (a logging delay).
+    /// Added to the file's time \[s\] (a logging delay).
     pub time_offset_s: f64,
-    /// σ of a sample without its own, and the floor of a given σ [m].
+    /// σ of a sample without its own, and the floor of a given σ \[m\].
     /// Default 0.5 (a consumer MEMS barometer's noise and gusts).
     pub sigma_m: f64,
     /// Estimate the barometer's height bias against the ellipsoid (a state
     /// of its own: the ISA datum, the geoid and the weather). Default on;
     /// off, the barometer's heights must be ellipsoidal.
     pub bias_state: bool,
-    /// Prior σ of the bias [m]. Default 100 (geoid undulation and the
+    /// Prior σ of the bias \[m\]. Default 100 (geoid undulation and the
     /// weather's departure from the standard atmosphere).
     pub bias_sigma_m: f64,
     /// Random-walk density of the bias [m/√s]. Default 0.05 (≈ 3 m/√h:
@@ -505,7 +505,7 @@ pub struct BarometerSection {
     /// χ² gate probability of each update (1: every sample accepted).
     /// Default 0.999.
     pub gate_probability: f64,
-    /// Fuse at most one sample per this interval [s] (0: every sample).
+    /// Fuse at most one sample per this interval \[s\] (0: every sample).
     /// Default 0.1.
     pub min_interval_s: f64,
 }
