@@ -181,6 +181,17 @@ impl StateLayout {
         &self.blocks
     }
 
+    /// Write every added block's prior σ into its states of `sigmas` (the
+    /// base 21 entries untouched): with the base's own σ, the prior of
+    /// [`NedFilter::with_layout`](crate::ned::NedFilter::with_layout).
+    pub fn fill_block_priors<const N: usize>(&self, sigmas: &mut nalgebra::SVector<f64, N>) {
+        for b in &self.blocks {
+            for i in b.offset..b.offset + b.kind.states() {
+                sigmas[i] = b.dynamics.prior_sigma;
+            }
+        }
+    }
+
     /// Name of state `i` (`"pos_n"` … for the base, the block's name with
     /// an index for added ones); None past the end.
     pub fn state_name(&self, i: usize) -> Option<String> {

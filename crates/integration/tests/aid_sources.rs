@@ -75,11 +75,7 @@ fn outage_errors<const N: usize>(
         sig[GYRO_SCALE + i] = kg[i];
         sig[ACCEL_SCALE + i] = ka[i];
     }
-    for b in layout.blocks() {
-        for i in b.offset..b.offset + b.kind.states() {
-            sig[i] = b.dynamics.prior_sigma;
-        }
-    }
+    layout.fill_block_priors(&mut sig);
     let [lx, ly, lz] = s.gnss.lever_arm_m;
     let lever = Vec3::<Body>::new(lx, ly, lz);
     let mut filter = NedFilter::<N>::with_layout(model, truth, &sig, lever, layout).unwrap();

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use aidnav_estimation::Outcome;
 use aidnav_frames::earth::Geodetic;
-use aidnav_integration::aiding::AidRecord;
+use aidnav_integration::aiding::{AidRecord, BaroConfig, SampledSensor, WheelSpeedConfig};
 use aidnav_io::IoError;
 use aidnav_io::plot::{LineChart, LineStyle, Series, TRUTH_COLOR};
 use aidnav_io::writers::{Summary, begin_outputs, write_table_noting_infinities};
@@ -116,12 +116,10 @@ pub fn write_forward_files(
     let mut others = vec![selected, trajectory, instruments, innovations];
     others.extend(drift);
     let mut other_warnings = other_warnings;
-    for (source, _) in AID_UPDATE_FILES {
-        let table = aid_updates_table(&result.aid_updates, source);
-        if let Some((header, rows)) =
-            table.filter(|_| result.aid_sources.iter().any(|s| s.name == source))
-        {
+    for (source, header) in AID_UPDATE_FILES {
+        if result.aid_sources.iter().any(|s| s.name == source) {
             let path = out.join(format!("{source}.csv"));
+            let rows = aid_update_rows(&result.aid_updates, source);
             other_warnings.extend(aidnav_io::writers::write_rows(&path, &header, rows)?);
             others.push(path);
         }
@@ -171,7 +169,7 @@ pub fn write_smoothed_file(
 /// (`<source>.csv`, [`aid_updates_table`]), with its header.
 const AID_UPDATE_FILES: [(&str, [&str; 5]); 2] = [
     (
-        "wheel_speed",
+        <WheelSpeedConfig as SampledSensor>::NAME,
         [
             "time [s GPST since 1970]",
             "innovation [m/s]",
@@ -181,7 +179,7 @@ const AID_UPDATE_FILES: [(&str, [&str; 5]); 2] = [
         ],
     ),
     (
-        "barometer",
+        <BaroConfig as SampledSensor>::NAME,
         [
             "time [s GPST since 1970]",
             "innovation [m]",
@@ -201,20 +199,30 @@ pub fn aid_updates_table(
     source: &str,
 ) -> Option<(Vec<&'static str>, Vec<Vec<f64>>)> {
     let (_, header) = AID_UPDATE_FILES.iter().find(|(s, _)| *s == source)?;
-    let rows = updates
-        .iter()
-        .filter(|u| u.source == source)
-        .map(|u| {
-            vec![
-                u.time_s,
-                u.innovation[0],
-                u.innovation_sigma[0],
-                u.nis,
-                outcome_code(Some(u.outcome)),
-            ]
-        })
-        .collect();
+    let rows = aid_update_rows(updates, source).map(Vec::from).collect();
     Some((header.to_vec(), rows))
+}
+
+/// Whether the updates of `source` have a file of their own (and so are
+/// kept for it, [`aid_updates_table`]).
+pub(crate) fn has_update_file(source: &str) -> bool {
+    AID_UPDATE_FILES.iter().any(|(s, _)| *s == source)
+}
+
+/// The rows of `<source>.csv`.
+fn aid_update_rows<'a>(
+    updates: &'a [AidRecord],
+    source: &'a str,
+) -> impl Iterator<Item = [f64; 5]> + 'a {
+    updates.iter().filter(move |u| u.source == source).map(|u| {
+        [
+            u.time_s,
+            u.innovation[0],
+            u.innovation_sigma[0],
+            u.nis,
+            outcome_code(Some(u.outcome)),
+        ]
+    })
 }
 
 /// The outcome column of `solution.csv` and the aid-update files.

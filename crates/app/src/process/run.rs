@@ -302,11 +302,7 @@ fn new_filter<const N: usize>(
         sig[GYRO_SCALE + i] = kg[i];
         sig[ACCEL_SCALE + i] = ka[i];
     }
-    for block in layout.blocks() {
-        for i in 0..block.kind.states() {
-            sig[block.offset + i] = block.dynamics.prior_sigma;
-        }
-    }
+    layout.fill_block_priors(&mut sig);
     let lever = Vec3::assume_in_frame(Vector3::from(cfg.gnss.lever_arm_m));
     let mut filter = NedFilter::with_layout(model, begin.state, &sig, lever, layout)?;
     filter.set_recovery(cfg.gnss.recovery_config())?;
@@ -528,7 +524,7 @@ impl EpochObserver for AidUpdates {
     fn fix(&mut self, _filter: &dyn FilterView, _record: &FixRecord) {}
 
     fn aided(&mut self, record: &AidRecord) {
-        if matches!(record.source, "wheel_speed" | "barometer") {
+        if super::export::has_update_file(record.source) {
             self.0.push(*record);
         }
     }
