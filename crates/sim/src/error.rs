@@ -15,6 +15,14 @@ pub enum SimError {
         /// What the value must satisfy.
         requirement: &'static str,
     },
+    /// A table of the scenario does not read (unknown field, wrong type).
+    #[error("invalid scenario table [{table}]: {message}")]
+    Table {
+        /// The table, e.g. `imu`.
+        table: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A route segment cannot be driven (e.g. a turn at standstill).
     #[error("route segment {index} cannot be driven: {reason}")]
     InfeasibleSegment {

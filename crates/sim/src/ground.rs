@@ -42,6 +42,7 @@
 
 use std::f64::consts::{PI, TAU};
 
+use aidnav_frames::constants::STANDARD_GRAVITY_M_S2;
 use aidnav_frames::earth::{Geodetic, earth_rate_ned, radii, transport_rate_ned};
 use aidnav_frames::{Body, Ned, Rotation, Vec3};
 use aidnav_ins::ned::gravity_ned;
@@ -89,10 +90,13 @@ pub enum Segment {
     },
 }
 
-/// A hill on the road: the grade (pitch) rises and falls as
-/// `max_pitch_deg · sin³(2π ξ)` over `length_m`, ξ the fraction of the
-/// hill driven; the road climbs for the first half and comes back down to
-/// its starting height (peak ≈ `2/(3π) · length · max_pitch`, radians).
+/// A hill on the road, by its [`HillShape`]: a bump (the grade rises and
+/// falls as `max_pitch_deg · sin³(2π ξ)` over `length_m`, ξ the fraction of
+/// the hill driven; the road climbs for the first half and comes back down
+/// to its starting height, peak ≈ `2/(3π) · length · max_pitch`, radians)
+/// or a climb (grade `max_pitch_deg · sin²(π ξ)`: the path climbs — or,
+/// for a negative grade, descends — by `length · max_pitch / 2` and levels
+/// off; an aircraft's take-off climb and descent).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Hill {
@@ -102,6 +106,20 @@ pub struct Hill {
     pub length_m: f64,
     /// Largest grade \[deg\] (negative: a dip), |·| ≤ 30.
     pub max_pitch_deg: f64,
+    /// Profile of the grade. Default `bump`.
+    #[serde(default)]
+    pub shape: HillShape,
+}
+
+/// Profile of a [`Hill`]'s grade over its length.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HillShape {
+    /// Up and back down to the starting height: `sin³(2π ξ)`.
+    #[default]
+    Bump,
+    /// Up (or down) and level again at the new height: `sin²(π ξ)`.
+    Climb,
 }
 
 impl Hill {
@@ -113,11 +131,19 @@ impl Hill {
             return (0.0, 0.0);
         }
         let peak = self.max_pitch_deg.to_radians();
-        let (s, c) = (TAU * xi).sin_cos();
-        (
-            peak * s * s * s,
-            peak * 3.0 * s * s * c * TAU / self.length_m,
-        )
+        match self.shape {
+            HillShape::Bump => {
+                let (s, c) = (TAU * xi).sin_cos();
+                (
+                    peak * s * s * s,
+                    peak * 3.0 * s * s * c * TAU / self.length_m,
+                )
+            }
+            HillShape::Climb => {
+                let (s, c) = (PI * xi).sin_cos();
+                (peak * s * s, peak * 2.0 * s * c * PI / self.length_m)
+            }
+        }
     }
 }
 
@@ -144,6 +170,41 @@ pub struct CarRoute {
     pub segments: Vec<Segment>,
     /// Hills, by distance driven; they must not overlap.
     pub hills: Vec<Hill>,
+    /// Bank into turns as an aircraft does in a coordinated turn: roll
+    /// `atan(v ψ̇ / g₀)`, so the specific force stays in the body x–z plane.
+    /// Default false (a land vehicle: roll 0).
+    pub bank_in_turns: bool,
+    /// The oscillation of a walker's steps (pedestrian platforms); none by
+    /// default.
+    pub steps: Option<StepMotion>,
+}
+
+/// The periodic motion of walking, added to the route's smooth path: the
+/// body bobs up and down once per step and sways in roll once per stride
+/// (two steps), both in proportion to the speed up to `walking_speed_mps`
+/// (no oscillation standing still).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StepMotion {
+    /// Step frequency \[Hz\] (> 0). Default 1.8.
+    pub frequency_hz: f64,
+    /// Vertical bob amplitude at walking speed \[m\]. Default 0.03.
+    pub bob_m: f64,
+    /// Roll sway amplitude at walking speed \[deg\]. Default 2.
+    pub sway_deg: f64,
+    /// The speed of the full amplitudes \[m/s\] (> 0). Default 1.4.
+    pub walking_speed_mps: f64,
+}
+
+impl Default for StepMotion {
+    fn default() -> Self {
+        Self {
+            frequency_hz: 1.8,
+            bob_m: 0.03,
+            sway_deg: 2.0,
+            walking_speed_mps: 1.4,
+        }
+    }
 }
 
 impl Default for CarRoute {
@@ -234,13 +295,17 @@ impl Default for CarRoute {
                     start_m: 100.0,
                     length_m: 400.0,
                     max_pitch_deg: 4.0,
+                    shape: HillShape::Bump,
                 },
                 Hill {
                     start_m: 2500.0,
                     length_m: 800.0,
                     max_pitch_deg: 2.5,
+                    shape: HillShape::Bump,
                 },
             ],
+            bank_in_turns: false,
+            steps: None,
         }
     }
 }
@@ -342,6 +407,8 @@ struct Plan {
     hills: Vec<Hill>,
     duration_s: f64,
     start_heading_rad: f64,
+    bank_in_turns: bool,
+    steps: Option<StepMotion>,
 }
 
 impl Plan {
@@ -449,11 +516,29 @@ impl Plan {
                 "hills must not overlap",
             )?;
         }
+        if let Some(st) = &route.steps {
+            positive("route.steps.frequency_hz", st.frequency_hz)?;
+            positive("route.steps.walking_speed_mps", st.walking_speed_mps)?;
+            check(
+                "route.steps.bob_m",
+                st.bob_m,
+                st.bob_m.is_finite() && st.bob_m.abs() <= 1.0,
+                "must be within ±1 m",
+            )?;
+            check(
+                "route.steps.sway_deg",
+                st.sway_deg,
+                st.sway_deg.is_finite() && st.sway_deg.abs() <= 30.0,
+                "must be within ±30°",
+            )?;
+        }
         Ok(Self {
             phases,
             hills,
             duration_s: t,
             start_heading_rad: route.start_heading_deg.to_radians(),
+            bank_in_turns: route.bank_in_turns,
+            steps: route.steps,
         })
     }
 
@@ -501,6 +586,59 @@ impl Plan {
             .partition_point(|h| h.start_m <= d_m)
             .saturating_sub(1);
         self.hills.get(i).map_or((0.0, 0.0), |h| h.pitch(d_m))
+    }
+
+    /// Roll at `t_s` \[rad\]: the coordinated-turn bank plus the step sway.
+    fn roll(&self, t_s: f64) -> f64 {
+        let m = self.motion(t_s);
+        let bank = if self.bank_in_turns {
+            (m.speed_mps * m.yaw_rate_rad_s / STANDARD_GRAVITY_M_S2).atan()
+        } else {
+            0.0
+        };
+        let sway = self.steps.map_or(0.0, |st| {
+            let k = (m.speed_mps / st.walking_speed_mps).min(1.0);
+            k * st.sway_deg.to_radians() * (PI * st.frequency_hz * t_s).sin()
+        });
+        bank + sway
+    }
+
+    /// Roll and roll rate at `t_s` \[rad, rad/s\] (the rate by a central
+    /// difference of the analytic roll: its error, O(h²) of the third
+    /// derivative, is below 1e-9 rad/s).
+    fn roll_and_rate(&self, t_s: f64) -> (f64, f64) {
+        if !self.bank_in_turns && self.steps.is_none() {
+            return (0.0, 0.0);
+        }
+        const H: f64 = 1e-4;
+        let rate = (self.roll(t_s + H) - self.roll(t_s - H)) / (2.0 * H);
+        (self.roll(t_s), rate)
+    }
+
+    /// The step bob at `t_s`: height offset, its rate and acceleration
+    /// \[m, m/s, m/s²\] (up positive), `k v sin(ω t)` with `k = bob / v_walk`
+    /// below walking speed — the speed's second derivative (the jerk) by a
+    /// central difference of the analytic acceleration.
+    fn bob(&self, t_s: f64) -> (f64, f64, f64) {
+        let Some(st) = self.steps else {
+            return (0.0, 0.0, 0.0);
+        };
+        const H: f64 = 1e-4;
+        let m = self.motion(t_s);
+        let w = TAU * st.frequency_hz;
+        let (sn, cs) = (w * t_s).sin_cos();
+        if m.speed_mps >= st.walking_speed_mps {
+            let a = st.bob_m;
+            return (a * sn, a * w * cs, -a * w * w * sn);
+        }
+        let k = st.bob_m / st.walking_speed_mps;
+        let jerk = (self.motion(t_s + H).accel_mps2 - self.motion(t_s - H).accel_mps2) / (2.0 * H);
+        let (v, dv) = (m.speed_mps, m.accel_mps2);
+        (
+            k * v * sn,
+            k * (dv * sn + v * w * cs),
+            k * (jerk * sn + 2.0 * dv * w * cs - v * w * w * sn),
+        )
     }
 }
 
@@ -556,11 +694,18 @@ fn rk4(plan: &Plan, t_s: f64, y: &Integrated, dt_s: f64) -> Integrated {
 /// mechanization's differential equations, same gravity model):
 ///
 /// - `f_b = C_nb (v̇_n − g_n + (2 ω_ie + ω_en) × v_n)`,
-/// - `ω_ib = ω_nb + C_nb (ω_ie + ω_en)`, `ω_nb = (−ψ̇ sin θ, θ̇, ψ̇ cos θ)`
-///   for roll 0.
+/// - `ω_ib = ω_nb + C_nb (ω_ie + ω_en)`, with the body rate of the Euler
+///   angles (roll φ, pitch θ, yaw ψ)
+///   `ω_nb = (φ̇ − ψ̇ sin θ, θ̇ cos φ + ψ̇ cos θ sin φ, −θ̇ sin φ + ψ̇ cos θ cos φ)`.
+///
+/// The step bob (if any) adds to the height, the down velocity and the
+/// down acceleration; the roll (bank, sway) turns the body about its
+/// velocity, which stays along body x on the smooth path.
 fn sample(plan: &Plan, t_s: f64, y: &Integrated, start_time_s: f64) -> TruthSample {
     let m = plan.motion(t_s);
     let (theta, dtheta_dd) = plan.pitch(y.distance_m);
+    let (phi, phi_rate) = plan.roll_and_rate(t_s);
+    let (bob, bob_rate, bob_accel) = plan.bob(t_s);
     let s = m.speed_mps;
     let theta_rate = dtheta_dd * s;
     let (st, ct) = theta.sin_cos();
@@ -568,19 +713,27 @@ fn sample(plan: &Plan, t_s: f64, y: &Integrated, start_time_s: f64) -> TruthSamp
     let u = Vec3::<Ned>::new(ct * cp, ct * sp, -st);
     let du_dtheta = Vec3::<Ned>::new(-st * cp, -st * sp, -ct);
     let du_dpsi = Vec3::<Ned>::new(-ct * sp, ct * cp, 0.0);
-    let velocity = s * u;
-    let accel_ned = m.accel_mps2 * u + s * (theta_rate * du_dtheta + m.yaw_rate_rad_s * du_dpsi);
+    let down = Vec3::<Ned>::new(0.0, 0.0, 1.0);
+    let velocity = s * u - bob_rate * down;
+    let accel_ned = m.accel_mps2 * u + s * (theta_rate * du_dtheta + m.yaw_rate_rad_s * du_dpsi)
+        - bob_accel * down;
     let position = Geodetic {
         latitude_rad: y.latitude_rad,
         longitude_rad: y.longitude_rad,
-        height_m: y.height_m,
+        height_m: y.height_m + bob,
     };
-    let attitude = Rotation::<Body, Ned>::from_euler_angles(0.0, theta, m.heading_rad);
+    let attitude = Rotation::<Body, Ned>::from_euler_angles(phi, theta, m.heading_rad);
     let c_nb = attitude.inverse();
     let w_ie = earth_rate_ned(position.latitude_rad);
     let w_en = transport_rate_ned(&position, &velocity);
     let f_ned = accel_ned - gravity_ned(&position) + (2.0 * w_ie + w_en).cross(&velocity);
-    let w_nb = Vec3::<Body>::new(-m.yaw_rate_rad_s * st, theta_rate, m.yaw_rate_rad_s * ct);
+    let (sf, cf) = phi.sin_cos();
+    let psi_rate = m.yaw_rate_rad_s;
+    let w_nb = Vec3::<Body>::new(
+        phi_rate - psi_rate * st,
+        theta_rate * cf + psi_rate * ct * sf,
+        -theta_rate * sf + psi_rate * ct * cf,
+    );
     TruthSample {
         time_s: start_time_s + t_s,
         position,
@@ -685,11 +838,13 @@ mod tests {
                     start_m: 0.0,
                     length_m: 100.0,
                     max_pitch_deg: 2.0,
+                    shape: HillShape::Bump,
                 },
                 Hill {
                     start_m: 50.0,
                     length_m: 100.0,
                     max_pitch_deg: 2.0,
+                    shape: HillShape::Bump,
                 },
             ],
             ..CarRoute::default()

@@ -35,6 +35,7 @@ pub mod linear;
 pub mod monte_carlo;
 pub mod processes;
 pub mod rng;
+pub mod scenario;
 pub mod trajectory;
 pub mod truth;
 

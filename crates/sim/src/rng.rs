@@ -70,6 +70,10 @@ pub enum Stream {
     BaroDrift = 1012,
     /// Barometer white noise, per sample.
     BaroNoise = 1013,
+    /// GNSS multipath jumps: a start test and an offset per epoch.
+    GnssMultipath = 1014,
+    /// GNSS outliers: a test and an error per epoch.
+    GnssOutliers = 1015,
 }
 
 impl Stream {
