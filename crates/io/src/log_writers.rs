@@ -628,9 +628,8 @@ fn gga_quality(q: u8) -> u8 {
 /// What [`crate::nmea::read_nmea`] gives back:
 /// - time: hhmmss.ss UTC (GPST − the leap seconds of the date, which the
 ///   reader adds back), so 10 ms resolution; fixes must be at least 10 ms
-///   and less than 12 h apart (the reader places a time of day after the
-///   previous one); the first epoch's RMC precedes its GGA (the reader
-///   needs a date), later ones follow it, so a day change is counted once;
+///   apart; each epoch's RMC precedes its GGA (as u-blox receivers order
+///   them: the reader dates a GGA by the last RMC);
 /// - position: latitude and longitude with 7 decimals of minutes (≈ 1.7e-9°,
 ///   0.2 mm), the height with 4 decimals in GGA's altitude field with a
 ///   geoid separation of **0**, so altitude + separation is the ellipsoidal
@@ -722,13 +721,8 @@ pub fn write_nmea(path: &Path, fixes: &[GnssFix]) -> Result<Vec<PathBuf>> {
             sigma.y,
             sigma.z
         ));
-        if k == 0 {
-            text.push_str(&rmc);
-            text.push_str(&gga);
-        } else {
-            text.push_str(&gga);
-            text.push_str(&rmc);
-        }
+        text.push_str(&rmc);
+        text.push_str(&gga);
         text.push_str(&gst);
     }
     Ok(vec![put(path, text.as_bytes())?])

@@ -448,3 +448,35 @@ fn wheel_speed_and_baro_are_exact() {
         assert_eq!(back, baro);
     }
 }
+
+/// A `.pos` declaring UTC in its column header is read as UTC + the leap
+/// seconds; one declaring JST is refused; GPST and no header read as GPST.
+#[test]
+fn pos_time_system_comes_from_the_column_header() {
+    let row = "2024/08/26 23:59:42.250 30.5 114.3 20.0 1 12 0.02 0.02 0.04 0 0 0 0 0\n";
+    let read = |header: &str| {
+        GnssFormat::RtklibPos.read_from(
+            format!("{header}{row}").as_bytes(),
+            Path::new("g.pos"),
+            None,
+        )
+    };
+    let columns = "  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)\n";
+    let gpst = T0 - 18.0 + 0.25;
+    assert_eq!(read("").unwrap().0[0].time_s, gpst);
+    assert_eq!(
+        read(&format!("%  GPST {columns}")).unwrap().0[0].time_s,
+        gpst
+    );
+    assert_eq!(
+        read(&format!("% program : UTC\n%  UTC {columns}"))
+            .unwrap()
+            .0[0]
+            .time_s,
+        T0 + 0.25
+    );
+    let e = read(&format!("%\n%  JST {columns}"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("g.pos:2: column `(header)`: JST"), "{e}");
+}
