@@ -19,7 +19,7 @@
 //! - [`log_writers`]: writers for every format the readers take (what a
 //!   simulator writes its logs through), with each format's round-trip
 //!   resolution.
-//! - [`reference`]: the reference (truth) trajectory CSV.
+//! - [`reference`](mod@reference): the reference (truth) trajectory CSV.
 //! - [`text`]: UTF-8 decoding with line and byte, BOM, line splitting, excerpts.
 //! - [`limits`]: the physical bounds every reader checks values against.
 //!

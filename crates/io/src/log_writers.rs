@@ -36,6 +36,10 @@ use crate::text::{GPS_EPOCH_1970_S, civil_from_days, gps_minus_utc_s, num};
 
 /// Milliseconds in a day.
 const DAY_MS: i64 = 86_400_000;
+/// 2200-01-01 in seconds since 1970: the latest time the calendar formats
+/// are written for (the generic reader's bound too).
+const LATEST_GPST_S: f64 = 7_258_118_400.0;
+
 /// Milliseconds in a GPS week.
 const WEEK_MS: i64 = 604_800_000;
 
@@ -122,11 +126,11 @@ fn calendar(ms: i64) -> (i64, i64, i64, i64, i64, i64) {
 /// A time as whole milliseconds, the time checked to be on GPS time
 /// (1980-01-06 on) and within the `i64` range.
 fn gpst_ms(path: &Path, what: &str, k: usize, time_s: f64) -> Result<i64> {
-    if !(GPS_EPOCH_1970_S..1e15).contains(&time_s) {
+    if !(GPS_EPOCH_1970_S..LATEST_GPST_S).contains(&time_s) {
         return Err(write_error(
             path,
             format!(
-                "{what} {k}: time {} s is not GPST seconds since 1970 from 1980-01-06 on",
+                "{what} {k}: time {} s is not GPST seconds since 1970 from 1980-01-06 to 2200",
                 num(time_s)
             ),
         ));
@@ -635,7 +639,7 @@ fn gga_quality(q: u8) -> u8 {
 ///   geoid separation of **0**, so altitude + separation is the ellipsoidal
 ///   height (the altitude field is then not a height above mean sea level);
 /// - quality: RTKLIB's Q mapped to GGA's and back (1, 2, 4, 5 unchanged; 3
-///   reads back as 4; 0 and 6 as 5);
+///   reads back as 4; 0 and 6 as 5); satellites at most 99 (two digits);
 /// - σ: GST's σ with 4 decimals (at least 0.0001 m); without GST the reader
 ///   would assume σ by quality, so GST is always written;
 /// - velocity: horizontal only (speed 5 decimals of a knot, course 5
