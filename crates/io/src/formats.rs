@@ -22,7 +22,7 @@
 //! assert_eq!(baro[0].height_m, 52.5);
 //! ```
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use aidnav_sensors::{BaroSample, GnssFix, ImuSample, WheelSpeedSample};
 use serde::{Deserialize, Serialize};
@@ -30,6 +30,26 @@ use serde::{Deserialize, Serialize};
 use crate::error::Result;
 use crate::kfgins::{GenericImuOptions, ImuUnits};
 use crate::rtklib::data_error;
+
+/// The time system a file's time stamps are written in.
+///
+/// aidnav's records hold GPST (seconds since 1970-01-01, no leap seconds).
+/// A writer given [`TimeSystem::Utc`] stamps GPST − (GPS − UTC), the leap
+/// seconds of the UTC date ([`crate::text::gps_minus_utc_s`]: 18 s since
+/// 2017-01-01), which is exactly what the readers add back, so a round
+/// trip gives the GPST time back (the instant of a leap second itself,
+/// 23:59:60 UTC, excepted). Formats with one fixed time system ignore it:
+/// NMEA is always UTC, UBX NAV-PVT always GPST `iTOW` with UTC date
+/// fields, KF-GINS and the IMU and aiding CSVs always the time as given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeSystem {
+    /// GPS time (RTKLIB's `GPST`).
+    #[default]
+    Gpst,
+    /// UTC: GPST minus the leap seconds of the date.
+    Utc,
+}
 
 /// Records read and the reader's warnings.
 pub type Read<T> = Result<(Vec<T>, Vec<String>)>;
@@ -74,6 +94,23 @@ impl ImuFormat {
             Self::GenericCsv => {
                 crate::kfgins::read_generic_imu_with(path, GenericImuOptions { units })
             }
+        }
+    }
+
+    /// Write `samples` (sensor frame, SI, GPST seconds since 1970) to
+    /// `path` in this format; the files written. `rtklib_tagged` writes the
+    /// raw CSV at `path` and its time tags beside it at
+    /// [`crate::log_writers::tag_path`] (`path` + `.tag`), returned second.
+    /// The round-trip resolution of each format: [`crate::log_writers`]
+    /// ([`write_generic_imu`](crate::log_writers::write_generic_imu),
+    /// [`write_tagged_imu`](crate::log_writers::write_tagged_imu),
+    /// [`write_kfgins_imu`](crate::log_writers::write_kfgins_imu)).
+    pub fn write(self, path: &Path, samples: &[ImuSample]) -> Result<Vec<PathBuf>> {
+        use crate::log_writers as w;
+        match self {
+            Self::RtklibTagged => w::write_tagged_imu(path, samples),
+            Self::KfGins => w::write_kfgins_imu(path, samples),
+            Self::GenericCsv => w::write_generic_imu(path, samples),
         }
     }
 }
@@ -125,6 +162,24 @@ impl GnssFormat {
             }
         }
     }
+
+    /// Write `fixes` (ellipsoidal heights, GPST) to `path` in this format,
+    /// its times in `time` where the format can hold either (generic CSV,
+    /// RTKLIB `.pos`; NMEA is always UTC, UBX and KF-GINS fixed, see
+    /// [`TimeSystem`]); the files written. What each format cannot hold
+    /// (velocity in a 7-column KF-GINS file, vertical velocity and velocity
+    /// σ in NMEA, quality in KF-GINS) and its resolution:
+    /// [`crate::log_writers`].
+    pub fn write(self, path: &Path, fixes: &[GnssFix], time: TimeSystem) -> Result<Vec<PathBuf>> {
+        use crate::log_writers as w;
+        match self {
+            Self::RtklibPos => w::write_pos(path, fixes, time),
+            Self::KfGins => w::write_kfgins_gnss(path, fixes),
+            Self::Nmea => w::write_nmea(path, fixes),
+            Self::Ubx => w::write_ubx(path, fixes),
+            Self::GenericCsv => w::write_generic_gnss(path, fixes, time),
+        }
+    }
 }
 
 /// Format of the wheel-speed (odometer) file.
@@ -147,6 +202,14 @@ impl WheelSpeedFormat {
     pub fn read_from(self, bytes: &[u8], origin: &Path) -> Read<WheelSpeedSample> {
         match self {
             Self::GenericCsv => crate::generic_aiding::read_wheel_speed_from(bytes, origin),
+        }
+    }
+
+    /// Write `samples` to `path` in this format
+    /// ([`crate::log_writers::write_wheel_speed`]); the files written.
+    pub fn write(self, path: &Path, samples: &[WheelSpeedSample]) -> Result<Vec<PathBuf>> {
+        match self {
+            Self::GenericCsv => crate::log_writers::write_wheel_speed(path, samples),
         }
     }
 }
@@ -172,6 +235,14 @@ impl BaroFormat {
     pub fn read_from(self, bytes: &[u8], origin: &Path) -> Read<BaroSample> {
         match self {
             Self::GenericCsv => crate::generic_aiding::read_baro_from(bytes, origin),
+        }
+    }
+
+    /// Write `samples` to `path` in this format
+    /// ([`crate::log_writers::write_baro`]); the files written.
+    pub fn write(self, path: &Path, samples: &[BaroSample]) -> Result<Vec<PathBuf>> {
+        match self {
+            Self::GenericCsv => crate::log_writers::write_baro(path, samples),
         }
     }
 }

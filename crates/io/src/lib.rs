@@ -15,7 +15,11 @@
 //!   position, σ and velocity forms).
 //! - [`generic_aiding`]: aidnav's generic wheel-speed and barometer CSVs.
 //! - [`formats`]: the format registry, one enum per stream kind, each
-//!   format's reader one `read` arm.
+//!   format's reader one `read` arm and its writer one `write` arm.
+//! - [`log_writers`]: writers for every format the readers take (what a
+//!   simulator writes its logs through), with each format's round-trip
+//!   resolution.
+//! - [`reference`](mod@reference): the reference (truth) trajectory CSV.
 //! - [`text`]: UTF-8 decoding with line and byte, BOM, line splitting, excerpts.
 //! - [`limits`]: the physical bounds every reader checks values against.
 //!
@@ -29,11 +33,13 @@ pub mod generic_aiding;
 pub mod generic_gnss;
 pub mod kfgins;
 pub mod limits;
+pub mod log_writers;
 pub mod measurements;
 pub mod model_file;
 mod named_csv;
 pub mod nmea;
 pub mod plot;
+pub mod reference;
 pub mod rtklib;
 pub mod text;
 pub mod ubx;

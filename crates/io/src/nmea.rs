@@ -4,7 +4,8 @@
 //!
 //! One fix per GGA epoch:
 //! - time: the GGA UTC time of day on the date of the last RMC (a day is
-//!   added when the time of day wraps past midnight), converted to GPST
+//!   added when the time of day wraps past midnight and no RMC has
+//!   advanced the date since the previous GGA), converted to GPST
 //!   (UTC + the leap seconds of that date) — as the other readers' times;
 //! - position: latitude, longitude, and the *ellipsoidal* height = GGA's
 //!   altitude above mean sea level + its geoid separation (field 11);
@@ -193,6 +194,10 @@ pub fn read_nmea_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<St
     let mut warnings = Vec::new();
     let mut date_days: Option<i64> = None;
     let mut last_tod: Option<f64> = None;
+    // The date the previous GGA was placed on: a time of day that wraps
+    // past midnight adds a day only when no RMC has advanced the date since
+    // (a receiver writing RMC before GGA dates the new day itself).
+    let mut last_gga_days: Option<i64> = None;
     let mut epochs: Vec<Pending> = Vec::new();
     // σ (north, east, up) and NED velocity by time of day [centiseconds].
     let mut sigmas: HashMap<i64, Vector3<f64>> = HashMap::new();
@@ -317,7 +322,8 @@ pub fn read_nmea_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<St
                         "a GGA before any RMC: the time of day cannot be placed (log RMC too)",
                     ));
                 };
-                if let Some(prev) = last_tod {
+                let date_advanced = last_gga_days.is_some_and(|d| days > d);
+                if let Some(prev) = last_tod.filter(|_| !date_advanced) {
                     if tod < prev - 43_200.0 {
                         // Past midnight before the next RMC.
                         days += 1;
@@ -339,6 +345,7 @@ pub fn read_nmea_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<St
                     }
                 }
                 last_tod = Some(tod);
+                last_gga_days = Some(days);
                 let altitude = number(path, line, "altitude", f[9])?;
                 let separation = if f[11].is_empty() {
                     0.0

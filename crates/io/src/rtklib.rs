@@ -4,7 +4,8 @@
 //!
 //! Time: GPST as seconds since 1970-01-01 (the tag file's convention; a
 //! `.pos` calendar time `YYYY/MM/DD HH:MM:SS.sss` in GPST maps to the same
-//! scale by a plain calendar conversion, no leap seconds).
+//! scale by a plain calendar conversion, no leap seconds; a `.pos` whose
+//! column header names `UTC` gets the leap seconds of its date added).
 //!
 //! Validation: every error names the file, the line and the column; a
 //! truncated *last* line is skipped with a warning (a logger artefact), a
@@ -244,6 +245,35 @@ fn parse_time(date: &str, time: &str) -> std::result::Result<f64, String> {
     Ok(days_from_civil(d[0], d[1], d[2]) as f64 * 86_400.0 + (h * 3600 + mi * 60) as f64 + s)
 }
 
+/// Whether the `.pos` text's column header (the `%` line naming
+/// `latitude(deg)`) declares UTC time (`%  UTC  latitude(deg) …`, RTKLIB's
+/// `-u` / "time format: UTC" output) rather than GPST: such times are
+/// converted to GPST with the leap seconds of their date. `JST` (UTC + 9 h)
+/// is refused rather than read 9 hours off; no header or `GPST`: GPST.
+fn pos_time_is_utc(text: &str, path: &Path) -> Result<bool> {
+    for (i, l) in crate::text::lines(text).enumerate() {
+        let Some(rest) = l.trim_start().strip_prefix('%') else {
+            continue;
+        };
+        if !rest.contains("latitude(") {
+            continue;
+        }
+        match rest.split_whitespace().next() {
+            Some("UTC") => return Ok(true),
+            Some("JST") => {
+                return Err(data_error(
+                    path,
+                    i + 1,
+                    "(header)",
+                    "JST time stamps are not supported: output GPST or UTC from RTKLIB",
+                ));
+            }
+            _ => return Ok(false),
+        }
+    }
+    Ok(false)
+}
+
 /// Column names of a `.pos` line after the two time tokens.
 const POS_COLUMNS: [&str; 19] = [
     "latitude",
@@ -293,6 +323,7 @@ pub fn read_pos(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
 pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
     use crate::text::{excerpt, num};
     let text = crate::text::decode(bytes, path)?;
+    let utc = pos_time_is_utc(text, path)?;
     let lines: Vec<(usize, &str)> = crate::text::lines(text)
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
@@ -332,8 +363,11 @@ pub fn read_pos_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<Str
                 ),
             ));
         }
-        let time_s =
+        let mut time_s =
             parse_time(tokens[0], tokens[1]).map_err(|m| data_error(path, line, "GPST", m))?;
+        if utc {
+            time_s += crate::text::gps_minus_utc_s((time_s / 86_400.0).floor() as i64);
+        }
         let mut values = [f64::NAN; 19];
         for (i, tok) in tokens[2..].iter().take(19).enumerate() {
             let v = crate::text::parse_f64(tok).ok_or_else(|| {
