@@ -70,6 +70,19 @@ pub enum Stream {
     BaroDrift = 1012,
     /// Barometer white noise, per sample.
     BaroNoise = 1013,
+    /// Gyro axis misalignment / non-orthogonality, six off-diagonal
+    /// draws per run (row-major).
+    GyroMisalignment = 1030,
+    /// Accelerometer axis misalignment / non-orthogonality, six
+    /// off-diagonal draws per run (row-major).
+    AccelMisalignment = 1031,
+    /// IMU vibration-line phases, per run: for each line, three
+    /// accelerometer then three gyro phases.
+    ImuVibrationPhase = 1032,
+    /// IMU time-stamp jitter, one draw per sample.
+    ImuTimeJitter = 1033,
+    /// IMU dropped samples, one uniform draw per sample.
+    ImuDropout = 1034,
 }
 
 impl Stream {
