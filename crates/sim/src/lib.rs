@@ -11,7 +11,8 @@
 //! consistent with the NED mechanization of `aidnav-ins` and their errors
 //! ([`imu`]), GNSS fixes ([`gnss`]), wheel speed and barometric height
 //! ([`aiding`]), the Gauss–Markov processes they share ([`processes`]),
-//! each error process seeded from its own stream ([`rng::Stream`]).
+//! each error process seeded from its own stream ([`rng::Stream`]), and the
+//! Allan deviation to check their noise against the datasheet ([`allan`]).
 //!
 //! ```
 //! use aidnav_sim::{MonteCarlo, rng::RngExt};
@@ -25,6 +26,7 @@
 //! ```
 
 pub mod aiding;
+pub mod allan;
 pub mod car;
 pub mod error;
 pub mod faults;

@@ -74,6 +74,19 @@ pub enum Stream {
     GnssMultipath = 1014,
     /// GNSS outliers: a test and an error per epoch.
     GnssOutliers = 1015,
+    /// Gyro axis misalignment / non-orthogonality, six off-diagonal
+    /// draws per run (row-major).
+    GyroMisalignment = 1030,
+    /// Accelerometer axis misalignment / non-orthogonality, six
+    /// off-diagonal draws per run (row-major).
+    AccelMisalignment = 1031,
+    /// IMU vibration-line phases, per run: for each line, three
+    /// accelerometer then three gyro phases.
+    ImuVibrationPhase = 1032,
+    /// IMU time-stamp jitter, one draw per sample.
+    ImuTimeJitter = 1033,
+    /// IMU dropped samples, one uniform draw per sample.
+    ImuDropout = 1034,
 }
 
 impl Stream {

@@ -53,7 +53,7 @@ use crate::car::DEFAULT_START_TIME_S;
 use crate::error::{SimError, check, finite};
 use crate::gnss::{GnssMode, GnssSpec, simulate_gnss};
 use crate::ground::{CarRoute, Hill, HillShape, Segment, StepMotion, drive};
-use crate::imu::{ImuErrorDraw, ImuSpec, simulate_imu};
+use crate::imu::{ImuErrorDraw, ImuGrade, ImuSpec, simulate_imu};
 use crate::truth::{TruthSample, truth_at};
 
 /// What carries the sensors; it sets the `aidnav process` platform preset
@@ -280,6 +280,9 @@ pub struct ScenarioFile {
     pub barometer: Option<BaroSpec>,
     /// The installation.
     pub installation: Installation,
+    /// How the log is written: not read by the simulator, kept for the
+    /// writer (`aidnav simulate`'s formats and configuration).
+    pub output: toml::Table,
 }
 
 impl Default for ScenarioFile {
@@ -296,6 +299,7 @@ impl Default for ScenarioFile {
             wheel_speed: None,
             barometer: None,
             installation: Installation::default(),
+            output: toml::Table::new(),
         }
     }
 }
@@ -672,43 +676,3 @@ mod tests {
     }
 }
 
-// STAND-IN until the grades of `crate::imu` land (wt-checks).
-/// IMU grade.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ImuGrade {
-    /// Consumer.
-    Consumer,
-    /// Industrial.
-    Industrial,
-    /// Tactical.
-    Tactical,
-    /// Navigation.
-    Navigation,
-}
-trait GradeStandIn {
-    fn grade(g: ImuGrade, rate_hz: f64) -> Self;
-}
-impl GradeStandIn for ImuSpec {
-    fn grade(g: ImuGrade, rate_hz: f64) -> Self {
-        let mut s = ImuSpec {
-            rate_hz,
-            ..ImuSpec::default()
-        };
-        let k = match g {
-            ImuGrade::Consumer => 10.0,
-            ImuGrade::Industrial => 1.0,
-            ImuGrade::Tactical => 0.2,
-            ImuGrade::Navigation => 0.01,
-        };
-        for i in 0..3 {
-            s.gyro.turn_on_bias_sigma_deg_h[i] *= k;
-            s.gyro.bias_instability_deg_h[i] *= k;
-            s.gyro.angle_random_walk_deg_sqrt_h[i] *= k;
-            s.accel.turn_on_bias_sigma_mg[i] *= k;
-            s.accel.bias_instability_mg[i] *= k;
-            s.accel.velocity_random_walk_m_s_sqrt_h[i] *= k;
-        }
-        s
-    }
-}
