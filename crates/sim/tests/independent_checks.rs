@@ -173,6 +173,7 @@ fn constant_rate_circle_matches_the_closed_form() {
             Segment::Cruise { duration_s: 5.0 },
         ],
         hills: vec![],
+        ..CarRoute::default()
     };
     let rate_hz = 100.0;
     let truth = drive(&route, rate_hz, 0.0).unwrap();
@@ -241,6 +242,7 @@ fn constant_speed_hill_matches_the_closed_form() {
             start_m: start,
             length_m: length,
             max_pitch_deg: max_deg,
+            shape: aidnav_sim::ground::HillShape::Bump,
         }],
         ..CarRoute::default()
     };
