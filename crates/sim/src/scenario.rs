@@ -593,7 +593,7 @@ mod tests {
                 ));
                 coast(&simulate(&s, 1, 0).unwrap().truth)
             };
-            let ((p1, v1, a1), (p2, v2, a2)) = (at(100.0), at(200.0));
+            let ((p1, v1, a1), (p2, _, a2)) = (at(100.0), at(200.0));
             eprintln!(
                 "{preset}: {p1:.4} m, {v1:.2e} m/s, {a1:.2e} rad at 100 Hz; {p2:.4} m at 200 Hz"
             );
@@ -675,4 +675,3 @@ mod tests {
         assert!(v_imu.x().abs() < 1e-9 && v_imu.y() < -1.0, "{v_imu:?}");
     }
 }
-

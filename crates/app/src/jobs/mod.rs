@@ -17,7 +17,9 @@ mod campaign;
 mod convert;
 mod process;
 mod reproduce;
+pub mod simulate;
 mod tune;
+pub mod zoo;
 
 pub use campaign::{Campaign, Experiment, reproduce_summary};
 pub use convert::{ConvertReport, convert_kfgins};

@@ -31,6 +31,7 @@ pub mod api;
 pub mod config;
 pub mod consistency;
 pub mod export;
+pub mod reference;
 pub mod run;
 pub mod score;
 pub mod scoring;
