@@ -126,6 +126,10 @@ impl Simulation {
     }
 }
 
+/// The `allowed` of an [`Invalid`] that is a table's read error (its
+/// `value` the reader's message), not a value out of range.
+const TABLE_ERROR: &str = "(the table's fields)";
+
 /// The scenario key and requirement of a simulator error.
 fn invalid(e: SimError) -> Invalid {
     match e {
@@ -137,11 +141,7 @@ fn invalid(e: SimError) -> Invalid {
         SimError::InfeasibleSegment { index, reason } => {
             Invalid::new(format!("route.segments[{index}]"), "this segment", reason)
         }
-        SimError::Table { table, message } => Invalid::new(
-            table,
-            message,
-            "the fields of the table's type (see aidnav simulate --help)",
-        ),
+        SimError::Table { table, message } => Invalid::new(table, message, TABLE_ERROR),
         other => Invalid::new("(scenario)", other, "a valid scenario"),
     }
 }
@@ -152,21 +152,20 @@ impl SimulationFile {
         let scenario = self.0.resolve().map_err(invalid)?;
         let output: SimulationOutput = toml::Value::Table(self.0.output.clone())
             .try_into()
-            .map_err(|e: toml::de::Error| {
-                Invalid::new(
-                    "output",
-                    e.message(),
-                    "the fields of [output] (see aidnav simulate --help)",
-                )
-            })?;
+            .map_err(|e: toml::de::Error| Invalid::new("output", e.message(), TABLE_ERROR))?;
         output.check()?;
         Ok(Simulation { scenario, output })
     }
 }
 
 impl Validate for SimulationFile {
+    /// Every value in range (a table that does not read is reported by
+    /// [`load_simulation`], with the reader's message).
     fn validate(&self) -> Result<(), Invalid> {
-        self.resolve().map(|_| ())
+        match self.resolve() {
+            Err(inv) if inv.allowed == TABLE_ERROR => Ok(()),
+            r => r.map(|_| ()),
+        }
     }
 }
 
@@ -277,13 +276,17 @@ pub fn load_simulation(path: &Path, seed: Option<u64>) -> JobResult<Simulation> 
         file.0.seed = s;
     }
     file.resolve().map_err(|inv| {
-        JobError::Refused(format!(
-            "{}: {} = {} is out of range: allowed {}",
-            path.display(),
-            inv.key,
-            inv.value,
-            inv.allowed
-        ))
+        let message = if inv.allowed == TABLE_ERROR {
+            inv.value.clone()
+        } else {
+            format!("{} is out of range: allowed {}", inv.value, inv.allowed)
+        };
+        JobError::Io(aidnav_io::IoError::Config {
+            path: path.to_path_buf(),
+            line: aidnav_io::config::find_key_line(&text, &inv.key).unwrap_or(0),
+            key: inv.key,
+            message,
+        })
     })
 }
 
@@ -346,11 +349,15 @@ pub fn simulate_to_dir(sim: &Simulation, out: &Path) -> JobResult<SimulateReport
     if !log.baro.is_empty() {
         files.extend(BaroFormat::GenericCsv.write(&out.join("barometer.csv"), &log.baro)?);
     }
+    let stamp = format!(
+        "aidnav {VERSION} simulate: scenario {}, seed {}",
+        s.name, s.seed
+    );
+    for f in &files {
+        stamp_file(f, &stamp)?;
+    }
     let header = vec![
-        format!(
-            "aidnav {VERSION} simulate: scenario {}, seed {}",
-            s.name, s.seed
-        ),
+        stamp,
         String::from("the state of the IMU: position, NED velocity, attitude of the IMU axes"),
     ];
     let truth_path = out.join("truth.csv");
@@ -382,11 +389,45 @@ pub fn simulate_to_dir(sim: &Simulation, out: &Path) -> JobResult<SimulateReport
         process_command: format!("aidnav process {}", config_path.display()),
     };
     let mut summary = aidnav_io::writers::Summary::new("simulate", VERSION, Some(s.seed), sim);
-    summary.insert("result", &report);
+    // File names relative to DIR: the same scenario and seed give the same
+    // bytes wherever they are written.
+    let relative = SimulateReport {
+        files: report
+            .files
+            .iter()
+            .map(|f| f.file_name().map(PathBuf::from).unwrap_or_default())
+            .collect(),
+        process_command: String::from("aidnav process aidnav.toml"),
+        ..report.clone()
+    };
+    summary.insert("result", &relative);
     summary.insert("installation", planted_installation(s));
     summary.insert("imu_errors", imu_errors_json(&log));
     report.files.push(summary.write(out)?);
     Ok(report)
+}
+
+/// Put `stamp` (seed and version) as a first comment line into a written
+/// file whose format has comments: `#` in the KF-GINS texts and NMEA, `%`
+/// in RTKLIB `.pos`. The generic CSVs (whose first line is the header), the
+/// raw IMU CSV, its `.tag` and UBX have none: their seed and version are in
+/// `summary.json` and `scenario.toml` beside them.
+fn stamp_file(path: &Path, stamp: &str) -> JobResult<()> {
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or_default();
+    let mark = match name {
+        "gnss.pos" => "%",
+        "imu.txt" | "gnss.txt" | "gnss.nmea" => "#",
+        _ => return Ok(()),
+    };
+    let body = std::fs::read(path)
+        .map_err(|e| JobError::Refused(format!("{}: cannot read it back: {e}", path.display())))?;
+    let mut text = format!("{mark} {stamp}\n").into_bytes();
+    text.extend(body);
+    aidnav_io::writers::write_atomic(path, &text)?;
+    Ok(())
 }
 
 /// The planted installation parameters, the values an estimator should find.
