@@ -43,7 +43,7 @@ from ._aidnav import (
     scheme_names,
 )
 from ._tables import columns_of, have_pandas, records, table
-from .campaign import monte_carlo
+from .campaign import monte_carlo, zoo
 
 __version__: str = _aidnav.__version__
 
@@ -73,6 +73,9 @@ __all__ = [
     "scheme",
     "scheme_defaults",
     "scheme_names",
+    "SimulatedLog",
+    "simulate",
+    "zoo",
 ]
 
 
@@ -285,3 +288,50 @@ def reproduce(
     if scenario is not None and not isinstance(scenario, Mapping):
         scenario = os.fspath(scenario)
     return Campaign(name, scenario, runs, seed).summary()
+
+
+class SimulatedLog:
+    """A simulated log with its truth (what ``aidnav simulate`` writes, as
+    values).
+
+    Attributes (DataFrames with pandas, dicts of arrays without):
+
+    * ``imu`` – IMU samples in IMU axes: ``time_s``, ``gx_rad_s`` …
+      ``az_m_s2`` (the columns :func:`read_imu` returns);
+    * ``gnss`` – the antenna's fixes (the columns :func:`read_gnss` returns);
+    * ``wheel_speed``, ``barometer`` – ``time_s`` with ``speed_mps`` /
+      ``height_m`` (empty when the scenario has none);
+    * ``truth`` – the IMU's state at every IMU sample: ``time_s``,
+      ``latitude_deg``, ``longitude_deg``, ``height_m``,
+      ``velocity_north_m_s`` … ``velocity_down_m_s``, ``roll_deg``,
+      ``pitch_deg``, ``yaw_deg`` (the reference format of ``truth.csv``);
+    * ``installation`` – the planted mounting, lever arms and latency;
+    * ``scenario`` – the resolved scenario (TOML text), ``seed``, ``version``.
+    """
+
+    def __init__(self, native: Dict[str, Any], as_frame: Optional[bool] = None) -> None:
+        self.imu = table(native["imu"], as_frame)
+        self.gnss = table(native["gnss"], as_frame)
+        self.wheel_speed = table(native["wheel_speed"], as_frame)
+        self.barometer = table(native["barometer"], as_frame)
+        self.truth = table(native["truth"], as_frame)
+        self.installation: Dict[str, Any] = native["installation"]
+        self.scenario: str = native["scenario"]
+        self.seed: int = native["seed"]
+        self.version: str = native["version"]
+
+    def __repr__(self) -> str:
+        n = len(self.imu["time_s"])
+        return f"SimulatedLog(imu_samples={n}, gnss_epochs={len(self.gnss['gpst_s'])}, seed={self.seed})"
+
+
+def simulate(scenario: Config, seed: Optional[int] = None, *, as_frame: Optional[bool] = None) -> SimulatedLog:
+    """Simulate a scenario (a TOML file as ``aidnav simulate`` takes it, or
+    a dict of the same tables), ``seed`` replacing its seed: the streams and
+    the truth as tables (:class:`SimulatedLog`). Seeded: the same scenario
+    and seed give the same arrays, bit for bit. No file is written."""
+    if not isinstance(scenario, Mapping):
+        scenario = os.fspath(scenario)
+    else:
+        scenario = dict(scenario)
+    return SimulatedLog(_aidnav.simulate_log(scenario, seed), as_frame)

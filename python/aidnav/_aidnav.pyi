@@ -136,6 +136,9 @@ def process_log(
     score: bool = True,
 ) -> ProcessResult: ...
 
+def simulate_log(scenario: Union[_Path, Mapping[str, Any]], seed: Optional[int] = None) -> Dict[str, Any]: ...
+def zoo_entry(scenario: Union[_Path, Mapping[str, Any]], seed: Optional[int] = None) -> Dict[str, Any]: ...
+
 class Campaign:
     """A reproduction's Monte Carlo campaign, whole or in chunks of runs."""
     def __init__(

@@ -114,3 +114,33 @@ def monte_carlo(
         futures = [client.submit(_run_chunk, spec, a, b, pure=False) for a, b in bounds]
         parts = _gather(client, futures)
     return campaign.finish(list(parts))
+
+
+def _zoo_entry(scenario: Any, seed: Optional[int]) -> Dict[str, Any]:
+    """A worker's task: one scenario simulated, processed and scored."""
+    return _aidnav.zoo_entry(scenario, seed)
+
+
+def zoo(
+    scenarios: Sequence[Any],
+    seeds: Optional[Sequence[int]] = None,
+    client: Any = None,
+) -> List[Dict[str, Any]]:
+    """The zoo as a campaign: every scenario (TOML paths or dicts) × every
+    seed (None: each scenario's own) simulated, processed with its new-user
+    configuration and with the matched noise model, and scored against its
+    truth — one dict per (scenario, seed), in that order, the entries of
+    ``aidnav zoo``'s ``summary.json``. ``client``: a
+    ``dask.distributed.Client`` (None: here, one after the other). Each
+    entry depends only on its scenario and seed, so a cluster gives the
+    local result bit for bit. On a real cluster every worker needs this
+    package and, for paths, the scenario files at the same paths."""
+    items = [
+        (s if isinstance(s, Mapping) else os.fspath(s), seed)
+        for s in scenarios
+        for seed in (list(seeds) if seeds is not None else [None])
+    ]
+    if client is None:
+        return [_zoo_entry(s, seed) for s, seed in items]
+    futures = [client.submit(_zoo_entry, s, seed, pure=False) for s, seed in items]
+    return _gather(client, futures)

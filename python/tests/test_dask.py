@@ -4,7 +4,7 @@ import pytest
 
 import aidnav
 
-from conftest import DRIVE
+from conftest import DRIVE, ROOT
 
 distributed = pytest.importorskip("dask.distributed")
 
@@ -54,3 +54,19 @@ def test_a_list_of_configs(client):
     here = aidnav.process(DRIVE, score=False).summary
     strip = lambda s: {k: v for k, v in s["result"].items() if k != "timing_s"}  # noqa: E731
     assert strip(summaries[0]) == strip(here)
+
+
+#: Two short logs of the zoo.
+ZOO_SHORT = [ROOT / "zoo" / "short_car_baseline.toml", ROOT / "zoo" / "short_walk_consumer.toml"]
+
+
+def test_the_zoo_on_two_workers_is_the_local_zoo(client):
+    local = aidnav.zoo(ZOO_SHORT, seeds=[1, 2])
+    assert [(e["name"], e["seed"]) for e in local] == [
+        ("short_car_baseline", 1),
+        ("short_car_baseline", 2),
+        ("short_walk_consumer", 1),
+        ("short_walk_consumer", 2),
+    ]
+    assert local[0]["new_user"]["tracking_three_d_m"] < 3.0
+    assert aidnav.zoo(ZOO_SHORT, seeds=[1, 2], client=client) == local

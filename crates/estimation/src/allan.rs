@@ -144,17 +144,7 @@ pub fn allan_deviation(
             needed: min_clusters,
         });
     }
-    // θ relative to the mean rate: a constant cancels in the second
-    // difference anyway, and removing it keeps θ small (no cancellation
-    // between large numbers over a long record).
-    let mean = rate.iter().sum::<f64>() / n as f64;
-    let mut theta = Vec::with_capacity(n + 1);
-    theta.push(0.0);
-    let mut acc = 0.0;
-    for y in rate {
-        acc += (y - mean) * sample_interval_s;
-        theta.push(acc);
-    }
+    let theta = integrated(rate, sample_interval_s);
     let mut curve = AllanCurve {
         sample_interval_s,
         samples: n,
@@ -162,21 +152,74 @@ pub fn allan_deviation(
     };
     let mut m = 1usize;
     while 2 * m <= n && n / m >= min_clusters {
-        let tau = m as f64 * sample_interval_s;
-        let terms = n - 2 * m + 1;
-        let sum: f64 = (0..terms)
-            .map(|k| {
-                let d = theta[k + 2 * m] - 2.0 * theta[k + m] + theta[k];
-                d * d
-            })
-            .sum();
-        curve.tau_s.push(tau);
+        curve.tau_s.push(m as f64 * sample_interval_s);
         curve
             .deviation
-            .push((sum / (2.0 * tau * tau * terms as f64)).sqrt());
+            .push(deviation_at(&theta, m, sample_interval_s));
         m *= 2;
     }
     Ok(curve)
+}
+
+/// θ_j = Δt Σ_{i<j} (y_i − ȳ), j = 0 … n: relative to the mean rate (a
+/// constant cancels in the second difference anyway, and removing it keeps
+/// θ small: no cancellation between large numbers over a long record).
+fn integrated(rate: &[f64], sample_interval_s: f64) -> Vec<f64> {
+    let mean = rate.iter().sum::<f64>() / rate.len().max(1) as f64;
+    let mut theta = Vec::with_capacity(rate.len() + 1);
+    theta.push(0.0);
+    let mut acc = 0.0;
+    for y in rate {
+        acc += (y - mean) * sample_interval_s;
+        theta.push(acc);
+    }
+    theta
+}
+
+/// The overlapping Allan deviation at cluster m from the integrated
+/// signal θ (2m ≤ n).
+fn deviation_at(theta: &[f64], m: usize, sample_interval_s: f64) -> f64 {
+    let n = theta.len() - 1;
+    let tau = m as f64 * sample_interval_s;
+    let terms = n - 2 * m + 1;
+    let sum: f64 = (0..terms)
+        .map(|k| {
+            let d = theta[k + 2 * m] - 2.0 * theta[k + m] + theta[k];
+            d * d
+        })
+        .sum();
+    (sum / (2.0 * tau * tau * terms as f64)).sqrt()
+}
+
+/// The overlapping Allan deviation of `rate` sampled every
+/// `sample_interval_s` \[s\] at each averaging time of `taus_s` \[s\],
+/// each rounded to a whole number m of samples (the same estimator as
+/// [`allan_deviation`] at any τ, not only octaves); a τ with m < 1 or
+/// 2m > n (not one pair of averages) gives NaN.
+///
+/// ```
+/// use aidnav_estimation::allan::allan_deviation_at;
+/// // A ramp of slope r has σ(τ) = r τ / √2.
+/// let ramp: Vec<f64> = (0..1000).map(|k| 0.5 * k as f64 * 0.1).collect();
+/// let adev = allan_deviation_at(&ramp, 0.1, &[1.0, 5.0, 1000.0]);
+/// assert!((adev[0] - 0.5 / 2f64.sqrt()).abs() < 1e-9);
+/// assert!((adev[1] - 2.5 / 2f64.sqrt()).abs() < 1e-9);
+/// assert!(adev[2].is_nan());
+/// ```
+pub fn allan_deviation_at(rate: &[f64], sample_interval_s: f64, taus_s: &[f64]) -> Vec<f64> {
+    let theta = integrated(rate, sample_interval_s);
+    let n = rate.len();
+    taus_s
+        .iter()
+        .map(|&tau| {
+            let m = (tau / sample_interval_s).round();
+            if m.is_nan() || m < 1.0 || 2.0 * m > n as f64 {
+                f64::NAN
+            } else {
+                deviation_at(&theta, m as usize, sample_interval_s)
+            }
+        })
+        .collect()
 }
 
 impl AllanCurve {

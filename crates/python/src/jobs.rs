@@ -24,14 +24,18 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
 /// A configuration given as a path or a dict: its TOML text, the name it
 /// has in errors, and the directory its relative paths start from.
-struct Source {
-    text: String,
-    origin: PathBuf,
+pub(crate) struct Source {
+    pub(crate) text: String,
+    pub(crate) origin: PathBuf,
     base: PathBuf,
     name: String,
 }
 
-fn source(config: &Bound<'_, PyAny>, base: Option<PathBuf>, what: &str) -> PyResult<Source> {
+pub(crate) fn source(
+    config: &Bound<'_, PyAny>,
+    base: Option<PathBuf>,
+    what: &str,
+) -> PyResult<Source> {
     if let Ok(d) = config.cast::<PyDict>() {
         let text = toml_of(d)?;
         let origin = PathBuf::from(format!("<{what} dict>"));

@@ -15,6 +15,7 @@ mod engine;
 mod errors;
 mod jobs;
 mod readers;
+mod simulate;
 
 /// The module `aidnav._aidnav`.
 #[pymodule]
@@ -24,6 +25,7 @@ fn _aidnav(m: &Bound<'_, PyModule>) -> PyResult<()> {
     engine::register(m)?;
     readers::register(m)?;
     jobs::register(m)?;
+    simulate::register(m)?;
     m.add_function(wrap_pyfunction!(convert::running_calls, m)?)?;
     Ok(())
 }

@@ -15,53 +15,9 @@
 //! - first-order Gauss–Markov of stationary σ and correlation time T
 //!   ([`gauss_markov_adev`]).
 
-/// The overlapping Allan deviation of the rate samples `samples` (unit u,
-/// e.g. rad/s or m/s²) taken every `dt_s` \[s\], at each averaging time of
-/// `taus_s` \[s\] (unit u, like the samples). Each τ is rounded to the
-/// nearest whole number m of samples; a τ with m < 1 or 2m > N (not
-/// enough data for one pair of averages) gives NaN. The mean is removed
-/// first, which does not change the result but keeps the running sum
-/// small.
-///
-/// ```
-/// use aidnav_sim::allan::allan_deviation;
-/// // A constant rate has zero Allan deviation; a ramp of slope r gives r τ / √2.
-/// let ramp: Vec<f64> = (0..1000).map(|k| 0.5 * k as f64 * 0.1).collect();
-/// let adev = allan_deviation(&ramp, 0.1, &[1.0, 5.0, 1000.0]);
-/// assert!((adev[0] - 0.5 / 2f64.sqrt()).abs() < 1e-9);
-/// assert!((adev[1] - 2.5 / 2f64.sqrt()).abs() < 1e-9);
-/// assert!(adev[2].is_nan());
-/// ```
-pub fn allan_deviation(samples: &[f64], dt_s: f64, taus_s: &[f64]) -> Vec<f64> {
-    let n = samples.len();
-    let mean = samples.iter().sum::<f64>() / n.max(1) as f64;
-    let mut theta = Vec::with_capacity(n + 1);
-    theta.push(0.0);
-    let mut sum = 0.0;
-    for y in samples {
-        sum += (y - mean) * dt_s;
-        theta.push(sum);
-    }
-    taus_s
-        .iter()
-        .map(|&tau| {
-            let m = (tau / dt_s).round();
-            if m.is_nan() || m < 1.0 || 2.0 * m > n as f64 {
-                return f64::NAN;
-            }
-            let m = m as usize;
-            let count = n - 2 * m + 1;
-            let s2: f64 = (0..count)
-                .map(|j| {
-                    let d = theta[j + 2 * m] - 2.0 * theta[j + m] + theta[j];
-                    d * d
-                })
-                .sum();
-            let tau = m as f64 * dt_s;
-            (s2 / (2.0 * tau * tau * count as f64)).sqrt()
-        })
-        .collect()
-}
+/// The overlapping Allan deviation at any averaging times (the
+/// estimator `aidnav tune` uses), re-exported for the checks.
+pub use aidnav_estimation::allan::allan_deviation_at as allan_deviation;
 
 /// The Allan deviation at `tau_s` \[s\] of a first-order Gauss–Markov
 /// process of stationary σ `sigma` (unit of the process) and correlation

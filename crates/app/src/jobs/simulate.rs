@@ -266,11 +266,23 @@ const FILE_NAMES: [&str; 17] = [
 /// Load and resolve the scenario file `path`; `seed` replaces its seed.
 /// A scenario without a `name` takes the file's stem.
 pub fn load_simulation(path: &Path, seed: Option<u64>) -> JobResult<Simulation> {
-    let (mut file, text) = aidnav_io::load_toml::<SimulationFile>(path)?;
+    let text = std::fs::read_to_string(path).map_err(|reason| aidnav_io::IoError::Read {
+        path: path.to_path_buf(),
+        reason,
+    })?;
+    simulation_of_text(&text, path, seed)
+}
+
+/// [`load_simulation`] on a scenario's TOML text; `origin` names it in
+/// errors and gives the default name (its stem).
+pub fn simulation_of_text(text: &str, origin: &Path, seed: Option<u64>) -> JobResult<Simulation> {
+    let mut file = aidnav_io::config::parse_toml::<SimulationFile>(text, origin)?;
     if !text.lines().any(|l| l.trim_start().starts_with("name")) {
-        file.0.name = path
+        file.0.name = origin
             .file_stem()
-            .map_or_else(|| "simulation".into(), |s| s.to_string_lossy().into_owned());
+            .map(|s| s.to_string_lossy().into_owned())
+            .filter(|s| !s.is_empty() && !s.starts_with('<'))
+            .unwrap_or_else(|| "simulation".into());
     }
     if let Some(s) = seed {
         file.0.seed = s;
@@ -282,8 +294,8 @@ pub fn load_simulation(path: &Path, seed: Option<u64>) -> JobResult<Simulation> 
             format!("{} is out of range: allowed {}", inv.value, inv.allowed)
         };
         JobError::Io(aidnav_io::IoError::Config {
-            path: path.to_path_buf(),
-            line: aidnav_io::config::find_key_line(&text, &inv.key).unwrap_or(0),
+            path: origin.to_path_buf(),
+            line: aidnav_io::config::find_key_line(text, &inv.key).unwrap_or(0),
             key: inv.key,
             message,
         })

@@ -175,8 +175,16 @@ pub fn zoo_csv(entries: &[ZooEntry]) -> String {
 fn zoo_entry(file: &Path, out: &Path) -> JobResult<ZooEntry> {
     let context = |e: JobError| JobError::Refused(format!("{}: {e}", file.display()));
     let sim = load_simulation(file, None).map_err(context)?;
-    let dir = out.join(&sim.scenario.name);
-    simulate_to_dir(&sim, &dir).map_err(context)?;
+    score_simulation(&sim, file, &out.join(&sim.scenario.name))
+}
+
+/// Simulate `sim` into `dir`, read it back through its new-user
+/// configuration exactly as `aidnav process` does, and score it with
+/// that configuration and with the matched noise model. `file` names the
+/// scenario in the entry and in errors.
+pub fn score_simulation(sim: &Simulation, file: &Path, dir: &Path) -> JobResult<ZooEntry> {
+    let context = |e: JobError| JobError::Refused(format!("{}: {e}", file.display()));
+    simulate_to_dir(sim, dir).map_err(context)?;
     let config_path = dir.join("aidnav.toml");
     let (cfg, _) =
         aidnav_io::load_toml::<ProcessConfig>(&config_path).map_err(|e| context(e.into()))?;
@@ -191,7 +199,7 @@ fn zoo_entry(file: &Path, out: &Path) -> JobResult<ZooEntry> {
         matched: None,
         error: None,
     };
-    let inputs = match Inputs::load(&cfg, &dir) {
+    let inputs = match Inputs::load(&cfg, dir) {
         Ok(i) => i,
         Err(e) => {
             entry.error = Some(e.to_string());
@@ -203,7 +211,7 @@ fn zoo_entry(file: &Path, out: &Path) -> JobResult<ZooEntry> {
         Ok(s) => entry.new_user = Some(s),
         Err(e) => entry.error = Some(e.to_string()),
     }
-    match score(&matched_config(&cfg, &sim)) {
+    match score(&matched_config(&cfg, sim)) {
         Ok(s) => entry.matched = Some(s),
         Err(e) => {
             entry.error.get_or_insert(e.to_string());
