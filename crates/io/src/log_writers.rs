@@ -155,13 +155,7 @@ pub fn write_generic_imu(path: &Path, samples: &[ImuSample]) -> Result<Vec<PathB
     text.push('\n');
     for (k, s) in samples.iter().enumerate() {
         let (w, f) = (s.angular_rate, s.specific_force);
-        check_finite(
-            path,
-            "IMU sample",
-            k,
-            s.time_s,
-            &[w.x, w.y, w.z, f.x, f.y, f.z],
-        )?;
+        check_imu(path, k, s)?;
         let _ = writeln!(
             text,
             "{},{},{},{},{},{},{}",
@@ -246,14 +240,7 @@ pub fn write_tagged_imu(path: &Path, samples: &[ImuSample]) -> Result<Vec<PathBu
     tags.extend((t0 - whole).to_le_bytes());
     csv.push_str(&line(&samples[0], -step));
     for (k, s) in samples.iter().enumerate() {
-        let (w, f) = (s.angular_rate, s.specific_force);
-        check_finite(
-            path,
-            "IMU sample",
-            k,
-            s.time_s,
-            &[w.x, w.y, w.z, f.x, f.y, f.z],
-        )?;
+        check_imu(path, k, s)?;
         let offset = u32::try_from(csv.len())
             .map_err(|_| write_error(path, "CSV beyond 4 GiB: tag offsets are 32-bit"))?;
         tags.extend((ticks[k].round() as u32).to_le_bytes());
@@ -307,6 +294,18 @@ fn sigma_present(path: &Path, fixes: &[GnssFix]) -> Result<bool> {
 }
 
 /// Position and velocity of a fix checked finite, the latitude within ±90°.
+/// IMU sample `k` has a finite time, rate and specific force.
+fn check_imu(path: &Path, k: usize, s: &ImuSample) -> Result<()> {
+    let (w, f) = (s.angular_rate, s.specific_force);
+    check_finite(
+        path,
+        "IMU sample",
+        k,
+        s.time_s,
+        &[w.x, w.y, w.z, f.x, f.y, f.z],
+    )
+}
+
 fn check_fix(path: &Path, k: usize, f: &GnssFix) -> Result<()> {
     let p = &f.position;
     let mut values = vec![p.latitude_rad, p.longitude_rad, p.height_m];
