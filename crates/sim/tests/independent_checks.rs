@@ -687,3 +687,77 @@ fn grades_and_validation() {
         assert!(err.contains(field), "{err} / {field}");
     }
 }
+
+/// The GNSS position error is the first-order Gauss–Markov process of its
+/// specification: over 20 h of 1 Hz fixes (1200 correlation times) its
+/// variance is σ² and its autocorrelation e^{−lag/T} at T/2, T and 2T,
+/// within 4σ of the estimators (variance ≈ √(4T/T_total) relative,
+/// autocorrelation ≈ √(2T/T_total)); the white part alone is
+/// uncorrelated from one fix to the next.
+#[test]
+fn gnss_errors_have_their_specified_size_and_autocorrelation() {
+    use aidnav_sim::gnss::{GnssSpec, simulate_gnss};
+    let (sigma, tau, hours) = ([0.2, 0.3, 0.5], 60.0, 20.0);
+    let total_s = hours * 3600.0;
+    let truth = static_truth(1.0, total_s);
+    let spec = GnssSpec {
+        lever_arm_m: [0.0; 3],
+        position_sigma_neu_m: [0.0; 3],
+        position_markov_sigma_neu_m: sigma,
+        position_markov_time_s: tau,
+        ..GnssSpec::default()
+    };
+    let fixes = simulate_gnss(&spec, &truth, 17, 0).unwrap();
+    assert_eq!(fixes.len(), truth.len());
+    let error = |fixes: &[aidnav_sensors::GnssFix], axis: usize| -> Vec<f64> {
+        fixes
+            .iter()
+            .zip(&truth)
+            .map(|(f, t)| {
+                let d = t.position.ned_to(&f.position);
+                [d.x(), d.y(), -d.z()][axis]
+            })
+            .collect()
+    };
+    let autocorrelation = |e: &[f64], lag: usize| {
+        let n = e.len() - lag;
+        let mean = e.iter().sum::<f64>() / e.len() as f64;
+        let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / e.len() as f64;
+        (0..n)
+            .map(|k| (e[k] - mean) * (e[k + lag] - mean))
+            .sum::<f64>()
+            / (n as f64 * var)
+    };
+    let var_tol = 4.0 * (4.0 * tau / total_s).sqrt();
+    let acf_tol = 4.0 * (2.0 * tau / total_s).sqrt();
+    for (axis, s) in sigma.iter().enumerate() {
+        let e = error(&fixes, axis);
+        let var = e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64;
+        assert!(
+            (var / (s * s) - 1.0).abs() < var_tol,
+            "axis {axis}: variance {var} against {}",
+            s * s
+        );
+        for lag in [30, 60, 120] {
+            let r = autocorrelation(&e, lag);
+            let expected = (-(lag as f64) / tau).exp();
+            eprintln!("axis {axis} lag {lag} s: {r:.3} (expected {expected:.3})");
+            assert!(
+                (r - expected).abs() < acf_tol,
+                "axis {axis} lag {lag}: {r} against {expected}"
+            );
+        }
+    }
+    let white = GnssSpec {
+        position_sigma_neu_m: [0.5, 0.5, 1.0],
+        position_markov_sigma_neu_m: [0.0; 3],
+        ..spec
+    };
+    let fixes = simulate_gnss(&white, &truth, 17, 0).unwrap();
+    let e = error(&fixes, 0);
+    let r1 = autocorrelation(&e, 1);
+    assert!(
+        r1.abs() < 4.0 / (e.len() as f64).sqrt(),
+        "white lag-1 correlation {r1}"
+    );
+}
