@@ -215,7 +215,9 @@ enum Command {
     /// `[installation] mounting_deg` (IMU axes against the vehicle's), the
     /// `seed`, and `[output]`: the formats written (`imu_formats`,
     /// `gnss_formats`), the ones aidnav.toml reads (`imu_format`,
-    /// `gnss_format`), `time_system` (gpst | utc) and `platform`.
+    /// `gnss_format`), `time_system` (gpst | utc), `gnss_sigma` (false: the
+    /// generic GNSS CSV without σ columns, aidnav.toml then gives
+    /// `data.gnss_sigma_m`) and `platform`.
     ///
     /// Writes into --out: imu.csv (generic), imu_raw.csv + .tag (RTKLIB),
     /// imu.txt (KF-GINS), gnss.csv, gnss.pos, gnss.txt, gnss.nmea,
