@@ -12,7 +12,7 @@
 //! | file | what |
 //! |---|---|
 //! | `imu.csv` | generic IMU CSV (`time_s, gx_rad_s … az_m_s2`), sensor axes |
-//! | `imu_raw.csv`, `imu_raw.tag` | raw CSV (g, deg/s) with its RTKLIB `.tag` |
+//! | `imu_raw.csv`, `imu_raw.csv.tag` | raw CSV (g, deg/s) with its RTKLIB `.tag` |
 //! | `imu.txt` | KF-GINS IMU text (increments, GPS seconds of week) |
 //! | `gnss.csv` | generic GNSS CSV |
 //! | `gnss.pos` | RTKLIB `.pos` |
@@ -243,11 +243,10 @@ pub struct SimulateReport {
 }
 
 /// Every file name [`simulate_to_dir`] may write (cleared before a run).
-const FILE_NAMES: [&str; 17] = [
+const FILE_NAMES: [&str; 15] = [
     "imu.csv",
     "imu_raw.csv",
     "imu_raw.csv.tag",
-    "imu_raw.tag",
     "imu.txt",
     "gnss.csv",
     "gnss.pos",
@@ -259,7 +258,6 @@ const FILE_NAMES: [&str; 17] = [
     "truth.csv",
     "aidnav.toml",
     "scenario.toml",
-    "truth_vehicle.csv",
     "summary.json",
 ];
 
@@ -302,11 +300,6 @@ pub fn simulation_of_text(text: &str, origin: &Path, seed: Option<u64>) -> JobRe
     })
 }
 
-/// Simulate the scenario file `path` (`seed` replaces its seed) into `out`.
-pub fn simulate_file(path: &Path, seed: Option<u64>, out: &Path) -> JobResult<SimulateReport> {
-    simulate_to_dir(&load_simulation(path, seed)?, out)
-}
-
 /// Simulate (run 0 of the scenario's seed) and write every file into
 /// `out` (see the module docs).
 pub fn simulate_to_dir(sim: &Simulation, out: &Path) -> JobResult<SimulateReport> {
@@ -337,19 +330,21 @@ pub fn simulate_to_dir(sim: &Simulation, out: &Path) -> JobResult<SimulateReport
     for &f in &sim.output.imu_formats {
         files.extend(f.write(&out.join(imu_file_name(f)), &log.imu)?);
     }
-    let without_sigma: Vec<_> = log
-        .gnss
-        .iter()
-        .map(|f| aidnav_sensors::GnssFix {
-            position_sigma_neu: nalgebra::Vector3::repeat(f64::NAN),
-            ..*f
-        })
-        .collect();
+    // The receiver's σ left out of the generic CSV: its fixes with NaN σ,
+    // which its writer omits.
+    let without_sigma: Option<Vec<_>> = (!sim.output.gnss_sigma).then(|| {
+        log.gnss
+            .iter()
+            .map(|f| aidnav_sensors::GnssFix {
+                position_sigma_neu: nalgebra::Vector3::repeat(f64::NAN),
+                ..*f
+            })
+            .collect()
+    });
     for &f in &sim.output.gnss_formats {
-        let fixes = if f == GnssFormat::GenericCsv && !sim.output.gnss_sigma {
-            &without_sigma
-        } else {
-            &log.gnss
+        let fixes = match &without_sigma {
+            Some(fixes) if f == GnssFormat::GenericCsv => fixes,
+            _ => &log.gnss,
         };
         files.extend(f.write(&out.join(gnss_file_name(f)), fixes, sim.output.time_system)?);
     }
