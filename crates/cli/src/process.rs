@@ -79,6 +79,7 @@ pub(crate) fn run_process(a: ProcessArgs) -> Result<ExitCode> {
         r.standstill_updates
     );
     print_resets(&r);
+    print_install(&r.install);
     let conv: Vec<String> = r
         .instrument_convergence_s
         .iter()
@@ -352,4 +353,40 @@ fn print_anomalies(r: &ProcessReport) {
             );
         }
     }
+}
+
+/// The added states' estimates with σ (GNSS latency in ms, angles in
+/// degrees), and a note on those the log held little information on.
+fn print_install(install: &[aidnav::integration::state::AddedStateEstimate]) {
+    if install.is_empty() {
+        return;
+    }
+    let cells: Vec<String> = install
+        .iter()
+        .map(|e| {
+            let (k, unit) = match e.unit {
+                "s" => (1e3, "ms"),
+                "rad" => (180.0 / std::f64::consts::PI, "°"),
+                u => (1.0, u),
+            };
+            let weak = if e.sigma > 0.5 * e.prior_sigma {
+                " (weakly observed)"
+            } else {
+                ""
+            };
+            format!(
+                "{} {:.3} ± {:.3}{}{}",
+                e.name,
+                e.value * k,
+                e.sigma * k,
+                if unit.is_empty() {
+                    String::new()
+                } else {
+                    format!(" {unit}")
+                },
+                weak
+            )
+        })
+        .collect();
+    println!("estimated at the end (±1σ): {}", cells.join(", "));
 }

@@ -286,7 +286,16 @@ pub struct NedFilter<const N: usize = STATES> {
     layout: StateLayout,
     /// Nominal values of the added states (the base entries stay 0).
     parameters: SVector<f64, N>,
+    /// The navigation-frame acceleration, low-passed over
+    /// [`ACCELERATION_SMOOTHING_S`] (kept only when a measurement needs it:
+    /// a GNSS latency state).
+    acceleration: Option<Vec3<Ned>>,
 }
+
+/// Time constant of the acceleration a latency-compensated GNSS velocity
+/// is predicted with \[s\]: long against vibration, short against a
+/// vehicle's manoeuvres.
+pub const ACCELERATION_SMOOTHING_S: f64 = 0.2;
 
 /// The reset recovery of the GNSS updates: when a run of refused (rejected
 /// or limited) fixes agree with each other, the filter stops believing
@@ -675,6 +684,9 @@ impl<const N: usize> NedFilter<N> {
             q: SMatrix::zeros(),
             base_transition: (N != STATES)
                 .then(|| Box::new((Matrix21::zeros(), Matrix21::zeros()))),
+            acceleration: layout
+                .offset(crate::state::Augmented::GnssLatency)
+                .map(|_| Vec3::zeros()),
             layout,
             parameters: SVector::zeros(),
         })
@@ -692,11 +704,23 @@ impl<const N: usize> NedFilter<N> {
         &self.parameters
     }
 
+    /// Every added state's estimate with its σ (see
+    /// [`StateLayout::estimates`]).
+    pub fn added_state_estimates(&self) -> Vec<crate::state::AddedStateEstimate> {
+        let x = if self.open_loop {
+            *self.kf.state()
+        } else {
+            SVector::zeros()
+        };
+        self.layout.estimates(&self.parameters, &x, &self.sigmas())
+    }
+
     /// What a measurement model sees of the filter.
     pub fn nominal(&self) -> Nominal<'_, N> {
         Nominal {
             state: self.ins.state(),
             body_rate: self.rate,
+            acceleration: self.acceleration.unwrap_or_else(Vec3::zeros),
             antenna_lever_arm: self.lever_arm,
             instruments: &self.instruments,
             parameters: &self.parameters,
@@ -797,6 +821,13 @@ impl<const N: usize> NedFilter<N> {
         }
         self.ins.update(&imu);
         self.rate = imu.delta_angle / imu.dt_s;
+        if let Some(a) = self.acceleration.as_mut() {
+            let s = self.ins.state();
+            let now = s.attitude.matrix() * (imu.delta_velocity / imu.dt_s)
+                + aidnav_ins::ned::gravity_ned(&s.position);
+            let k = (imu.dt_s / ACCELERATION_SMOOTHING_S).min(1.0);
+            *a += (now - *a) * k;
+        }
         // The covariance follows at a lower rate, with F built once per
         // interval from the mean body specific force and rate (the error
         // dynamics change slowly against 100 Hz).
@@ -1090,6 +1121,12 @@ impl<const N: usize> NedFilter<N> {
     /// noise the epoch's gain is zero, so the first fix after an outage
     /// feeds nothing back; the recovery's runs end (a run is consecutive).
     pub fn position_fix_missing(&mut self) -> Result<(), EstimationError> {
+        // The smoother marks this epoch next: its state must be the INS's
+        // at the fix's time, not at the last covariance step up to
+        // `covariance_interval_s` before it (at 12 m/s, 0.6 m).
+        if self.record.is_some() {
+            self.flush_covariance_for_update()?;
+        }
         if let Some(a) = self.adaptive.as_mut() {
             a.record_gain(&SMatrix::zeros());
         }

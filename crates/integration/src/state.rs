@@ -49,6 +49,17 @@ impl Augmented {
         }
     }
 
+    /// Unit of each of the block's states (in outputs: the name's suffix).
+    pub const fn unit(self) -> &'static str {
+        match self {
+            Augmented::WheelSpeedScale => "",
+            Augmented::BaroBias | Augmented::LeverArm => "m",
+            Augmented::GnssLatency => "s",
+            Augmented::Mounting => "rad",
+            Augmented::ReceiverClock => "m",
+        }
+    }
+
     /// The block's name in outputs (`summary.json`, CSV columns).
     pub const fn name(self) -> &'static str {
         match self {
@@ -230,6 +241,48 @@ impl StateLayout {
         } else {
             format!("{}_{}", b.kind.name(), i - b.offset)
         })
+    }
+}
+
+/// An added state's estimate at some time: what `summary.json`'s
+/// `install` lists.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AddedStateEstimate {
+    /// The state's name ([`StateLayout::state_name`]).
+    pub name: String,
+    /// Its unit (`s`, `m`, `rad`, or empty for a ratio).
+    pub unit: &'static str,
+    /// The estimate.
+    pub value: f64,
+    /// Its σ from the filter's covariance.
+    pub sigma: f64,
+    /// Its prior σ: a σ still near it says the log held little
+    /// information on the state.
+    pub prior_sigma: f64,
+}
+
+impl StateLayout {
+    /// Every added state's estimate: the nominal value `parameters[i]`
+    /// plus the error estimate `x[i]` not yet fed back, σ from `sigmas`.
+    pub fn estimates<const N: usize>(
+        &self,
+        parameters: &nalgebra::SVector<f64, N>,
+        x: &nalgebra::SVector<f64, N>,
+        sigmas: &nalgebra::SVector<f64, N>,
+    ) -> Vec<AddedStateEstimate> {
+        let mut out = Vec::new();
+        for b in &self.blocks {
+            for i in b.offset..(b.offset + b.kind.states()).min(N) {
+                out.push(AddedStateEstimate {
+                    name: self.state_name(i).unwrap_or_default(),
+                    unit: b.kind.unit(),
+                    value: parameters[i] + x[i],
+                    sigma: sigmas[i],
+                    prior_sigma: b.dynamics.prior_sigma,
+                });
+            }
+        }
+        out
     }
 }
 

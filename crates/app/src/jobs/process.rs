@@ -32,6 +32,10 @@ pub struct ProcessReport {
     /// `accepted`, `rejected`, `modified` (limited or re-weighted) and
     /// `reset`, and the samples it did not fuse (`skipped`).
     pub aid_sources: Vec<aidnav_integration::aiding::SourceStatus>,
+    /// The filter's added states at the end of the clean run: per state
+    /// its `name` (`gnss_latency`, `wheel_speed_scale`, `baro_bias` …),
+    /// `unit`, estimate `value`, `sigma` and `prior_sigma`.
+    pub install: Vec<aidnav_integration::state::AddedStateEstimate>,
     /// RMS 3-D error of the RTS-smoothed antenna positions over the
     /// reference epochs (null: not smoothed, or no reference).
     pub tracking_smoothed_rms_m: Option<Option<f64>>,
@@ -361,6 +365,7 @@ impl ProcessReport {
             start: result.start,
             standstill_updates: result.standstill_updates,
             aid_sources: result.aid_sources,
+            install: result.install,
             recovery: RecoveryReport {
                 resets: result.resets.len(),
                 events: result.resets,
@@ -420,6 +425,7 @@ fn report_fields(result: &crate::process::ProcessResult) -> crate::process::Proc
         standstill_updates: r.standstill_updates,
         aid_sources: r.aid_sources.clone(),
         aid_updates: Vec::new(),
+        install: r.install.clone(),
         warnings: r.warnings.clone(),
     }
 }

@@ -8,7 +8,7 @@ use std::path::Path;
 use aidnav_frames::earth::Geodetic;
 use aidnav_integration::aiding::{AidRecord, SourceStatus};
 
-use super::config::{FixQuality, PolicyName, ProcessConfig};
+use super::config::{FixQuality, GnssLatency, PolicyName, ProcessConfig};
 use super::consistency::{NisConsistency, nis_consistency};
 use super::run::{
     Epoch, PendingSmoothing, ResetEvent, RunPlan, SmoothedPositions, SolutionRow, reset_events,
@@ -71,6 +71,9 @@ pub struct Process {
     cfg: ProcessConfig,
     inputs: Inputs,
     tuning: Option<TuneResult>,
+    /// With `gnss.latency = "estimate"`: the calibration pass's latency
+    /// (the fixes were re-timed by it).
+    latency: Option<aidnav_integration::state::AddedStateEstimate>,
     cancel: Cancel,
 }
 
@@ -127,6 +130,9 @@ pub struct ProcessResult {
     /// Every update of the wheel-speed and barometer sources, in time
     /// order (`wheel_speed.csv`, `barometer.csv`).
     pub aid_updates: Vec<AidRecord>,
+    /// The added states' estimates at the end of the run (GNSS latency,
+    /// odometer scale, barometer bias …) with σ and prior σ.
+    pub install: Vec<aidnav_integration::state::AddedStateEstimate>,
     /// Warnings: the readers' notes (kind `input`), divergence and long
     /// rejection runs of this run ([`super::warnings`]); other checks of
     /// the run push theirs here.
@@ -144,6 +150,40 @@ pub struct StartSummary {
     pub after_first_fix_s: f64,
     /// GNSS speed at the start [m/s] (null without a velocity).
     pub speed_mps: Option<f64>,
+}
+
+/// `gnss.latency = "estimate"`: one forward pass with the latency state
+/// estimates τ; the fixes are re-timed by it and the configuration takes
+/// it as a known latency, so every later pass (the main run, the scores)
+/// compares each fix with the solution at the time it describes. The
+/// estimate and its σ are the pass's at the end of the log.
+fn calibrate_latency(
+    config: &mut ProcessConfig,
+    inputs: &mut Inputs,
+) -> Result<aidnav_integration::state::AddedStateEstimate, ProcessError> {
+    let plan = RunPlan::default();
+    let (run, _) = run_filter_forward(config, inputs, &plan, config.gnss.policy)?;
+    let estimate = run
+        .install
+        .into_iter()
+        .find(|e| e.name == aidnav_integration::state::Augmented::GnssLatency.name())
+        .ok_or_else(|| {
+            ProcessError::Data(
+                "gnss.latency = \"estimate\": the filter has no latency state".into(),
+            )
+        })?;
+    if !estimate.value.is_finite() || estimate.value.abs() > 10.0 {
+        return Err(ProcessError::Data(format!(
+            "gnss.latency = \"estimate\": the estimate {} s is not a latency (the fixes and the IMU disagree by more than time can explain; check the time scales)",
+            estimate.value
+        )));
+    }
+    inputs
+        .gnss
+        .iter_mut()
+        .for_each(|g| g.time_s -= estimate.value);
+    config.gnss.latency = GnssLatency::Seconds(estimate.value);
+    Ok(estimate)
 }
 
 impl Process {
@@ -174,7 +214,7 @@ impl Process {
     /// Check, tune (with `auto`), smooth (with `smooth`).
     fn build(
         mut config: ProcessConfig,
-        inputs: Inputs,
+        mut inputs: Inputs,
         smooth: bool,
     ) -> Result<Self, ProcessError> {
         if inputs.imu.len() < 2 || inputs.gnss.is_empty() {
@@ -191,6 +231,11 @@ impl Process {
         } else {
             None
         };
+        let latency = if config.gnss.latency == GnssLatency::Estimate {
+            Some(calibrate_latency(&mut config, &mut inputs)?)
+        } else {
+            None
+        };
         let inputs = if smooth {
             // Taken, not cloned: no copy of the raw samples beside the
             // smoothed ones.
@@ -202,6 +247,7 @@ impl Process {
             cfg: config,
             inputs,
             tuning,
+            latency,
             cancel: Cancel::default(),
         })
     }
@@ -320,6 +366,7 @@ impl Process {
             standstill_updates: run.standstill_updates,
             aid_sources: run.sources,
             aid_updates: run.aid_updates,
+            install: self.latency.iter().cloned().chain(run.install).collect(),
             warnings,
             between: run.between,
             smoothed: Vec::new(),

@@ -340,6 +340,89 @@ pub struct GnssConfig {
     /// recovery_margin) R` of the fix (≥ 0). Default 1: the variance
     /// doubled, since the fix the filter resets to is one it had refused.
     pub recovery_margin: f64,
+    /// Latency of the GNSS time tag: a fix stamped t is the antenna's state
+    /// at t − latency (a receiver or logger that stamps its output late).
+    /// Seconds (the fixes are re-timed by it; negative: stamped early), or
+    /// `"estimate"`: a state of the filter, starting from 0 with the prior
+    /// σ `latency_sigma_s`, observable while the vehicle moves (reported in
+    /// `summary.json`'s `install` with its σ). Default 0.
+    pub latency: GnssLatency,
+    /// Prior σ of the estimated latency \[s\]. Default 0.3 (a logger's
+    /// stamp against the receiver's measurement time: tenths of a second).
+    pub latency_sigma_s: f64,
+}
+
+/// `gnss.latency`: a known latency of the GNSS time tag, or a state that
+/// estimates it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GnssLatency {
+    /// Known \[s\]: the fixes are re-timed by it.
+    Seconds(f64),
+    /// Estimated by the filter (`"estimate"`).
+    Estimate,
+}
+
+impl Default for GnssLatency {
+    fn default() -> Self {
+        GnssLatency::Seconds(0.0)
+    }
+}
+
+impl Serialize for GnssLatency {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            GnssLatency::Seconds(v) => s.serialize_f64(*v),
+            GnssLatency::Estimate => s.serialize_str("estimate"),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for GnssLatency {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visit;
+        impl serde::de::Visitor<'_> for Visit {
+            type Value = GnssLatency;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("seconds (a number) or \"estimate\"")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<GnssLatency, E> {
+                Ok(GnssLatency::Seconds(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<GnssLatency, E> {
+                Ok(GnssLatency::Seconds(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<GnssLatency, E> {
+                Ok(GnssLatency::Seconds(v as f64))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<GnssLatency, E> {
+                match v {
+                    "estimate" => Ok(GnssLatency::Estimate),
+                    other => Err(E::invalid_value(serde::de::Unexpected::Str(other), &self)),
+                }
+            }
+        }
+        d.deserialize_any(Visit)
+    }
+}
+
+impl GnssConfig {
+    /// The latency state this section adds (None: the latency is known).
+    pub fn latency_block(&self) -> Option<(Augmented, BlockDynamics)> {
+        (self.latency == GnssLatency::Estimate).then(|| {
+            (
+                Augmented::GnssLatency,
+                BlockDynamics::constant(self.latency_sigma_s),
+            )
+        })
+    }
+
+    /// The known latency the fixes are re-timed by \[s\] (0 when estimated).
+    pub fn known_latency_s(&self) -> f64 {
+        match self.latency {
+            GnssLatency::Seconds(v) => v,
+            GnssLatency::Estimate => 0.0,
+        }
+    }
 }
 
 /// Vehicle constraints.
@@ -701,6 +784,8 @@ impl Default for GnssConfig {
             recovery_fixes: recovery.agreement.run_length,
             recovery_probability: recovery.agreement.probability,
             recovery_margin: recovery.margin,
+            latency: GnssLatency::default(),
+            latency_sigma_s: 0.3,
         }
     }
 }
@@ -1097,9 +1182,11 @@ pub struct ProcessConfig {
 
 impl ProcessConfig {
     /// The filter's state layout: the base 21 states and the blocks the
-    /// aid-source sections add (in the order wheel speed, barometer).
+    /// aid-source sections add (in the order GNSS latency, wheel speed,
+    /// barometer).
     pub fn state_layout(&self) -> StateLayout {
         let blocks = [
+            self.gnss.latency_block(),
             self.wheel_speed.as_ref().and_then(WheelSpeedSection::block),
             self.barometer.as_ref().and_then(BarometerSection::block),
         ];

@@ -285,18 +285,24 @@ impl Inputs {
     /// Inputs from samples already in memory (sensor-frame IMU, time as
     /// recorded), treated as [`Inputs::load_unsmoothed`] treats the files' samples:
     /// time-shifted (`imu.time_offset_s`), rotated to the body frame
-    /// (`imu.mounting_deg`), and checked (the spans overlap, the gyro turns
+    /// (`imu.mounting_deg`), the fixes re-timed by a known `gnss.latency`, and checked (the spans overlap, the gyro turns
     /// with the GNSS course). `origins` name the IMU and GNSS sources in
     /// messages (the files, or e.g. `imu (in memory)`). Not smoothed.
     pub fn from_samples(
         cfg: &ProcessConfig,
         mut imu: Vec<ImuSample>,
-        gnss: Vec<GnssFix>,
+        mut gnss: Vec<GnssFix>,
         mut warnings: Vec<String>,
         origins: (&Path, &Path),
     ) -> Result<Self, ProcessError> {
         let (imu_path, gnss_path) = origins;
         aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
+        // A known latency: each fix is the antenna's state that long before
+        // its tag.
+        let latency_s = cfg.gnss.known_latency_s();
+        if latency_s != 0.0 {
+            gnss.iter_mut().for_each(|g| g.time_s -= latency_s);
+        }
         warnings.extend(check_overlap(&imu, &gnss, imu_path, gnss_path)?);
         check_turn_rate(&imu, &gnss, imu_path, gnss_path)?;
         Ok(Inputs {

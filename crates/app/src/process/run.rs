@@ -273,6 +273,9 @@ pub struct Run {
     /// Every update of the wheel-speed and barometer sources, in time
     /// order (the GNSS updates are in [`Run::epochs`]).
     pub aid_updates: Vec<AidRecord>,
+    /// The added states' estimates at the end of the pass (installation
+    /// parameters, sensor errors), with σ.
+    pub install: Vec<aidnav_integration::state::AddedStateEstimate>,
 }
 
 /// The filter at the start of the log, configured for a plan and a policy.
@@ -502,14 +505,15 @@ pub(crate) fn run_filter_forward(
     policy: PolicyName,
 ) -> Result<(Run, Option<PendingSmoothing>), ProcessError> {
     // The filter's matrices are fixed-size: one pass per layout length the
-    // sections can give (the base; one added state; two).
+    // sections can give (the base; one, two or three added states).
     let layout = cfg.state_layout();
     match layout.len() {
         STATES => forward::<STATES>(cfg, inputs, plan, policy, layout),
         22 => forward::<22>(cfg, inputs, plan, policy, layout),
         23 => forward::<23>(cfg, inputs, plan, policy, layout),
+        24 => forward::<24>(cfg, inputs, plan, policy, layout),
         n => Err(ProcessError::Data(format!(
-            "no filter of {n} states is built in (the base {STATES} states and up to two added)"
+            "no filter of {n} states is built in (the base {STATES} states and up to three added)"
         ))),
     }
 }
@@ -622,6 +626,7 @@ fn forward<const N: usize>(
     })?;
     drop(observers);
     let statuses = sources.iter().flat_map(|s| s.statuses()).collect();
+    let install = filter.added_state_estimates();
     drop(sources);
     let mut epochs: Vec<Epoch> = collector
         .fixes
@@ -652,6 +657,7 @@ fn forward<const N: usize>(
         standstill_updates: collector.standstill_updates,
         sources: statuses,
         aid_updates: aid_updates.0,
+        install,
     };
     Ok((
         run,

@@ -104,6 +104,14 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ),
     ("gnss.use_velocity", "update with the GNSS velocity too"),
     (
+        "gnss.latency",
+        "GNSS time-tag latency: seconds (a fix stamped t is the antenna at t − latency) or \"estimate\" (a filter state)",
+    ),
+    (
+        "gnss.latency_sigma_s",
+        "prior σ of an estimated latency [s]",
+    ),
+    (
         "gnss.min_position_sigma_m",
         "floor on the position σ of the file [m]",
     ),

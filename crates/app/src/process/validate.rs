@@ -236,6 +236,16 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
         bounded("gnss.quality_sigma_scale", key, value, 1.0, 1e4)?;
     }
     bounded("gnss", "sigma_scale", cfg.gnss.sigma_scale, 1e-3, 1e3)?;
+    if let super::config::GnssLatency::Seconds(v) = cfg.gnss.latency {
+        bounded("gnss", "latency", v, -10.0, 10.0)?;
+    }
+    bounded(
+        "gnss",
+        "latency_sigma_s",
+        cfg.gnss.latency_sigma_s,
+        1e-4,
+        10.0,
+    )?;
     let t = &cfg.tune;
     bounded("tune", "min_static_s", t.min_static_s, 1.0, 1e5)?;
     count_in_range("max_evaluations", t.max_evaluations, 1, 10_000)

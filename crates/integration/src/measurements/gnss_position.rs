@@ -1,10 +1,13 @@
-//! A GNSS antenna position fix: `z = r̂_ant − r_fix = δr + [(Ĉ l)×] φ + n`.
+//! A GNSS antenna position fix: `z = r̂_ant − r_fix = δr + [(Ĉ l)×] φ + n`;
+//! with a GNSS latency state τ (the fix is the antenna τ before its time
+//! tag) the prediction is `r̂_ant − v̂_ant τ̂ + ½ â τ̂²` and `z` gains
+//! `(v̂_ant − â τ̂) δτ`.
 
 use aidnav_frames::earth::Geodetic;
 use aidnav_models::ned_ins::NedErrorModel;
 use nalgebra::Vector3;
 
-use super::{Linearized, Measurement, Nominal, diagonal_r, on_layout};
+use super::{Linearized, Measurement, Nominal, diagonal_r, latency, on_layout};
 
 /// A GNSS antenna position with σ (north, east, down) \[m\].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,10 +26,20 @@ impl<const N: usize> Measurement<3, N> for GnssPosition {
         let c = s.attitude.matrix();
         // The INS's own antenna: in open loop the estimate x is part of H x.
         let arm = c * nominal.antenna_lever_arm;
-        let antenna = s.position.offset_by(&arm);
+        let mut antenna = s.position.offset_by(&arm);
+        let mut h: nalgebra::SMatrix<f64, 3, N> =
+            on_layout(&NedErrorModel::position_measurement(arm.as_raw()));
+        if let Some((i, tau)) = latency(nominal) {
+            let v_ant = s.velocity + c * nominal.body_rate.cross(&nominal.antenna_lever_arm);
+            // To second order: in a turn the centripetal ½ a τ² is
+            // centimetres at tenths of a second.
+            let a = nominal.acceleration;
+            antenna = antenna.offset_by(&(v_ant * -tau + a * (0.5 * tau * tau)));
+            h.column_mut(i).copy_from(&(v_ant - a * tau).raw());
+        }
         Linearized {
             z: self.fix.ned_to(&antenna).raw(),
-            h: on_layout(&NedErrorModel::position_measurement(arm.as_raw())),
+            h,
             r: diagonal_r(&self.sigma_ned_m),
         }
     }

@@ -1,11 +1,12 @@
 //! A GNSS antenna velocity fix: `z = v̂_ant − v_fix`, with
-//! `v_ant = v + Ĉ (ω × l)`.
+//! `v_ant = v + Ĉ (ω × l)`; with a GNSS latency state τ the prediction is
+//! `v̂_ant − â τ̂` (â the low-passed acceleration) and `z` gains `â δτ`.
 
 use aidnav_frames::{Ned, Vec3};
 use aidnav_models::ned_ins::NedErrorModel;
 use nalgebra::Vector3;
 
-use super::{Linearized, Measurement, Nominal, diagonal_r, on_layout};
+use super::{Linearized, Measurement, Nominal, diagonal_r, latency, on_layout};
 
 /// A GNSS antenna NED velocity with σ (north, east, down) \[m/s\].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,12 +24,17 @@ impl<const N: usize> Measurement<3, N> for GnssVelocity {
         let s = nominal.state;
         let c = s.attitude.matrix();
         let lever_velocity = c * nominal.body_rate.cross(&nominal.antenna_lever_arm);
-        let v_ant = s.velocity + lever_velocity;
+        let mut v_ant = s.velocity + lever_velocity;
+        let mut h: nalgebra::SMatrix<f64, 3, N> = on_layout(&NedErrorModel::velocity_measurement(
+            lever_velocity.as_raw(),
+        ));
+        if let Some((i, tau)) = latency(nominal) {
+            v_ant -= nominal.acceleration * tau;
+            h.column_mut(i).copy_from(&nominal.acceleration.raw());
+        }
         Linearized {
             z: (v_ant - self.velocity_ned_mps).raw(),
-            h: on_layout(&NedErrorModel::velocity_measurement(
-                lever_velocity.as_raw(),
-            )),
+            h,
             r: diagonal_r(&self.sigma_ned_mps),
         }
     }

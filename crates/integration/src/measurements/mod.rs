@@ -9,7 +9,7 @@
 //! correction the nominal value needs (truth minus nominal), so feedback
 //! adds them. Either way `z ≈ H x + n`.
 
-use aidnav_frames::{Body, Vec3};
+use aidnav_frames::{Body, Ned, Vec3};
 use aidnav_ins::ned::NedState;
 use aidnav_models::ned_ins::STATES;
 use nalgebra::{SMatrix, SVector};
@@ -42,6 +42,10 @@ pub struct Nominal<'a, const N: usize> {
     pub state: &'a NedState,
     /// The corrected body rate of the last IMU increment \[rad/s\].
     pub body_rate: Vec3<Body>,
+    /// The navigation-frame acceleration, low-passed (zero unless the
+    /// layout has a GNSS latency state, whose velocity model needs it)
+    /// \[m/s²\].
+    pub acceleration: Vec3<Ned>,
     /// The GNSS antenna's lever arm (body frame, IMU → antenna) \[m\].
     pub antenna_lever_arm: Vec3<Body>,
     /// The instrument corrections in use.
@@ -84,7 +88,99 @@ pub(crate) fn on_layout<const M: usize, const N: usize>(
     out
 }
 
+/// The GNSS latency state's index and nominal value τ̂ \[s\] (None: no
+/// latency state). A fix stamped t is the antenna at t − τ: predicted by
+/// `x̂(t) − ẋ̂ τ̂`, so its H column is `+ẋ` (the state is τ − τ̂).
+pub(crate) fn latency<const N: usize>(nominal: &Nominal<'_, N>) -> Option<(usize, f64)> {
+    let i = nominal
+        .layout
+        .offset(crate::state::Augmented::GnssLatency)?;
+    Some((i, nominal.parameters[i]))
+}
+
 /// A diagonal R from σ per component.
 pub(crate) fn diagonal_r<const M: usize>(sigma: &SVector<f64, M>) -> SMatrix<f64, M, M> {
     SMatrix::from_diagonal(&sigma.map(|v| v * v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::state::{Augmented, BlockDynamics};
+    use aidnav_frames::earth::Geodetic;
+    use aidnav_frames::{Rotation, Vec3};
+    use nalgebra::Vector3;
+
+    /// A car turning at 10 m/s with 2 m/s² of centripetal acceleration,
+    /// the antenna 1 m up and 0.5 m behind.
+    fn turning() -> (NedState, Vec3<Body>, Vec3<Ned>) {
+        let state = NedState {
+            position: Geodetic {
+                latitude_rad: 0.6,
+                longitude_rad: 2.0,
+                height_m: 30.0,
+            },
+            velocity: Vec3::new(6.0, 8.0, 0.0),
+            attitude: Rotation::from_euler_angles(0.02, -0.01, 0.93),
+        };
+        (state, Vec3::new(0.0, 0.0, 0.2), Vec3::new(-1.6, 1.2, 0.05))
+    }
+
+    /// z at a nominal latency τ̂ (state 21 of a 22-state layout).
+    fn z_at<const M: usize, Meas: Measurement<M, 22>>(meas: &Meas, tau: f64) -> Linearized<M, 22> {
+        let (state, rate, acceleration) = turning();
+        let layout = StateLayout::base().with(Augmented::GnssLatency, BlockDynamics::constant(0.3));
+        let mut parameters = SVector::<f64, 22>::zeros();
+        parameters[21] = tau;
+        let instruments = InstrumentEstimate::default();
+        meas.linearize(&Nominal {
+            state: &state,
+            body_rate: rate,
+            acceleration,
+            antenna_lever_arm: Vec3::new(-0.5, 0.0, -1.0),
+            instruments: &instruments,
+            parameters: &parameters,
+            layout: &layout,
+        })
+    }
+
+    /// The latency columns of the GNSS position and velocity H against a
+    /// central finite difference of z in the nominal latency: the state is
+    /// τ − τ̂, so ∂z/∂τ̂ = −H[:, τ]; and the position is predicted back by
+    /// v τ̂ − ½ a τ̂².
+    #[test]
+    fn latency_columns_are_the_derivatives_of_the_prediction() {
+        let (state, _, acceleration) = turning();
+        let fix = state.position.offset_by(&Vec3::new(0.3, -0.2, 0.1));
+        let position = GnssPosition {
+            fix,
+            sigma_ned_m: Vector3::repeat(0.02),
+        };
+        let velocity = GnssVelocity {
+            velocity_ned_mps: Vec3::new(6.1, 7.9, 0.0),
+            sigma_ned_mps: Vector3::repeat(0.05),
+        };
+        let (tau, d) = (0.2, 1e-4);
+        let lin = z_at(&position, tau);
+        let fd = (z_at(&position, tau + d).z - z_at(&position, tau - d).z) / (2.0 * d);
+        for r in 0..3 {
+            assert!(
+                (fd[r] + lin.h[(r, 21)]).abs() < 1e-4,
+                "{fd} vs {}",
+                lin.h.column(21)
+            );
+        }
+        // 0.2 s back at ~10 m/s: about 2 m, minus the turn's ½ a τ².
+        let shift = z_at(&position, 0.0).z - lin.z;
+        assert!((shift.norm() - 2.0).abs() < 0.1, "{shift}");
+        let lin = z_at(&velocity, tau);
+        let fd = (z_at(&velocity, tau + d).z - z_at(&velocity, tau - d).z) / (2.0 * d);
+        for r in 0..3 {
+            assert!((fd[r] + lin.h[(r, 21)]).abs() < 1e-9);
+            assert!((lin.h[(r, 21)] - acceleration.raw()[r]).abs() < 1e-12);
+        }
+        // Without the state the models are the plain ones.
+        let base = StateLayout::base();
+        assert_eq!(base.offset(Augmented::GnssLatency), None);
+    }
 }
