@@ -8,9 +8,8 @@ use aidnav_app::jobs::simulate::{simulate_to_dir, simulation_of_text};
 use aidnav_app::process::{Process, ProcessConfig};
 
 /// The zoo's 10 Hz RTK car with the latency set to `latency_s`, written
-/// to `dir`; its new-user configuration with the planted lever arm (the
-/// lever arm is not what this test estimates) and `extra_gnss` keys.
-fn car_log(dir: &Path, latency_s: f64, extra_gnss: &str) -> ProcessConfig {
+/// to `dir`; its planted lever arm (IMU axes).
+fn car_log(dir: &Path, latency_s: f64) -> [f64; 3] {
     let zoo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../zoo");
     let path = zoo.join("short_car_latency_fixed_10hz.toml");
     let text = std::fs::read_to_string(&path)
@@ -19,8 +18,13 @@ fn car_log(dir: &Path, latency_s: f64, extra_gnss: &str) -> ProcessConfig {
     assert!(text.contains(&format!("latency_s = {latency_s}")));
     let sim = simulation_of_text(&text, &path, None).unwrap();
     simulate_to_dir(&sim, dir).unwrap();
-    let arm = sim.scenario.gnss_lever_arm_imu_m();
-    let config = std::fs::read_to_string(dir.join("aidnav.toml"))
+    sim.scenario.gnss_lever_arm_imu_m()
+}
+
+/// The log's new-user configuration with the planted lever arm (the
+/// lever arm is not what this test estimates) and `extra_gnss` keys.
+fn config(dir: &Path, arm: [f64; 3], extra_gnss: &str) -> ProcessConfig {
+    let text = std::fs::read_to_string(dir.join("aidnav.toml"))
         .unwrap()
         .replace(
             "[data]\n",
@@ -30,7 +34,7 @@ fn car_log(dir: &Path, latency_s: f64, extra_gnss: &str) -> ProcessConfig {
             ),
         );
     let path = dir.join("estimate.toml");
-    std::fs::write(&path, config).unwrap();
+    std::fs::write(&path, text).unwrap();
     aidnav_io::load_toml::<ProcessConfig>(&path).unwrap().0
 }
 
@@ -43,7 +47,8 @@ fn car_log(dir: &Path, latency_s: f64, extra_gnss: &str) -> ProcessConfig {
 fn the_gnss_latency_is_recovered_from_the_log() {
     for latency_s in [0.0, 0.1, 0.3] {
         let dir = tempfile::tempdir().unwrap();
-        let cfg = car_log(dir.path(), latency_s, "latency = \"estimate\"");
+        let arm = car_log(dir.path(), latency_s);
+        let cfg = config(dir.path(), arm, "latency = \"estimate\"");
         let process = Process::load(cfg, dir.path()).unwrap();
         let result = process.run().unwrap();
         let e = result
@@ -70,7 +75,7 @@ fn the_gnss_latency_is_recovered_from_the_log() {
         assert!(tracking < 0.05, "{tracking}");
         // As good as knowing it: the 30 s outage score within 50 % of the
         // run told the true latency.
-        let known = car_log(dir.path(), latency_s, &format!("latency = {latency_s}"));
+        let known = config(dir.path(), arm, &format!("latency = {latency_s}"));
         let known = Process::load(known, dir.path()).unwrap();
         let (a, b) = (process.score().unwrap(), known.score().unwrap());
         let drift = |s: &aidnav_app::process::Scores| {

@@ -467,7 +467,7 @@ fn solution_of<const N: usize>(ins: &NedState, open_loop: bool, x: &SVector<f64,
 
 /// The antenna position and NED velocity of a solution, lever arm `l`
 /// (body) and body rate ω: `r ⊕ C l`, `v + C (ω × l)`.
-fn antenna_of_solution(
+pub(crate) fn antenna_of_solution(
     s: &NedState,
     lever_arm: Vec3<Body>,
     rate: Vec3<Body>,

@@ -178,10 +178,7 @@ fn calibrate_latency(
             estimate.value
         )));
     }
-    inputs
-        .gnss
-        .iter_mut()
-        .for_each(|g| g.time_s -= estimate.value);
+    super::retime_fixes(&mut inputs.gnss, estimate.value);
     config.gnss.latency = GnssLatency::Seconds(estimate.value);
     Ok(estimate)
 }

@@ -299,10 +299,7 @@ impl Inputs {
         aidnav_ins::mounting::mount(&mut imu, cfg.imu.mounting_deg, cfg.imu.time_offset_s);
         // A known latency: each fix is the antenna's state that long before
         // its tag.
-        let latency_s = cfg.gnss.known_latency_s();
-        if latency_s != 0.0 {
-            gnss.iter_mut().for_each(|g| g.time_s -= latency_s);
-        }
+        retime_fixes(&mut gnss, cfg.gnss.known_latency_s());
         warnings.extend(check_overlap(&imu, &gnss, imu_path, gnss_path)?);
         check_turn_rate(&imu, &gnss, imu_path, gnss_path)?;
         Ok(Inputs {
@@ -376,6 +373,14 @@ impl Inputs {
             ));
         }
         Ok(())
+    }
+}
+
+/// Re-time fixes whose tags are `latency_s` late: each becomes the time
+/// of the antenna state it describes.
+pub(crate) fn retime_fixes(gnss: &mut [GnssFix], latency_s: f64) {
+    if latency_s != 0.0 {
+        gnss.iter_mut().for_each(|g| g.time_s -= latency_s);
     }
 }
 

@@ -7,6 +7,8 @@ use aidnav_frames::earth::Geodetic;
 use aidnav_models::ned_ins::NedErrorModel;
 use nalgebra::Vector3;
 
+use crate::ned::antenna_of_solution;
+
 use super::{Linearized, Measurement, Nominal, diagonal_r, latency, on_layout};
 
 /// A GNSS antenna position with σ (north, east, down) \[m\].
@@ -26,11 +28,11 @@ impl<const N: usize> Measurement<3, N> for GnssPosition {
         let c = s.attitude.matrix();
         // The INS's own antenna: in open loop the estimate x is part of H x.
         let arm = c * nominal.antenna_lever_arm;
-        let mut antenna = s.position.offset_by(&arm);
+        let (mut antenna, v_ant) =
+            antenna_of_solution(s, nominal.antenna_lever_arm, nominal.body_rate);
         let mut h: nalgebra::SMatrix<f64, 3, N> =
             on_layout(&NedErrorModel::position_measurement(arm.as_raw()));
         if let Some((i, tau)) = latency(nominal) {
-            let v_ant = s.velocity + c * nominal.body_rate.cross(&nominal.antenna_lever_arm);
             // To second order: in a turn the centripetal ½ a τ² is
             // centimetres at tenths of a second.
             let a = nominal.acceleration;
