@@ -150,6 +150,25 @@ fn antenna_covariance_by_nalgebra<const N: usize>(
     (s + s.transpose()) * 0.5
 }
 
+/// [`antenna_covariance`] of a layout: with a lever-arm state the antenna
+/// error also holds `−C δl` (`c` the attitude matrix, `lever_arm` the body
+/// frame's).
+fn antenna_covariance_on<const N: usize>(
+    layout: &StateLayout,
+    c: &Matrix3<f64>,
+    lever_arm: &Vector3<f64>,
+    p: &SMatrix<f64, N, N>,
+) -> Matrix3<f64> {
+    let lever_nav = c * lever_arm;
+    let Some(o) = layout.offset(crate::state::Augmented::LeverArm) else {
+        return antenna_covariance(&lever_nav, p);
+    };
+    let mut h: SMatrix<f64, 3, N> = on_layout(&NedErrorModel::position_measurement(&lever_nav));
+    h.fixed_view_mut::<3, 3>(0, o).copy_from(&-c);
+    let s = h * p * h.transpose();
+    (s + s.transpose()) * 0.5
+}
+
 /// Bytes a smoothing run keeps per smoothed (marked) epoch: the
 /// recorder's backward map, the nominal state, and the smoothed state with
 /// its antenna covariance. Independent of the IMU rate and of the updates
@@ -687,9 +706,22 @@ impl<const N: usize> NedFilter<N> {
             acceleration: layout
                 .offset(crate::state::Augmented::GnssLatency)
                 .map(|_| Vec3::zeros()),
+            parameters: Self::initial_parameters(&layout, lever_arm),
             layout,
-            parameters: SVector::zeros(),
         })
+    }
+
+    /// The added states' nominal values at the start: 0, but the lever
+    /// arm's block, which holds the whole lever arm (the filter's
+    /// `lever_arm` follows it at every feedback).
+    fn initial_parameters(layout: &StateLayout, lever_arm: Vec3<Body>) -> SVector<f64, N> {
+        let mut parameters = SVector::<f64, N>::zeros();
+        if let Some(o) = layout.offset(crate::state::Augmented::LeverArm) {
+            parameters
+                .fixed_rows_mut::<3>(o)
+                .copy_from(&lever_arm.raw());
+        }
+        parameters
     }
 
     /// Where the added states sit.
@@ -793,6 +825,25 @@ impl<const N: usize> NedFilter<N> {
         self.instruments.gyro_bias = bias;
     }
 
+    /// Tell the filter that its start position came from an antenna fix
+    /// through the nominal lever arm (`r = r_fix − C l̂`): the position
+    /// error then holds the lever arm's, `δr = n + C δl`, and with a
+    /// lever-arm state the prior becomes `T P Tᵀ` with `T = I + [C in
+    /// (position, lever arm)]`. Without it, a fix would read the lever
+    /// arm's error as position error the prior rules out, and the lever
+    /// arm's estimate would stay at its start. No-op without a lever-arm
+    /// state.
+    pub fn start_position_is_from_antenna_fix(&mut self) -> Result<(), EstimationError> {
+        let Some(o) = self.layout.offset(crate::state::Augmented::LeverArm) else {
+            return Ok(());
+        };
+        let mut t = SMatrix::<f64, N, N>::identity();
+        t.fixed_view_mut::<3, 3>(POSITION, o)
+            .copy_from(self.ins.state().attitude.matrix().as_raw());
+        let p = t * self.kf.covariance() * t.transpose();
+        self.kf.set_covariance((p + p.transpose()) * 0.5)
+    }
+
     /// σ of every error state (as of the last covariance propagation).
     pub fn sigmas(&self) -> SVector<f64, N> {
         self.kf.covariance().diagonal().map(f64::sqrt)
@@ -805,7 +856,12 @@ impl<const N: usize> NedFilter<N> {
     /// cross-covariance (symmetrised).
     pub fn antenna_position_covariance(&self) -> Matrix3<f64> {
         let c = self.solution().attitude.matrix();
-        antenna_covariance((c * self.lever_arm).as_raw(), self.kf.covariance())
+        antenna_covariance_on(
+            &self.layout,
+            c.as_raw(),
+            self.lever_arm.as_raw(),
+            self.kf.covariance(),
+        )
     }
 
     /// The antenna position and NED velocity implied by the INS.
@@ -1016,7 +1072,8 @@ impl<const N: usize> NedFilter<N> {
         r.rts.smooth_with(self.kf.covariance(), |mark, x, p| {
             let state = corrected(&out[mark], x);
             let c = state.attitude.matrix();
-            covariances[mark] = antenna_covariance((c * self.lever_arm).as_raw(), p);
+            covariances[mark] =
+                antenna_covariance_on(&self.layout, c.as_raw(), self.lever_arm.as_raw(), p);
             out[mark] = state;
             Ok(())
         })?;
@@ -1369,6 +1426,9 @@ impl<const N: usize> NedFilter<N> {
         self.instruments.accel_scale += v3(ACCEL_SCALE);
         for i in STATES..N {
             self.parameters[i] += x[i];
+        }
+        if let Some(o) = self.layout.offset(crate::state::Augmented::LeverArm) {
+            self.lever_arm = Vec3::assume_in_frame(self.parameters.fixed_rows::<3>(o).into());
         }
         // P by reference: a copy of it per update is a 3.5 kB memory copy.
         let (p, state) = (self.kf.covariance(), *self.ins.state());

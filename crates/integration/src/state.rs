@@ -236,10 +236,12 @@ impl StateLayout {
             .blocks
             .iter()
             .find(|b| i >= b.offset && i < b.offset + b.kind.states())?;
-        Some(if b.kind.states() == 1 {
-            b.kind.name().to_string()
-        } else {
-            format!("{}_{}", b.kind.name(), i - b.offset)
+        let k = i - b.offset;
+        Some(match b.kind.states() {
+            1 => b.kind.name().to_string(),
+            // Body axes: forward, right, down.
+            3 => format!("{}_{}", b.kind.name(), ["x", "y", "z"][k]),
+            _ => format!("{}_{k}", b.kind.name()),
         })
     }
 }
@@ -248,6 +250,9 @@ impl StateLayout {
 /// `install` lists.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct AddedStateEstimate {
+    /// The block the state belongs to.
+    #[serde(skip)]
+    pub kind: Augmented,
     /// The state's name ([`StateLayout::state_name`]).
     pub name: String,
     /// Its unit (`s`, `m`, `rad`, or empty for a ratio).
@@ -274,6 +279,7 @@ impl StateLayout {
         for b in &self.blocks {
             for i in b.offset..(b.offset + b.kind.states()).min(N) {
                 out.push(AddedStateEstimate {
+                    kind: b.kind,
                     name: self.state_name(i).unwrap_or_default(),
                     unit: b.kind.unit(),
                     value: parameters[i] + x[i],
@@ -320,7 +326,7 @@ mod tests {
             .with(Augmented::BaroBias, BlockDynamics::constant(3.0));
         assert_eq!(l.len(), 25);
         assert_eq!(l.offset(Augmented::BaroBias), Some(24));
-        assert_eq!(l.state_name(22).as_deref(), Some("mounting_1"));
+        assert_eq!(l.state_name(22).as_deref(), Some("mounting_y"));
         assert_eq!(l.state_name(24).as_deref(), Some("baro_bias"));
         assert_eq!(l.state_name(3).as_deref(), Some("vel_n"));
         assert_eq!(l.state_name(25), None);

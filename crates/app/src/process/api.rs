@@ -19,6 +19,7 @@ use super::scoring::{Scores, score_log};
 use super::tune::{TuneResult, tune};
 use super::warnings::{Warning, WarningKind, divergence_warnings, rejection_run_warnings};
 use super::{Inputs, ProcessError, StartKind, initialise};
+use aidnav_integration::state::{AddedStateEstimate, Augmented};
 use serde::Serialize;
 
 /// A recorded IMU + GNSS log ready to be filtered and scored.
@@ -71,9 +72,10 @@ pub struct Process {
     cfg: ProcessConfig,
     inputs: Inputs,
     tuning: Option<TuneResult>,
-    /// With `gnss.latency = "estimate"`: the calibration pass's latency
-    /// (the fixes were re-timed by it).
-    latency: Option<aidnav_integration::state::AddedStateEstimate>,
+    /// The calibration pass's install estimates (`gnss.latency =
+    /// "estimate"`, `gnss.estimate_lever_arm`; the configuration took
+    /// them).
+    calibration: Vec<AddedStateEstimate>,
     cancel: Cancel,
 }
 
@@ -132,7 +134,7 @@ pub struct ProcessResult {
     pub aid_updates: Vec<AidRecord>,
     /// The added states' estimates at the end of the run (GNSS latency,
     /// odometer scale, barometer bias …) with σ and prior σ.
-    pub install: Vec<aidnav_integration::state::AddedStateEstimate>,
+    pub install: Vec<AddedStateEstimate>,
     /// Warnings: the readers' notes (kind `input`), divergence and long
     /// rejection runs of this run ([`super::warnings`]); other checks of
     /// the run push theirs here.
@@ -152,35 +154,69 @@ pub struct StartSummary {
     pub speed_mps: Option<f64>,
 }
 
-/// `gnss.latency = "estimate"`: one forward pass with the latency state
-/// estimates τ; the fixes are re-timed by it and the configuration takes
-/// it as a known latency, so every later pass (the main run, the scores)
-/// compares each fix with the solution at the time it describes. The
-/// estimate and its σ are the pass's at the end of the log.
-fn calibrate_latency(
+/// `gnss.latency = "estimate"` and `gnss.estimate_lever_arm`: one forward
+/// pass with the install states estimates them; the configuration takes
+/// each as known (the fixes re-timed by the latency), so every later pass
+/// (the main run, the scores) sees the installation the log showed. The
+/// estimates and their σ are the pass's at the end of the log; a state
+/// whose σ is still above half its prior (the motion did not observe it)
+/// keeps its configured value.
+fn calibrate_install(
     config: &mut ProcessConfig,
     inputs: &mut Inputs,
-) -> Result<aidnav_integration::state::AddedStateEstimate, ProcessError> {
+) -> Result<Vec<AddedStateEstimate>, ProcessError> {
     let plan = RunPlan::default();
     let (run, _) = run_filter_forward(config, inputs, &plan, config.gnss.policy)?;
-    let estimate = run
-        .install
-        .into_iter()
-        .find(|e| e.name == aidnav_integration::state::Augmented::GnssLatency.name())
-        .ok_or_else(|| {
-            ProcessError::Data(
-                "gnss.latency = \"estimate\": the filter has no latency state".into(),
-            )
-        })?;
-    if !estimate.value.is_finite() || estimate.value.abs() > 10.0 {
-        return Err(ProcessError::Data(format!(
-            "gnss.latency = \"estimate\": the estimate {} s is not a latency (the fixes and the IMU disagree by more than time can explain; check the time scales)",
+    let observed = |e: &AddedStateEstimate| e.sigma <= 0.5 * e.prior_sigma;
+    let of = |kind: Augmented| move |e: &&AddedStateEstimate| e.kind == kind;
+    let mut estimates = Vec::new();
+    if config.gnss.latency == GnssLatency::Estimate {
+        let estimate = run
+            .install
+            .iter()
+            .find(of(Augmented::GnssLatency))
+            .ok_or_else(|| {
+                ProcessError::Data(
+                    "gnss.latency = \"estimate\": the filter has no latency state".into(),
+                )
+            })?;
+        if !estimate.value.is_finite() || estimate.value.abs() > 10.0 {
+            return Err(ProcessError::Data(format!(
+                "gnss.latency = \"estimate\": the estimate {} s is not a latency (the fixes and the IMU disagree by more than time can explain; check the time scales)",
+                estimate.value
+            )));
+        }
+        let latency = if observed(estimate) {
             estimate.value
-        )));
+        } else {
+            0.0
+        };
+        super::retime_fixes(&mut inputs.gnss, latency);
+        config.gnss.latency = GnssLatency::Seconds(latency);
+        estimates.push(estimate.clone());
     }
-    super::retime_fixes(&mut inputs.gnss, estimate.value);
-    config.gnss.latency = GnssLatency::Seconds(estimate.value);
-    Ok(estimate)
+    if config.gnss.estimate_lever_arm {
+        let arm: Vec<_> = run.install.iter().filter(of(Augmented::LeverArm)).collect();
+        if arm.len() != 3 {
+            return Err(ProcessError::Data(
+                "gnss.estimate_lever_arm: the filter has no lever-arm states".into(),
+            ));
+        }
+        for (axis, e) in arm.into_iter().enumerate() {
+            if !e.value.is_finite() || e.value.abs() > 100.0 {
+                return Err(ProcessError::Data(format!(
+                    "gnss.estimate_lever_arm: the estimate {} m of {} is not a lever arm (check gnss.lever_arm_m's axes and imu.mounting_deg)",
+                    e.value, e.name
+                )));
+            }
+            if observed(e) {
+                config.gnss.lever_arm_m[axis] = e.value;
+            }
+            estimates.push(e.clone());
+        }
+        config.gnss.estimate_lever_arm = false;
+    }
+    Ok(estimates)
 }
 
 impl Process {
@@ -228,11 +264,12 @@ impl Process {
         } else {
             None
         };
-        let latency = if config.gnss.latency == GnssLatency::Estimate {
-            Some(calibrate_latency(&mut config, &mut inputs)?)
-        } else {
-            None
-        };
+        let calibration =
+            if config.gnss.latency == GnssLatency::Estimate || config.gnss.estimate_lever_arm {
+                calibrate_install(&mut config, &mut inputs)?
+            } else {
+                Vec::new()
+            };
         let inputs = if smooth {
             // Taken, not cloned: no copy of the raw samples beside the
             // smoothed ones.
@@ -244,7 +281,7 @@ impl Process {
             cfg: config,
             inputs,
             tuning,
-            latency,
+            calibration,
             cancel: Cancel::default(),
         })
     }
@@ -363,7 +400,12 @@ impl Process {
             standstill_updates: run.standstill_updates,
             aid_sources: run.sources,
             aid_updates: run.aid_updates,
-            install: self.latency.iter().cloned().chain(run.install).collect(),
+            install: self
+                .calibration
+                .iter()
+                .cloned()
+                .chain(run.install)
+                .collect(),
             warnings,
             between: run.between,
             smoothed: Vec::new(),

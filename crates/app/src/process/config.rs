@@ -350,6 +350,16 @@ pub struct GnssConfig {
     /// Prior σ of the estimated latency \[s\]. Default 0.3 (a logger's
     /// stamp against the receiver's measurement time: tenths of a second).
     pub latency_sigma_s: f64,
+    /// Estimate the lever arm: three states of the filter starting from
+    /// `lever_arm_m` with the prior σ `lever_arm_sigma_m` per axis,
+    /// observable in turns and attitude changes (a straight, level drive
+    /// leaves the along-track and vertical components to the prior). An
+    /// axis whose σ ends above half its prior is kept at `lever_arm_m`
+    /// (reported as weakly observed). Default false.
+    pub estimate_lever_arm: bool,
+    /// Prior σ of each axis of the estimated lever arm \[m\]. Default 1 (an
+    /// antenna on a car's roof against an IMU under a seat).
+    pub lever_arm_sigma_m: f64,
 }
 
 /// `gnss.latency`: a known latency of the GNSS time tag, or a state that
@@ -412,6 +422,17 @@ impl GnssConfig {
             (
                 Augmented::GnssLatency,
                 BlockDynamics::constant(self.latency_sigma_s),
+            )
+        })
+    }
+
+    /// The lever-arm states this section adds (None: the lever arm is
+    /// known).
+    pub fn lever_arm_block(&self) -> Option<(Augmented, BlockDynamics)> {
+        self.estimate_lever_arm.then(|| {
+            (
+                Augmented::LeverArm,
+                BlockDynamics::constant(self.lever_arm_sigma_m),
             )
         })
     }
@@ -786,6 +807,8 @@ impl Default for GnssConfig {
             recovery_margin: recovery.margin,
             latency: GnssLatency::default(),
             latency_sigma_s: 0.3,
+            estimate_lever_arm: false,
+            lever_arm_sigma_m: 1.0,
         }
     }
 }
@@ -1182,11 +1205,12 @@ pub struct ProcessConfig {
 
 impl ProcessConfig {
     /// The filter's state layout: the base 21 states and the blocks the
-    /// aid-source sections add (in the order GNSS latency, wheel speed,
-    /// barometer).
+    /// aid-source sections add (in the order GNSS latency, lever arm,
+    /// wheel speed, barometer).
     pub fn state_layout(&self) -> StateLayout {
         let blocks = [
             self.gnss.latency_block(),
+            self.gnss.lever_arm_block(),
             self.wheel_speed.as_ref().and_then(WheelSpeedSection::block),
             self.barometer.as_ref().and_then(BarometerSection::block),
         ];

@@ -45,8 +45,8 @@ pub mod warnings;
 pub use api::{Process, ProcessResult, Smoothed, Smoothing, StartSummary};
 pub use config::{
     AdaptiveNoise, BRIDGE_PREDICTORS, BaroFormat, BarometerSection, ConstraintConfig, DataFiles,
-    EfficiencyConfig, Feedback, FilterConfig, FixQuality, GnssConfig, GnssFormat, ImuConfig,
-    ImuFormat, InitialConfig, NoiseConfig, OutageBridgeConfig, OutputConfig, Platform,
+    EfficiencyConfig, Feedback, FilterConfig, FixQuality, GnssConfig, GnssFormat, GnssLatency,
+    ImuConfig, ImuFormat, InitialConfig, NoiseConfig, OutageBridgeConfig, OutputConfig, Platform,
     PlatformPreset, PolicyName, ProcessConfig, QualitySigmaScale, ScoreConfig, StandstillConfig,
     TuneConfig, TuneObjective, WheelSpeedFormat, WheelSpeedSection, config_name,
 };

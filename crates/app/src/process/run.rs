@@ -308,6 +308,8 @@ fn new_filter<const N: usize>(
     layout.fill_block_priors(&mut sig);
     let lever = Vec3::assume_in_frame(Vector3::from(cfg.gnss.lever_arm_m));
     let mut filter = NedFilter::with_layout(model, begin.state, &sig, lever, layout)?;
+    // The start position is the first fix's antenna moved by the lever arm.
+    filter.start_position_is_from_antenna_fix()?;
     filter.set_recovery(cfg.gnss.recovery_config())?;
     filter.set_gyro_bias(begin.gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
@@ -505,15 +507,18 @@ pub(crate) fn run_filter_forward(
     policy: PolicyName,
 ) -> Result<(Run, Option<PendingSmoothing>), ProcessError> {
     // The filter's matrices are fixed-size: one pass per layout length the
-    // sections can give (the base; one, two or three added states).
+    // sections can give (the base; one to six added states).
     let layout = cfg.state_layout();
     match layout.len() {
         STATES => forward::<STATES>(cfg, inputs, plan, policy, layout),
         22 => forward::<22>(cfg, inputs, plan, policy, layout),
         23 => forward::<23>(cfg, inputs, plan, policy, layout),
         24 => forward::<24>(cfg, inputs, plan, policy, layout),
+        25 => forward::<25>(cfg, inputs, plan, policy, layout),
+        26 => forward::<26>(cfg, inputs, plan, policy, layout),
+        27 => forward::<27>(cfg, inputs, plan, policy, layout),
         n => Err(ProcessError::Data(format!(
-            "no filter of {n} states is built in (the base {STATES} states and up to three added)"
+            "no filter of {n} states is built in (the base {STATES} states and up to six added)"
         ))),
     }
 }

@@ -112,6 +112,14 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "prior σ of an estimated latency [s]",
     ),
     (
+        "gnss.estimate_lever_arm",
+        "estimate the lever arm as filter states, starting from lever_arm_m (observable in turns)",
+    ),
+    (
+        "gnss.lever_arm_sigma_m",
+        "prior σ of each axis of an estimated lever arm [m]",
+    ),
+    (
         "gnss.min_position_sigma_m",
         "floor on the position σ of the file [m]",
     ),

@@ -246,6 +246,13 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
         1e-4,
         10.0,
     )?;
+    bounded(
+        "gnss",
+        "lever_arm_sigma_m",
+        cfg.gnss.lever_arm_sigma_m,
+        1e-3,
+        10.0,
+    )?;
     let t = &cfg.tune;
     bounded("tune", "min_static_s", t.min_static_s, 1.0, 1e5)?;
     count_in_range("max_evaluations", t.max_evaluations, 1, 10_000)

@@ -1,7 +1,7 @@
 //! A GNSS antenna position fix: `z = r̂_ant − r_fix = δr + [(Ĉ l)×] φ + n`;
 //! with a GNSS latency state τ (the fix is the antenna τ before its time
 //! tag) the prediction is `r̂_ant − v̂_ant τ̂ + ½ â τ̂²` and `z` gains
-//! `(v̂_ant − â τ̂) δτ`.
+//! `(v̂_ant − â τ̂) δτ`; with a lever-arm state `−Ĉ δl`.
 
 use aidnav_frames::earth::Geodetic;
 use aidnav_models::ned_ins::NedErrorModel;
@@ -9,7 +9,7 @@ use nalgebra::Vector3;
 
 use crate::ned::antenna_of_solution;
 
-use super::{Linearized, Measurement, Nominal, diagonal_r, latency, on_layout};
+use super::{Linearized, Measurement, Nominal, diagonal_r, latency, lever_arm, on_layout};
 
 /// A GNSS antenna position with σ (north, east, down) \[m\].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,6 +38,9 @@ impl<const N: usize> Measurement<3, N> for GnssPosition {
             let a = nominal.acceleration;
             antenna = antenna.offset_by(&(v_ant * -tau + a * (0.5 * tau * tau)));
             h.column_mut(i).copy_from(&(v_ant - a * tau).raw());
+        }
+        if let Some(i) = lever_arm(nominal) {
+            h.fixed_view_mut::<3, 3>(0, i).copy_from(&-c.raw());
         }
         Linearized {
             z: self.fix.ned_to(&antenna).raw(),

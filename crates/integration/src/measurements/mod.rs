@@ -98,6 +98,14 @@ pub(crate) fn latency<const N: usize>(nominal: &Nominal<'_, N>) -> Option<(usize
     Some((i, nominal.parameters[i]))
 }
 
+/// The first index of the lever-arm block (None: the lever arm is known).
+/// The block's nominal value is the filter's lever arm
+/// ([`Nominal::antenna_lever_arm`]); the state is l − l̂, so an antenna
+/// predicted at `r + C l̂` is `−C` in it.
+pub(crate) fn lever_arm<const N: usize>(nominal: &Nominal<'_, N>) -> Option<usize> {
+    nominal.layout.offset(crate::state::Augmented::LeverArm)
+}
+
 /// A diagonal R from σ per component.
 pub(crate) fn diagonal_r<const M: usize>(sigma: &SVector<f64, M>) -> SMatrix<f64, M, M> {
     SMatrix::from_diagonal(&sigma.map(|v| v * v))
@@ -182,5 +190,71 @@ mod tests {
         // Without the state the models are the plain ones.
         let base = StateLayout::base();
         assert_eq!(base.offset(Augmented::GnssLatency), None);
+    }
+
+    /// z at a nominal lever arm l̂ (states 21–23 of a 24-state layout).
+    fn z_at_arm<const M: usize, Meas: Measurement<M, 24>>(
+        meas: &Meas,
+        arm: Vector3<f64>,
+    ) -> Linearized<M, 24> {
+        let (state, rate, acceleration) = turning();
+        let layout = StateLayout::base().with(Augmented::LeverArm, BlockDynamics::constant(1.0));
+        let mut parameters = SVector::<f64, 24>::zeros();
+        parameters.fixed_rows_mut::<3>(21).copy_from(&arm);
+        let instruments = InstrumentEstimate::default();
+        meas.linearize(&Nominal {
+            state: &state,
+            body_rate: rate,
+            acceleration,
+            antenna_lever_arm: Vec3::assume_in_frame(arm),
+            instruments: &instruments,
+            parameters: &parameters,
+            layout: &layout,
+        })
+    }
+
+    /// The lever-arm columns of the GNSS position and velocity H against
+    /// a central finite difference of z in the nominal lever arm (the
+    /// state is l − l̂, so ∂z/∂l̂ = −H[:, l]).
+    #[test]
+    fn lever_arm_columns_are_the_derivatives_of_the_prediction() {
+        let (state, _, _) = turning();
+        let position = GnssPosition {
+            fix: state.position.offset_by(&Vec3::new(0.3, -0.2, 0.1)),
+            sigma_ned_m: Vector3::repeat(0.02),
+        };
+        let velocity = GnssVelocity {
+            velocity_ned_mps: Vec3::new(6.1, 7.9, 0.0),
+            sigma_ned_mps: Vector3::repeat(0.05),
+        };
+        let (arm, d) = (Vector3::new(-0.5, 0.2, -1.0), 1e-4);
+        for axis in 0..3 {
+            let step = Vector3::ith(axis, d);
+            let lin = z_at_arm(&position, arm);
+            let fd =
+                (z_at_arm(&position, arm + step).z - z_at_arm(&position, arm - step).z) / (2.0 * d);
+            for r in 0..3 {
+                // Metres on the ellipsoid: the offset's curvature is ~1e-6.
+                assert!(
+                    (fd[r] + lin.h[(r, 21 + axis)]).abs() < 1e-5,
+                    "{fd} vs {}",
+                    lin.h
+                );
+            }
+            let lin = z_at_arm(&velocity, arm);
+            let fd =
+                (z_at_arm(&velocity, arm + step).z - z_at_arm(&velocity, arm - step).z) / (2.0 * d);
+            for r in 0..3 {
+                assert!(
+                    (fd[r] + lin.h[(r, 21 + axis)]).abs() < 1e-9,
+                    "{fd} vs {}",
+                    lin.h
+                );
+            }
+        }
+        // The position column of a forward arm is the heading's direction.
+        let lin = z_at_arm(&position, arm);
+        let heading = state.attitude.matrix().raw().column(0).into_owned();
+        assert!((lin.h.fixed_view::<3, 1>(0, 21) + heading).norm() < 1e-12);
     }
 }
