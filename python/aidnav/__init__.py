@@ -181,6 +181,10 @@ class ProcessResult:
       vertical and 3-D drift RMS [m] (empty when not scored);
     * ``anomalies`` – RMS under injected anomalies per fraction and policy;
     * ``warnings`` – ``kind``, ``message``, ``start_s``, ``end_s``;
+    * ``install`` – the estimated install parameters and sensor errors
+      (``summary["result"]["install"]``: GNSS latency, lever arm, vehicle
+      misalignment, odometer scale, barometer bias), one row each:
+      ``name``, ``unit``, ``value``, ``sigma``, ``prior_sigma``;
     * ``summary`` – ``summary.json`` as a dict (``summary["result"]`` is the
       report).
 
@@ -209,6 +213,7 @@ class ProcessResult:
             as_frame,
         )
         self.warnings = records(result.get("warnings") or [], as_frame)
+        self.install = records(result.get("install") or [], as_frame)
 
     @property
     def result(self) -> Dict[str, Any]:

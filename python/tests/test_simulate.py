@@ -45,3 +45,18 @@ def test_a_simulated_log_processes_from_memory():
     gnss = {k: v for k, v in log.gnss.items() if k not in ("has_velocity",)}
     result = aidnav.process({"platform": "car"}, imu=log.imu, gnss=gnss, score=False)
     assert result.result["gnss_epochs"] == len(log.gnss["gpst_s"])
+
+
+def test_the_install_estimates_are_a_table():
+    # The zoo's car with its IMU pitched 3° against the car: the vehicle
+    # frame's pitch estimated through the non-holonomic constraint.
+    log = aidnav.simulate(ZOO / "short_car_pitch3_fixed.toml", as_frame=False)
+    gnss = {k: v for k, v in log.gnss.items() if k not in ("has_velocity",)}
+    config = {"platform": "car", "constraints": {"estimate_misalignment": True}}
+    result = aidnav.process(config, imu=log.imu, gnss=gnss, score=False)
+    install = result.install
+    assert list(install["name"]) == ["misalignment_pitch", "misalignment_yaw"]
+    assert list(install["unit"]) == ["rad", "rad"]
+    pitch = np.degrees(install["value"][0])
+    assert abs(pitch - log.installation["mounting_deg"][1]) < 0.2, pitch
+    assert np.all(install["sigma"] < 0.5 * install["prior_sigma"])

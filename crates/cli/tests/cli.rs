@@ -691,12 +691,18 @@ fn process_runs_the_recorded_drive_and_scores_it() {
         stdout.find("simulated outages").unwrap() < table,
         "{stdout}"
     );
-    // Input notes are in the summary with their kind.
+    // Input notes are in the summary with their kind; the only other
+    // warnings are comparison-table runs of the adaptive-gain scheme,
+    // which diverges under 30 % outliers (tens of km: its covariance then
+    // fails) — the configured run warns of nothing.
     let warnings = summary["result"]["warnings"].as_array().unwrap();
     assert!(
-        warnings.iter().all(|w| w["kind"] == "input"),
+        warnings.iter().all(|w| w["kind"] == "input"
+            || (w["kind"] == "scoring_run"
+                && w["message"].as_str().unwrap().contains("adaptive_gain"))),
         "{warnings:?}"
     );
+    assert!(warnings.iter().any(|w| w["kind"] == "input"));
 }
 
 /// The drive as a cheap scoring run: 10 s outages only, no anomaly or

@@ -64,6 +64,7 @@ fn pass<const N: usize>(log: &CarLog, fixes: &[AidingFix], layout: &StateLayout)
         rate_hz: 10.0,
         sigma_mps: 0.1,
         min_speed_mps: 1.0,
+        gate_probability: None,
     });
     let mut sources: Vec<&mut dyn AidSource<N>> = vec![&mut nhc, &mut gnss];
     let mut collector = Collector::default();
@@ -100,7 +101,7 @@ fn layouts(c: &mut Criterion) {
         .with(Augmented::BaroBias, BlockDynamics::random_walk(100.0, 0.05));
     let five = two
         .clone()
-        .with(Augmented::Mounting, BlockDynamics::constant(0.02));
+        .with(Augmented::LeverArm, BlockDynamics::constant(0.02));
     let mut g = c.benchmark_group("ned_filter_pass_450s");
     g.sample_size(10);
     g.bench_function("21_states", |b| {

@@ -281,6 +281,10 @@ pub struct NedFilter<const N: usize = STATES> {
     kf: FixedKalmanFilter<N>,
     instruments: InstrumentEstimate,
     lever_arm: Vec3<Body>,
+    /// Body → vehicle frame of the vehicle constraints, and the roll it is
+    /// built with (a vehicle misalignment block estimates pitch and yaw).
+    vehicle_from_body: Matrix3<f64>,
+    vehicle_roll_rad: f64,
     rate: Vec3<Body>,
     pending_force: Vec3<Body>,
     pending_angle: Vec3<Body>,
@@ -309,6 +313,11 @@ pub struct NedFilter<const N: usize = STATES> {
     /// [`ACCELERATION_SMOOTHING_S`] (kept only when a measurement needs it:
     /// a GNSS latency state).
     acceleration: Option<Vec3<Ned>>,
+}
+
+/// `R_z(yaw) R_y(pitch) R_x(roll)`: body → vehicle.
+fn vehicle_rotation(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
+    nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).into_inner()
 }
 
 /// Time constant of the acceleration a latency-compensated GNSS velocity
@@ -686,6 +695,8 @@ impl<const N: usize> NedFilter<N> {
             kf: FixedKalmanFilter::new(SVector::zeros(), p0)?,
             instruments: InstrumentEstimate::default(),
             lever_arm,
+            vehicle_from_body: Matrix3::identity(),
+            vehicle_roll_rad: 0.0,
             rate: Vec3::zeros(),
             pending_force: Vec3::zeros(),
             pending_angle: Vec3::zeros(),
@@ -724,6 +735,29 @@ impl<const N: usize> NedFilter<N> {
         parameters
     }
 
+    /// The vehicle frame of the vehicle constraints (non-holonomic,
+    /// wheel speed) against the body frame, as roll, pitch, yaw \[rad\]
+    /// (`v_vehicle = R_z(yaw) R_y(pitch) R_x(roll) v_body`); the start of
+    /// the estimate when the layout has a
+    /// [`VehicleMisalignment`](crate::state::Augmented::VehicleMisalignment)
+    /// block (which estimates pitch and yaw; the roll stays).
+    pub fn set_vehicle_misalignment(&mut self, [roll, pitch, yaw]: [f64; 3]) {
+        self.vehicle_roll_rad = roll;
+        self.vehicle_from_body = vehicle_rotation(roll, pitch, yaw);
+        if let Some(o) = self
+            .layout
+            .offset(crate::state::Augmented::VehicleMisalignment)
+        {
+            self.parameters[o] = pitch;
+            self.parameters[o + 1] = yaw;
+        }
+    }
+
+    /// The body → vehicle rotation of the vehicle constraints.
+    pub fn vehicle_from_body(&self) -> &Matrix3<f64> {
+        &self.vehicle_from_body
+    }
+
     /// Where the added states sit.
     pub fn layout(&self) -> &StateLayout {
         &self.layout
@@ -754,6 +788,7 @@ impl<const N: usize> NedFilter<N> {
             body_rate: self.rate,
             acceleration: self.acceleration.unwrap_or_else(Vec3::zeros),
             antenna_lever_arm: self.lever_arm,
+            vehicle_from_body: self.vehicle_from_body,
             instruments: &self.instruments,
             parameters: &self.parameters,
             layout: &self.layout,
@@ -1429,6 +1464,16 @@ impl<const N: usize> NedFilter<N> {
         }
         if let Some(o) = self.layout.offset(crate::state::Augmented::LeverArm) {
             self.lever_arm = Vec3::assume_in_frame(self.parameters.fixed_rows::<3>(o).into());
+        }
+        if let Some(o) = self
+            .layout
+            .offset(crate::state::Augmented::VehicleMisalignment)
+        {
+            self.vehicle_from_body = vehicle_rotation(
+                self.vehicle_roll_rad,
+                self.parameters[o],
+                self.parameters[o + 1],
+            );
         }
         // P by reference: a copy of it per update is a 3.5 kB memory copy.
         let (p, state) = (self.kf.covariance(), *self.ins.state());

@@ -31,8 +31,11 @@ pub enum Augmented {
     BaroBias,
     /// Latency of the GNSS time tag (1 state \[s\]).
     GnssLatency,
-    /// Misalignment of the IMU against the vehicle body (3 states \[rad\]).
-    Mounting,
+    /// Misalignment of the vehicle frame against the IMU body frame, its
+    /// pitch and yaw (2 states \[rad\]; the roll about the forward axis
+    /// leaves the lateral and vertical velocity of a forward motion
+    /// unchanged, so no vehicle constraint observes it).
+    VehicleMisalignment,
     /// GNSS antenna lever arm (3 states \[m\], body frame).
     LeverArm,
     /// Receiver clock bias and drift (2 states \[m\], \[m/s\]).
@@ -44,8 +47,8 @@ impl Augmented {
     pub const fn states(self) -> usize {
         match self {
             Augmented::WheelSpeedScale | Augmented::BaroBias | Augmented::GnssLatency => 1,
-            Augmented::Mounting | Augmented::LeverArm => 3,
-            Augmented::ReceiverClock => 2,
+            Augmented::LeverArm => 3,
+            Augmented::VehicleMisalignment | Augmented::ReceiverClock => 2,
         }
     }
 
@@ -55,7 +58,7 @@ impl Augmented {
             Augmented::WheelSpeedScale => "",
             Augmented::BaroBias | Augmented::LeverArm => "m",
             Augmented::GnssLatency => "s",
-            Augmented::Mounting => "rad",
+            Augmented::VehicleMisalignment => "rad",
             Augmented::ReceiverClock => "m",
         }
     }
@@ -66,9 +69,21 @@ impl Augmented {
             Augmented::WheelSpeedScale => "wheel_speed_scale",
             Augmented::BaroBias => "baro_bias",
             Augmented::GnssLatency => "gnss_latency",
-            Augmented::Mounting => "mounting",
+            Augmented::VehicleMisalignment => "misalignment",
             Augmented::LeverArm => "lever_arm",
             Augmented::ReceiverClock => "receiver_clock",
+        }
+    }
+
+    /// The names of the block's states behind its name (`lever_arm_x` …;
+    /// empty for a single state).
+    pub const fn axis_names(self) -> &'static [&'static str] {
+        match self {
+            // Body axes: forward, right, down.
+            Augmented::LeverArm => &["x", "y", "z"],
+            Augmented::VehicleMisalignment => &["pitch", "yaw"],
+            Augmented::ReceiverClock => &["bias", "drift"],
+            Augmented::WheelSpeedScale | Augmented::BaroBias | Augmented::GnssLatency => &[],
         }
     }
 }
@@ -237,11 +252,9 @@ impl StateLayout {
             .iter()
             .find(|b| i >= b.offset && i < b.offset + b.kind.states())?;
         let k = i - b.offset;
-        Some(match b.kind.states() {
-            1 => b.kind.name().to_string(),
-            // Body axes: forward, right, down.
-            3 => format!("{}_{}", b.kind.name(), ["x", "y", "z"][k]),
-            _ => format!("{}_{k}", b.kind.name()),
+        Some(match b.kind.axis_names().get(k) {
+            Some(axis) => format!("{}_{axis}", b.kind.name()),
+            None => b.kind.name().to_string(),
         })
     }
 }
@@ -322,18 +335,23 @@ mod tests {
     #[test]
     fn blocks_take_their_places_and_names() {
         let l = StateLayout::base()
-            .with(Augmented::Mounting, BlockDynamics::constant(0.01))
+            .with(Augmented::LeverArm, BlockDynamics::constant(0.01))
+            .with(
+                Augmented::VehicleMisalignment,
+                BlockDynamics::constant(0.05),
+            )
             .with(Augmented::BaroBias, BlockDynamics::constant(3.0));
-        assert_eq!(l.len(), 25);
-        assert_eq!(l.offset(Augmented::BaroBias), Some(24));
-        assert_eq!(l.state_name(22).as_deref(), Some("mounting_y"));
-        assert_eq!(l.state_name(24).as_deref(), Some("baro_bias"));
+        assert_eq!(l.len(), 27);
+        assert_eq!(l.offset(Augmented::BaroBias), Some(26));
+        assert_eq!(l.state_name(22).as_deref(), Some("lever_arm_y"));
+        assert_eq!(l.state_name(25).as_deref(), Some("misalignment_yaw"));
+        assert_eq!(l.state_name(26).as_deref(), Some("baro_bias"));
         assert_eq!(l.state_name(3).as_deref(), Some("vel_n"));
-        assert_eq!(l.state_name(25), None);
+        assert_eq!(l.state_name(27), None);
         // Adding a block again keeps its place.
-        let again = l.with(Augmented::Mounting, BlockDynamics::constant(0.02));
-        assert_eq!(again.len(), 25);
-        assert_eq!(again.offset(Augmented::Mounting), Some(21));
+        let again = l.with(Augmented::LeverArm, BlockDynamics::constant(0.02));
+        assert_eq!(again.len(), 27);
+        assert_eq!(again.offset(Augmented::LeverArm), Some(21));
         assert!(!BlockDynamics::constant(f64::NAN).is_valid());
     }
 }

@@ -106,6 +106,7 @@ fn outage_errors<const N: usize>(
         rate_hz: 10.0,
         sigma_mps: 0.1,
         min_speed_mps: 1.0,
+        gate_probability: None,
     });
     let mut wheel = WheelSpeedSource::new(
         &log.wheel_speed,

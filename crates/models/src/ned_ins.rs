@@ -538,7 +538,9 @@ impl NedErrorModel {
 
     /// H of the non-holonomic constraint (a land vehicle's lateral and
     /// vertical body velocity are zero): rows y and z of
-    /// `δv^b = Cᵀ δv − Cᵀ [v×] φ` at attitude C_b^n and NED velocity v.
+    /// `δv^b = Cᵀ δv − Cᵀ [v×] φ` at attitude C_b^n and NED velocity v
+    /// (for a vehicle frame misaligned against the body, pass
+    /// `C_v^n = C_b^n C_vbᵀ`: the rows are then the vehicle's axes).
     pub fn non_holonomic_measurement(
         c_bn: &Matrix3<f64>,
         velocity: &Vector3<f64>,

@@ -73,8 +73,8 @@ pub struct Process {
     inputs: Inputs,
     tuning: Option<TuneResult>,
     /// The calibration pass's install estimates (`gnss.latency =
-    /// "estimate"`, `gnss.estimate_lever_arm`; the configuration took
-    /// them).
+    /// "estimate"`, `gnss.estimate_lever_arm`,
+    /// `constraints.estimate_misalignment`; the configuration took them).
     calibration: Vec<AddedStateEstimate>,
     cancel: Cancel,
 }
@@ -154,7 +154,8 @@ pub struct StartSummary {
     pub speed_mps: Option<f64>,
 }
 
-/// `gnss.latency = "estimate"` and `gnss.estimate_lever_arm`: one forward
+/// `gnss.latency = "estimate"`, `gnss.estimate_lever_arm` and
+/// `constraints.estimate_misalignment`: one forward
 /// pass with the install states estimates them; the configuration takes
 /// each as known (the fixes re-timed by the latency), so every later pass
 /// (the main run, the scores) sees the installation the log showed. The
@@ -216,6 +217,33 @@ fn calibrate_install(
         }
         config.gnss.estimate_lever_arm = false;
     }
+    if config.constraints.estimate_misalignment {
+        let angles: Vec<_> = run
+            .install
+            .iter()
+            .filter(of(Augmented::VehicleMisalignment))
+            .collect();
+        if angles.len() != 2 {
+            return Err(ProcessError::Data(
+                "constraints.estimate_misalignment: the filter has no misalignment states".into(),
+            ));
+        }
+        // Pitch and yaw: elements 1 and 2 of misalignment_deg.
+        for (axis, e) in (1..).zip(angles) {
+            let deg = e.value.to_degrees();
+            if !deg.is_finite() || deg.abs() > 45.0 {
+                return Err(ProcessError::Data(format!(
+                    "constraints.estimate_misalignment: the estimate {deg:.1}° of {} is not a misalignment (check imu.mounting_deg: the IMU axes must be the vehicle's within a few degrees)",
+                    e.name
+                )));
+            }
+            if observed(e) {
+                config.constraints.misalignment_deg[axis] = deg;
+            }
+            estimates.push(e.clone());
+        }
+        config.constraints.estimate_misalignment = false;
+    }
     Ok(estimates)
 }
 
@@ -264,12 +292,14 @@ impl Process {
         } else {
             None
         };
-        let calibration =
-            if config.gnss.latency == GnssLatency::Estimate || config.gnss.estimate_lever_arm {
-                calibrate_install(&mut config, &mut inputs)?
-            } else {
-                Vec::new()
-            };
+        let calibration = if config.gnss.latency == GnssLatency::Estimate
+            || config.gnss.estimate_lever_arm
+            || config.constraints.estimate_misalignment
+        {
+            calibrate_install(&mut config, &mut inputs)?
+        } else {
+            Vec::new()
+        };
         let inputs = if smooth {
             // Taken, not cloned: no copy of the raw samples beside the
             // smoothed ones.
@@ -365,6 +395,10 @@ impl Process {
             .collect();
         warnings.extend(begin.warnings.iter().cloned());
         warnings.extend(divergence_warnings(&epochs, t0));
+        warnings.extend(super::warnings::vehicle_frame_warning(
+            &run.non_holonomic,
+            t0,
+        ));
         warnings.extend(rejection_run_warnings(&epochs, t0));
         let selected = super::selection::select_sources(cfg, &epochs);
         let result = ProcessResult {

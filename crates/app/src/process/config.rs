@@ -415,6 +415,24 @@ impl<'de> Deserialize<'de> for GnssLatency {
     }
 }
 
+impl ConstraintConfig {
+    /// The vehicle misalignment states this section adds (None: the
+    /// misalignment is known).
+    pub fn misalignment_block(&self) -> Option<(Augmented, BlockDynamics)> {
+        self.estimate_misalignment.then(|| {
+            (
+                Augmented::VehicleMisalignment,
+                BlockDynamics::constant(self.misalignment_sigma_deg.to_radians()),
+            )
+        })
+    }
+
+    /// `misalignment_deg` in radians.
+    pub fn misalignment_rad(&self) -> [f64; 3] {
+        self.misalignment_deg.map(f64::to_radians)
+    }
+}
+
 impl GnssConfig {
     /// The latency state this section adds (None: the latency is known).
     pub fn latency_block(&self) -> Option<(Augmented, BlockDynamics)> {
@@ -461,6 +479,27 @@ pub struct ConstraintConfig {
     pub non_holonomic_rate_hz: f64,
     /// Not applied below this speed [m/s]. Default 1.
     pub min_speed_mps: f64,
+    /// χ² gate of each constraint update: the probability of its χ²(2)
+    /// quantile (1: no gate). A misaligned vehicle frame then has its
+    /// updates rejected — and warned of — instead of forcing its lateral
+    /// or vertical velocity into the solution. Default 0.9999 (|ν| up to
+    /// about 4.3σ).
+    pub non_holonomic_gate_probability: f64,
+    /// The vehicle frame of the non-holonomic constraint and the wheel
+    /// speed against the body frame (the IMU after `imu.mounting_deg`), as
+    /// (roll, pitch, yaw) \[deg\]: `v_vehicle = R_z(yaw) R_y(pitch)
+    /// R_x(roll) v_body`. A phone pitched 3° up against the car: [0, 3, 0].
+    /// Default [0, 0, 0].
+    #[serde(deserialize_with = "exact_array")]
+    pub misalignment_deg: [f64; 3],
+    /// Estimate the misalignment's pitch and yaw as filter states, starting
+    /// from `misalignment_deg` (the roll stays: no vehicle constraint sees
+    /// it). Needs the non-holonomic constraint or a wheel-speed source; the
+    /// constraint's weight follows the misalignment's σ, so it holds the
+    /// velocity only as far as the misalignment has converged. Default off.
+    pub estimate_misalignment: bool,
+    /// Prior σ of the estimated pitch and yaw \[deg\]. Default 5.
+    pub misalignment_sigma_deg: f64,
     /// Zero-velocity and zero-angular-rate updates while a standstill is
     /// detected (`[standstill]`). Default from the platform (car and
     /// pedestrian: on).
@@ -487,6 +526,10 @@ impl Default for ConstraintConfig {
             non_holonomic_sigma_mps: 0.1,
             non_holonomic_rate_hz: 10.0,
             min_speed_mps: 1.0,
+            non_holonomic_gate_probability: 0.9999,
+            misalignment_deg: [0.0; 3],
+            estimate_misalignment: false,
+            misalignment_sigma_deg: 5.0,
             zero_velocity: None,
             zero_velocity_sigma_mps: 0.05,
             zero_angular_rate_sigma_deg_s: 0.1,
@@ -1211,6 +1254,7 @@ impl ProcessConfig {
         let blocks = [
             self.gnss.latency_block(),
             self.gnss.lever_arm_block(),
+            self.constraints.misalignment_block(),
             self.wheel_speed.as_ref().and_then(WheelSpeedSection::block),
             self.barometer.as_ref().and_then(BarometerSection::block),
         ];
@@ -1230,6 +1274,8 @@ impl ProcessConfig {
                 rate_hz: nhc.non_holonomic_rate_hz,
                 sigma_mps: nhc.non_holonomic_sigma_mps,
                 min_speed_mps: nhc.min_speed_mps,
+                gate_probability: (nhc.non_holonomic_gate_probability < 1.0)
+                    .then_some(nhc.non_holonomic_gate_probability),
             })
         })
     }

@@ -68,8 +68,9 @@ pub use selection::{SelectedEpoch, SelectionSummary, select_sources, selection_s
 pub use start::{Start, StartKind, initialise};
 pub use template::{config_template, doc_of};
 pub use warnings::{
-    DIVERGENCE_NIS_PER_DOF, DIVERGENCE_WINDOW_S, REJECTION_RUN_S, Warning, WarningKind,
-    divergence_warnings, rejection_run_warnings,
+    DIVERGENCE_NIS_PER_DOF, DIVERGENCE_WINDOW_S, REJECTION_RUN_S, VEHICLE_FRAME_MIN_UPDATES,
+    VEHICLE_FRAME_NORMALISED_MEAN, VEHICLE_FRAME_REJECTED_FRACTION, Warning, WarningKind,
+    divergence_warnings, rejection_run_warnings, vehicle_frame_warning,
 };
 
 pub use aidnav_ins::mounting::euler_to_ctm;

@@ -276,6 +276,8 @@ pub struct Run {
     /// The added states' estimates at the end of the pass (installation
     /// parameters, sensor errors), with σ.
     pub install: Vec<aidnav_integration::state::AddedStateEstimate>,
+    /// The non-holonomic constraint's mean innovations.
+    pub non_holonomic: NonHolonomicResiduals,
 }
 
 /// The filter at the start of the log, configured for a plan and a policy.
@@ -310,6 +312,7 @@ fn new_filter<const N: usize>(
     let mut filter = NedFilter::with_layout(model, begin.state, &sig, lever, layout)?;
     // The start position is the first fix's antenna moved by the lever arm.
     filter.start_position_is_from_antenna_fix()?;
+    filter.set_vehicle_misalignment(cfg.constraints.misalignment_rad());
     filter.set_recovery(cfg.gnss.recovery_config())?;
     filter.set_gyro_bias(begin.gyro_bias);
     filter.set_open_loop(cfg.filter.feedback == Feedback::Open);
@@ -507,7 +510,7 @@ pub(crate) fn run_filter_forward(
     policy: PolicyName,
 ) -> Result<(Run, Option<PendingSmoothing>), ProcessError> {
     // The filter's matrices are fixed-size: one pass per layout length the
-    // sections can give (the base; one to six added states).
+    // sections can give (the base; one to eight added states).
     let layout = cfg.state_layout();
     match layout.len() {
         STATES => forward::<STATES>(cfg, inputs, plan, policy, layout),
@@ -517,17 +520,19 @@ pub(crate) fn run_filter_forward(
         25 => forward::<25>(cfg, inputs, plan, policy, layout),
         26 => forward::<26>(cfg, inputs, plan, policy, layout),
         27 => forward::<27>(cfg, inputs, plan, policy, layout),
+        28 => forward::<28>(cfg, inputs, plan, policy, layout),
+        29 => forward::<29>(cfg, inputs, plan, policy, layout),
         n => Err(ProcessError::Data(format!(
-            "no filter of {n} states is built in (the base {STATES} states and up to six added)"
+            "no filter of {n} states is built in (the base {STATES} states and up to eight added)"
         ))),
     }
 }
 
 /// The updates of the wheel-speed and barometer sources, for
 /// [`Run::aid_updates`] (the GNSS updates have their epochs; the
-/// constraints are counted only).
+/// constraints are counted, and the non-holonomic residuals averaged).
 #[derive(Default)]
-struct AidUpdates(Vec<AidRecord>);
+struct AidUpdates(Vec<AidRecord>, NonHolonomicResiduals);
 
 impl EpochObserver for AidUpdates {
     fn fix(&mut self, _filter: &dyn FilterView, _record: &FixRecord) {}
@@ -535,7 +540,69 @@ impl EpochObserver for AidUpdates {
     fn aided(&mut self, record: &AidRecord) {
         if super::export::has_update_file(record.source) {
             self.0.push(*record);
+        } else if record.source == "non_holonomic" {
+            self.1.add(record);
         }
+    }
+}
+
+/// The non-holonomic constraint's innovations (lateral, vertical) over a
+/// run: their means, raw and over their σ, of the updates the filter
+/// judged (accepted or rejected by the gate). A vehicle frame misaligned
+/// against the IMU makes them systematic — a forward speed v leaks
+/// `v sin(angle)` into the lateral (yaw) or vertical (pitch) component on
+/// every update — where a consistent filter's average near zero.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NonHolonomicResiduals {
+    /// Updates averaged (accepted or rejected).
+    pub updates: usize,
+    /// Of them, rejected by the constraint's gate.
+    pub rejected: usize,
+    /// Sum of the innovations \[m/s\].
+    sum_mps: [f64; 2],
+    /// Sum of the innovations over their σ.
+    sum_normalised: [f64; 2],
+    /// Time of the first and the last update (GPST s).
+    pub span_s: [f64; 2],
+}
+
+impl NonHolonomicResiduals {
+    fn add(&mut self, record: &AidRecord) {
+        use aidnav_estimation::Outcome;
+        if !matches!(record.outcome, Outcome::Accepted | Outcome::Rejected) {
+            return;
+        }
+        let (nu, sigma) = (record.innovation, record.innovation_sigma);
+        if !(0..2).all(|i| nu[i].is_finite() && sigma[i] > 0.0) {
+            return;
+        }
+        if self.updates == 0 {
+            self.span_s[0] = record.time_s;
+        }
+        self.span_s[1] = record.time_s;
+        self.updates += 1;
+        self.rejected += usize::from(record.outcome == Outcome::Rejected);
+        for i in 0..2 {
+            self.sum_mps[i] += nu[i];
+            self.sum_normalised[i] += nu[i] / sigma[i];
+        }
+    }
+
+    /// Mean innovation (lateral, vertical) \[m/s\].
+    pub fn mean_mps(&self) -> [f64; 2] {
+        let n = self.updates.max(1) as f64;
+        self.sum_mps.map(|s| s / n)
+    }
+
+    /// Mean innovation over its σ (lateral, vertical).
+    pub fn mean_normalised(&self) -> [f64; 2] {
+        let n = self.updates.max(1) as f64;
+        self.sum_normalised.map(|s| s / n)
+    }
+
+    /// Fraction of the updates the gate rejected.
+    pub fn rejected_fraction(&self) -> f64 {
+        self.rejected as f64 / self.updates.max(1) as f64
     }
 }
 
@@ -663,6 +730,7 @@ fn forward<const N: usize>(
         sources: statuses,
         aid_updates: aid_updates.0,
         install,
+        non_holonomic: aid_updates.1,
     };
     Ok((
         run,

@@ -198,6 +198,22 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "no non-holonomic update below this speed [m/s]",
     ),
     (
+        "constraints.non_holonomic_gate_probability",
+        "χ²(2) gate of each constraint update (1: none); a rejected run names a misaligned vehicle frame",
+    ),
+    (
+        "constraints.misalignment_deg",
+        "vehicle frame against the body (roll, pitch, yaw) [deg]: v_vehicle = R_z(yaw) R_y(pitch) R_x(roll) v_body",
+    ),
+    (
+        "constraints.estimate_misalignment",
+        "estimate the misalignment's pitch and yaw as filter states (needs the non-holonomic constraint or a wheel speed)",
+    ),
+    (
+        "constraints.misalignment_sigma_deg",
+        "prior σ of the estimated pitch and yaw [deg]",
+    ),
+    (
         "constraints.zero_velocity",
         "(preset) zero-velocity and zero-angular-rate updates at a detected standstill",
     ),

@@ -60,6 +60,13 @@ fn validate_aid_sources(cfg: &ProcessConfig) -> Result<(), Invalid> {
         }
         vector_in_range("wheel_speed.lever_arm_m", &w.lever_arm_m, -100.0, 100.0)?;
     }
+    if cfg.constraints.estimate_misalignment && !cfg.non_holonomic() && cfg.wheel_speed.is_none() {
+        return Err(Invalid::new(
+            "constraints.estimate_misalignment",
+            true,
+            "false without a vehicle constraint: set constraints.non_holonomic = true or add [wheel_speed] (nothing else observes the vehicle frame)",
+        ));
+    }
     if let Some(b) = &cfg.barometer {
         file("barometer", &b.file)?;
         for (key, value, lo, hi) in [
@@ -201,6 +208,35 @@ fn validate_physical_bounds(cfg: &ProcessConfig) -> Result<(), Invalid> {
         1e4,
     )?;
     bounded("constraints", "min_speed_mps", c.min_speed_mps, 0.0, 1000.0)?;
+    bounded(
+        "constraints",
+        "non_holonomic_gate_probability",
+        c.non_holonomic_gate_probability,
+        0.5,
+        1.0,
+    )?;
+    vector_in_range(
+        "constraints.misalignment_deg",
+        &c.misalignment_deg,
+        -180.0,
+        180.0,
+    )?;
+    // A pitch near ±90° is a mounting, not a misalignment (and the
+    // angles' singularity).
+    if c.misalignment_deg[1].abs() >= 80.0 {
+        return Err(Invalid::new(
+            "constraints.misalignment_deg[1]",
+            c.misalignment_deg[1],
+            "must be within ±80° (a larger pitch is an imu.mounting_deg)",
+        ));
+    }
+    bounded(
+        "constraints",
+        "misalignment_sigma_deg",
+        c.misalignment_sigma_deg,
+        1e-3,
+        30.0,
+    )?;
     bounded(
         "constraints",
         "zero_velocity_sigma_mps",

@@ -51,6 +51,9 @@ pub enum WarningKind {
     /// The filter started later than the first GNSS epoch (no alignment
     /// was possible before): a note, not a `--strict` failure.
     Start,
+    /// The non-holonomic constraint's residuals are systematic: the
+    /// vehicle frame is misaligned against the IMU ([`vehicle_frame_warning`]).
+    VehicleFrame,
 }
 
 impl WarningKind {
@@ -120,6 +123,77 @@ pub const DIVERGENCE_NIS_PER_DOF: f64 = 10.0;
 /// or limited position updates is 40 fixes at 4 Hz in which the filter
 /// navigates on the IMU alone, or against a stream it no longer trusts.
 pub const REJECTION_RUN_S: f64 = 10.0;
+
+/// Mean non-holonomic innovation over its σ above which the vehicle frame
+/// is taken to be misaligned: 1, the residual's own σ on average over the
+/// whole run. A consistent filter's mean is the noise's, well below 0.3
+/// over a few hundred updates even as correlated as the constraint's are;
+/// a misalignment θ at speed v gives about `v sin θ / σ` (1° at 10 m/s
+/// against σ 0.1 m/s: 1.7).
+pub const VEHICLE_FRAME_NORMALISED_MEAN: f64 = 1.0;
+
+/// Fraction of the non-holonomic updates rejected by their gate above
+/// which the vehicle frame is taken to be misaligned: 10 % (a consistent
+/// filter's 0.9999 gate rejects one in 10⁴; turns, bumps and braking a
+/// few in a hundred).
+pub const VEHICLE_FRAME_REJECTED_FRACTION: f64 = 0.1;
+
+/// Fewest constraint updates (accepted or rejected) the vehicle-frame
+/// check judges.
+pub const VEHICLE_FRAME_MIN_UPDATES: usize = 100;
+
+/// Systematic non-holonomic residuals: the mean lateral or vertical
+/// innovation over its σ above [`VEHICLE_FRAME_NORMALISED_MEAN`], or more
+/// than [`VEHICLE_FRAME_REJECTED_FRACTION`] of the updates rejected by the
+/// constraint's gate, says the constraint's frame is not the vehicle's (a
+/// yaw or pitch misalignment of the IMU), which the constraint then
+/// forces into the velocity or fights.
+pub fn vehicle_frame_warning(
+    residuals: &super::run::NonHolonomicResiduals,
+    t0_s: f64,
+) -> Option<Warning> {
+    if residuals.updates < VEHICLE_FRAME_MIN_UPDATES {
+        return None;
+    }
+    let (normalised, mean) = (residuals.mean_normalised(), residuals.mean_mps());
+    let rejected = residuals.rejected_fraction();
+    let systematic = |i: usize| normalised[i].abs() > VEHICLE_FRAME_NORMALISED_MEAN;
+    if !systematic(0) && !systematic(1) && rejected <= VEHICLE_FRAME_REJECTED_FRACTION {
+        return None;
+    }
+    // The components beyond the bound, else (a rejected run alone) the
+    // larger one.
+    let larger = usize::from(normalised[1].abs() > normalised[0].abs());
+    let axes = [("lateral", "yaw"), ("vertical", "pitch")];
+    let mut parts: Vec<String> = (0..2)
+        .filter(|&i| systematic(i) || (!systematic(1 - i) && i == larger))
+        .map(|i| {
+            format!(
+                "mean {} {:+.3} m/s ({:+.1}σ, the {})",
+                axes[i].0, mean[i], normalised[i], axes[i].1
+            )
+        })
+        .collect();
+    if rejected > VEHICLE_FRAME_REJECTED_FRACTION {
+        parts.push(format!(
+            "{:.0} % of the updates rejected by the gate",
+            100.0 * rejected
+        ));
+    }
+    let [a, b] = residuals.span_s;
+    Some(Warning::during(
+        WarningKind::VehicleFrame,
+        format!(
+            "the non-holonomic constraint's residuals are systematic over its {} updates from {} to {}: {}; the vehicle frame looks misaligned against the IMU — set constraints.estimate_misalignment = true (or constraints.misalignment_deg, or check imu.mounting_deg)",
+            residuals.updates,
+            when(a, t0_s),
+            when(b, t0_s),
+            parts.join(", ")
+        ),
+        a,
+        b,
+    ))
+}
 
 /// Time in words: seconds after `t0_s` and the GPST date.
 fn when(t_s: f64, t0_s: f64) -> String {

@@ -210,6 +210,9 @@ impl<const N: usize> AidSource<N> for GnssSource<'_> {
         }
         let record = self.epoch(ctx, index)?;
         let g = &self.fixes[index];
+        if !g.withheld {
+            ctx.evidence.last_fix_s = Some(g.fix.time_s);
+        }
         if let (false, Some(v)) = (g.withheld, g.fix.velocity_ned) {
             ctx.evidence.gnss_speed = Some((g.fix.time_s, v.norm()));
         }

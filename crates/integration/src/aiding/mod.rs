@@ -138,6 +138,8 @@ impl AidRecord {
 pub struct Evidence {
     /// (time, speed) of the last GNSS velocity used \[s, m/s\].
     pub gnss_speed: Option<(f64, f64)>,
+    /// Time of the last GNSS fix used (not withheld) \[s\].
+    pub last_fix_s: Option<f64>,
 }
 
 /// What a source sees when the loop steps it.

@@ -12,7 +12,7 @@
 use aidnav_frames::{Body, Ned, Vec3};
 use aidnav_ins::ned::NedState;
 use aidnav_models::ned_ins::STATES;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use crate::ned::InstrumentEstimate;
 use crate::state::StateLayout;
@@ -48,6 +48,10 @@ pub struct Nominal<'a, const N: usize> {
     pub acceleration: Vec3<Ned>,
     /// The GNSS antenna's lever arm (body frame, IMU → antenna) \[m\].
     pub antenna_lever_arm: Vec3<Body>,
+    /// The rotation body → vehicle frame of the vehicle constraints
+    /// (identity unless the IMU is misaligned against the vehicle):
+    /// `v_vehicle = C_vb v_body`.
+    pub vehicle_from_body: Matrix3<f64>,
     /// The instrument corrections in use.
     pub instruments: &'a InstrumentEstimate,
     /// Nominal values of the added states (by state index; the base 21
@@ -106,6 +110,34 @@ pub(crate) fn lever_arm<const N: usize>(nominal: &Nominal<'_, N>) -> Option<usiz
     nominal.layout.offset(crate::state::Augmented::LeverArm)
 }
 
+/// The vehicle misalignment block's index and the H columns of a
+/// vehicle-frame velocity `v^v = C_vb u` in its two states (None: the
+/// misalignment is known). `C_vb = R_z(ψ) R_y(θ) R_x(φ)` with the nominal
+/// θ̂, ψ̂ the block holds; the states are θ − θ̂, ψ − ψ̂. As
+/// `∂C/∂θ = [(R_z e_y)×] C` and `∂C/∂ψ = [e_z×] C`, the predicted-minus-true
+/// velocity is `v^v × a` per state with `a_θ = R_z(ψ̂) e_y`, `a_ψ = e_z`:
+/// these are the columns (all three rows; a measurement takes its own).
+pub(crate) fn misalignment_columns<const N: usize>(
+    nominal: &Nominal<'_, N>,
+    vehicle_velocity: &Vector3<f64>,
+) -> Option<(usize, Matrix3x2)> {
+    let i = nominal
+        .layout
+        .offset(crate::state::Augmented::VehicleMisalignment)?;
+    let yaw = nominal.parameters[i + 1];
+    let a_pitch = Vector3::new(-yaw.sin(), yaw.cos(), 0.0);
+    Some((
+        i,
+        Matrix3x2::from_columns(&[
+            vehicle_velocity.cross(&a_pitch),
+            vehicle_velocity.cross(&Vector3::z()),
+        ]),
+    ))
+}
+
+/// Two H columns over three rows.
+pub(crate) type Matrix3x2 = nalgebra::Matrix3x2<f64>;
+
 /// A diagonal R from σ per component.
 pub(crate) fn diagonal_r<const M: usize>(sigma: &SVector<f64, M>) -> SMatrix<f64, M, M> {
     SMatrix::from_diagonal(&sigma.map(|v| v * v))
@@ -146,6 +178,7 @@ mod tests {
             body_rate: rate,
             acceleration,
             antenna_lever_arm: Vec3::new(-0.5, 0.0, -1.0),
+            vehicle_from_body: Matrix3::identity(),
             instruments: &instruments,
             parameters: &parameters,
             layout: &layout,
@@ -207,6 +240,7 @@ mod tests {
             body_rate: rate,
             acceleration,
             antenna_lever_arm: Vec3::assume_in_frame(arm),
+            vehicle_from_body: Matrix3::identity(),
             instruments: &instruments,
             parameters: &parameters,
             layout: &layout,
@@ -256,5 +290,90 @@ mod tests {
         let lin = z_at_arm(&position, arm);
         let heading = state.attitude.matrix().raw().column(0).into_owned();
         assert!((lin.h.fixed_view::<3, 1>(0, 21) + heading).norm() < 1e-12);
+    }
+
+    /// z at a nominal vehicle misalignment (pitch, yaw; states 21–22 of a
+    /// 23-state layout), the roll 0.02 rad.
+    fn z_at_misalignment<const M: usize, Meas: Measurement<M, 23>>(
+        meas: &Meas,
+        pitch: f64,
+        yaw: f64,
+    ) -> Linearized<M, 23> {
+        let (state, rate, acceleration) = turning();
+        let layout =
+            StateLayout::base().with(Augmented::VehicleMisalignment, BlockDynamics::constant(0.1));
+        let mut parameters = SVector::<f64, 23>::zeros();
+        parameters[21] = pitch;
+        parameters[22] = yaw;
+        let instruments = InstrumentEstimate::default();
+        meas.linearize(&Nominal {
+            state: &state,
+            body_rate: rate,
+            acceleration,
+            antenna_lever_arm: Vec3::zeros(),
+            vehicle_from_body: nalgebra::Rotation3::from_euler_angles(0.02, pitch, yaw)
+                .into_inner(),
+            instruments: &instruments,
+            parameters: &parameters,
+            layout: &layout,
+        })
+    }
+
+    /// The misalignment columns of the non-holonomic and wheel-speed H
+    /// against a central finite difference of z in the nominal pitch and
+    /// yaw (the states are truth − nominal, so ∂z/∂θ̂ = −H[:, θ]); and the
+    /// constraint's z is the vehicle-frame velocity.
+    #[test]
+    fn misalignment_columns_are_the_derivatives_of_the_prediction() {
+        let constraint = NonHolonomicConstraint { sigma_mps: 0.1 };
+        let wheel = WheelSpeed {
+            speed_mps: 10.0,
+            sigma_mps: 0.1,
+            lever_arm_m: Vec3::new(-1.3, 0.2, 0.3),
+        };
+        let (pitch, yaw, d) = (0.05, -0.08, 1e-6);
+        for state in 0..2 {
+            let at = |dx: f64| {
+                if state == 0 {
+                    (pitch + dx, yaw)
+                } else {
+                    (pitch, yaw + dx)
+                }
+            };
+            let (pp, yp) = at(d);
+            let (pm, ym) = at(-d);
+            let lin = z_at_misalignment(&constraint, pitch, yaw);
+            let fd = (z_at_misalignment(&constraint, pp, yp).z
+                - z_at_misalignment(&constraint, pm, ym).z)
+                / (2.0 * d);
+            for r in 0..2 {
+                assert!(
+                    (fd[r] + lin.h[(r, 21 + state)]).abs() < 1e-6,
+                    "{fd} vs {}",
+                    lin.h
+                );
+            }
+            let lin = z_at_misalignment(&wheel, pitch, yaw);
+            let fd = (z_at_misalignment(&wheel, pp, yp).z - z_at_misalignment(&wheel, pm, ym).z)
+                / (2.0 * d);
+            assert!(
+                (fd[0] + lin.h[(0, 21 + state)]).abs() < 1e-6,
+                "{fd} vs {}",
+                lin.h
+            );
+        }
+        // The constraint's z: the velocity in the vehicle frame.
+        let (state, _, _) = turning();
+        let c_vb = nalgebra::Rotation3::from_euler_angles(0.02, pitch, yaw).into_inner();
+        let vehicle = c_vb * (state.attitude.matrix().transpose() * state.velocity).raw();
+        let lin = z_at_misalignment(&constraint, pitch, yaw);
+        assert!((lin.z - vehicle.fixed_rows::<2>(1)).norm() < 1e-12);
+        // A 3° pitch at 10 m/s: the vertical row moves by ~0.52 m/s.
+        let level = z_at_misalignment(&constraint, 0.0, yaw).z;
+        let pitched = z_at_misalignment(&constraint, 3f64.to_radians(), yaw).z;
+        assert!(
+            ((pitched - level).y.abs() - 0.52).abs() < 0.01,
+            "{pitched} {level}"
+        );
     }
 }
