@@ -24,7 +24,7 @@ mod wheel_speed;
 
 pub use barometer::{BaroConfig, BaroSource};
 pub use gnss::{GnssConfig, GnssPolicies, GnssSource};
-pub use non_holonomic::{NonHolonomic, NonHolonomicSource};
+pub use non_holonomic::{GATE_FIX_AGE_S, NonHolonomic, NonHolonomicSource};
 pub use sampled::{SampledSensor, SampledSource};
 pub use standstill::{StandstillSource, StandstillUpdates};
 pub use wheel_speed::{WheelSpeedConfig, WheelSpeedSource};
