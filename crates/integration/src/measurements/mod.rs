@@ -12,7 +12,7 @@
 use aidnav_frames::{Body, Ned, Vec3};
 use aidnav_ins::ned::NedState;
 use aidnav_models::ned_ins::STATES;
-use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, Matrix3x2, SMatrix, SVector, Vector3};
 
 use crate::ned::InstrumentEstimate;
 use crate::state::StateLayout;
@@ -120,7 +120,7 @@ pub(crate) fn lever_arm<const N: usize>(nominal: &Nominal<'_, N>) -> Option<usiz
 pub(crate) fn misalignment_columns<const N: usize>(
     nominal: &Nominal<'_, N>,
     vehicle_velocity: &Vector3<f64>,
-) -> Option<(usize, Matrix3x2)> {
+) -> Option<(usize, Matrix3x2<f64>)> {
     let i = nominal
         .layout
         .offset(crate::state::Augmented::VehicleMisalignment)?;
@@ -134,9 +134,6 @@ pub(crate) fn misalignment_columns<const N: usize>(
         ]),
     ))
 }
-
-/// Two H columns over three rows.
-pub(crate) type Matrix3x2 = nalgebra::Matrix3x2<f64>;
 
 /// A diagonal R from σ per component.
 pub(crate) fn diagonal_r<const M: usize>(sigma: &SVector<f64, M>) -> SMatrix<f64, M, M> {
