@@ -104,6 +104,8 @@ enum Command {
     /// cannot be right are refused with the evidence: the median specific
     /// force against g, the gyro at rest, and the gyro's turn against the
     /// GNSS course while moving (57× or 1/57×: degrees and radians mixed).
+    /// `[checks] units` and `[checks] turn_rate` = `error` (default) |
+    /// `warn` | `off` let a correct but unusual log go on.
     ///
     /// More aiding streams, each a table of its own (in `--print-config`,
     /// commented out): `[wheel_speed] file = "…"` fuses a wheel-speed

@@ -27,6 +27,7 @@ use std::path::{Path, PathBuf};
 use aidnav_sensors::{BaroSample, GnssFix, ImuSample, WheelSpeedSample};
 use serde::{Deserialize, Serialize};
 
+use crate::checks::CheckLevel;
 use crate::error::Result;
 use crate::kfgins::{GenericImuOptions, ImuUnits};
 use crate::rtklib::data_error;
@@ -69,20 +70,23 @@ pub enum ImuFormat {
 
 impl ImuFormat {
     /// Read the IMU file `path` of this format (sensor frame, SI, time as
-    /// written). `tags` is the RTKLIB `.tag` file (needed for
-    /// `rtklib_tagged`: without it, an error naming the file), `units` the
-    /// units of a generic CSV whose columns are named `gx … az`
-    /// ([`crate::kfgins::read_generic_imu_with`]); each is ignored by the
-    /// formats that take none.
-    pub fn read(
-        self,
-        path: &Path,
-        tags: Option<&Path>,
-        units: Option<ImuUnits>,
-    ) -> Read<ImuSample> {
+    /// written). `options.tags` is the RTKLIB `.tag` file (needed for
+    /// `rtklib_tagged`: without it, an error naming the file),
+    /// `options.units` the units of a generic CSV whose columns are named
+    /// `gx … az` ([`crate::kfgins::read_generic_imu_with`]); each is
+    /// ignored by the formats that take none. `options.unit_checks` says
+    /// what the plausibility checks of the units do when they fail.
+    pub fn read(self, path: &Path, options: &ImuReadOptions<'_>) -> Read<ImuSample> {
+        let checks = options.unit_checks;
         match self {
-            Self::RtklibTagged => match tags {
-                Some(tags) => crate::rtklib::read_tagged_imu(path, tags),
+            Self::RtklibTagged => match options.tags {
+                Some(tags) => crate::rtklib::read_tagged_imu_checked_from(
+                    &crate::text::read_bytes(path)?,
+                    path,
+                    &crate::text::read_bytes(tags)?,
+                    tags,
+                    checks,
+                ),
                 None => Err(data_error(
                     path,
                     0,
@@ -90,10 +94,18 @@ impl ImuFormat {
                     "a raw IMU CSV needs its RTKLIB time-tag file (.tag) to be read",
                 )),
             },
-            Self::KfGins => crate::kfgins::read_kfgins_imu(path),
-            Self::GenericCsv => {
-                crate::kfgins::read_generic_imu_with(path, GenericImuOptions { units })
-            }
+            Self::KfGins => crate::kfgins::read_kfgins_imu_checked_from(
+                &crate::text::read_bytes(path)?,
+                path,
+                checks,
+            ),
+            Self::GenericCsv => crate::kfgins::read_generic_imu_with(
+                path,
+                GenericImuOptions {
+                    units: options.units,
+                    unit_checks: checks,
+                },
+            ),
         }
     }
 
@@ -113,6 +125,17 @@ impl ImuFormat {
             Self::GenericCsv => w::write_generic_imu(path, samples),
         }
     }
+}
+
+/// What [`ImuFormat::read`] needs beyond the file.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ImuReadOptions<'a> {
+    /// The RTKLIB `.tag` file of a raw IMU CSV.
+    pub tags: Option<&'a Path>,
+    /// The units of a generic CSV's `gx … az` columns.
+    pub units: Option<ImuUnits>,
+    /// What the plausibility checks of the units do when they fail.
+    pub unit_checks: CheckLevel,
 }
 
 /// Format of the GNSS file.
@@ -289,7 +312,7 @@ mod tests {
     #[test]
     fn a_tagged_imu_without_tags_is_an_error_naming_the_file() {
         let e = ImuFormat::RtklibTagged
-            .read(Path::new("imu.csv"), None, None)
+            .read(Path::new("imu.csv"), &Default::default())
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("imu.csv:0: column `(file)`: "), "{e}");

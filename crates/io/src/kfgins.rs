@@ -39,6 +39,7 @@ use std::path::Path;
 use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;
 
+use crate::checks::CheckLevel;
 use crate::error::Result;
 use crate::rtklib::{
     GnssFix, ImuSample, check_force, check_median_force, check_position, check_rate, data_error,
@@ -196,7 +197,17 @@ pub fn read_kfgins_imu(path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
 /// [`read_kfgins_imu`] on the file's bytes; `path` names the origin in
 /// messages.
 pub fn read_kfgins_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample>, Vec<String>)> {
-    let (rows, warnings) = rows(bytes, path, &[&KF_IMU])?;
+    read_kfgins_imu_checked_from(bytes, path, CheckLevel::Error)
+}
+
+/// [`read_kfgins_imu_from`] with the plausibility check of the units (the
+/// median specific force about 1 g) acting as `unit_checks` says.
+pub fn read_kfgins_imu_checked_from(
+    bytes: &[u8],
+    path: &Path,
+    unit_checks: CheckLevel,
+) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    let (rows, mut warnings) = rows(bytes, path, &[&KF_IMU])?;
     let mut out = Vec::with_capacity(rows.len());
     for w in rows.windows(2) {
         let (line, v) = (w[1].0, &w[1].1);
@@ -218,7 +229,10 @@ pub fn read_kfgins_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample>
         });
     }
     if let Some(&(line, _)) = rows.get(1) {
-        check_median_force(path, line, "dvx", out.iter().map(|s| s.specific_force))?;
+        unit_checks.apply(
+            check_median_force(path, line, "dvx", out.iter().map(|s| s.specific_force)),
+            &mut warnings,
+        )?;
     }
     Ok((out, warnings))
 }
@@ -520,6 +534,9 @@ pub struct GenericImuOptions {
     /// Units of `gx … az` columns; None: the columns carry their units in
     /// their names (`gx_rad_s … az_m_s2`).
     pub units: Option<ImuUnits>,
+    /// What the plausibility checks of the units (median |f| about 1 g, the
+    /// gyro at rest below [`MAX_RATE_AT_REST_RAD_S`]) do when they fail.
+    pub unit_checks: CheckLevel,
 }
 
 /// Largest gyro magnitude accepted while the sensor is at rest \[rad/s\]
@@ -618,7 +635,7 @@ pub fn read_generic_imu_with_from(
             (i + 1, picked.join(","))
         })
         .collect();
-    let (rows, warnings) = parse_rows(path, lines, &[&wanted])?;
+    let (rows, mut warnings) = parse_rows(path, lines, &[&wanted])?;
     let units = options.units.unwrap_or(ImuUnits {
         gyro: GyroUnit::RadPerS,
         accel: AccelUnit::MPerS2,
@@ -660,8 +677,15 @@ pub fn read_generic_imu_with_from(
         out.push(sample);
     }
     if let Some(&(line, _)) = rows.first() {
-        check_median_force_declared(path, line, accel_col, &out, units)?;
-        check_rate_at_rest(path, &rows, gyro_col, &out, units)?;
+        let checks = options.unit_checks;
+        checks.apply(
+            check_median_force_declared(path, line, accel_col, &out, units),
+            &mut warnings,
+        )?;
+        checks.apply(
+            check_rate_at_rest(path, &rows, gyro_col, &out, units),
+            &mut warnings,
+        )?;
     }
     Ok((out, warnings))
 }
@@ -984,6 +1008,29 @@ mod tests {
         );
     }
 
+    /// `[checks] units = "warn"`: the same findings become warnings and
+    /// the samples are read; `off`: not a word.
+    #[test]
+    fn the_unit_checks_can_warn_or_be_off() {
+        let kf = b"100.000 0 0 0 0 0 0\n100.005 0 0 0 0 0 -0.005\n100.010 0 0 0 0 0 -0.005\n";
+        let (imu, w) =
+            read_kfgins_imu_checked_from(kf, Path::new("imu.txt"), CheckLevel::Warn).unwrap();
+        assert_eq!(imu.len(), 2);
+        assert!(w.iter().any(|w| w.contains("median |f|")), "{w:?}");
+        let (_, w) =
+            read_kfgins_imu_checked_from(kf, Path::new("imu.txt"), CheckLevel::Off).unwrap();
+        assert!(!w.iter().any(|w| w.contains("median |f|")), "{w:?}");
+        let text = format!("{HEADER}\n1.0,0,0,0,0,0,-1\n1.01,0,0,0,0,0,-1\n");
+        let options = GenericImuOptions {
+            units: None,
+            unit_checks: CheckLevel::Warn,
+        };
+        let (imu, w) =
+            read_generic_imu_with_from(text.as_bytes(), Path::new("g.csv"), options).unwrap();
+        assert_eq!(imu.len(), 2);
+        assert!(w.iter().any(|w| w.contains("median |f| = 1 m/s²")), "{w:?}");
+    }
+
     #[test]
     fn impossible_rates_and_forces_name_their_line() {
         for (rows, message) in [
@@ -1113,7 +1160,10 @@ mod tests {
         read_generic_imu_with_from(
             text.as_bytes(),
             Path::new("g.csv"),
-            GenericImuOptions { units },
+            GenericImuOptions {
+                units,
+                ..Default::default()
+            },
         )
     }
 

@@ -26,6 +26,7 @@
 //! Every reader has an in-memory entry point (`…_from(bytes, origin)`) beside
 //! the `&Path` one, which is a thin wrapper reading the file.
 
+pub mod checks;
 pub mod config;
 pub mod error;
 pub mod formats;

@@ -17,6 +17,7 @@ use std::path::Path;
 use aidnav_frames::earth::Geodetic;
 use nalgebra::Vector3;
 
+use crate::checks::CheckLevel;
 use crate::error::{IoError, Result};
 
 pub use aidnav_sensors::{GnssFix, ImuSample};
@@ -781,6 +782,18 @@ pub fn read_tagged_imu_from(
     tag: &[u8],
     tag_path: &Path,
 ) -> Result<(Vec<ImuSample>, Vec<String>)> {
+    read_tagged_imu_checked_from(csv, csv_path, tag, tag_path, CheckLevel::Error)
+}
+
+/// [`read_tagged_imu_from`] with the plausibility check of the units (the
+/// median specific force about 1 g) acting as `unit_checks` says.
+pub fn read_tagged_imu_checked_from(
+    csv: &[u8],
+    csv_path: &Path,
+    tag: &[u8],
+    tag_path: &Path,
+    unit_checks: CheckLevel,
+) -> Result<(Vec<ImuSample>, Vec<String>)> {
     use crate::text::num;
     let tags = read_time_tags_from(tag, tag_path)?;
     let last_tag_ms = tags
@@ -888,7 +901,7 @@ pub fn read_tagged_imu_from(
     let middle = norms.len() / 2;
     let median = *norms.select_nth_unstable_by(middle, f64::total_cmp).1;
     if !(0.5..=2.0).contains(&median) {
-        return Err(data_error(
+        let implausible = data_error(
             csv_path,
             body_start + 1,
             "ax [g]",
@@ -900,7 +913,8 @@ pub fn read_tagged_imu_from(
                     ""
                 }
             ),
-        ));
+        );
+        unit_checks.apply(Err(implausible), &mut warnings)?;
     }
     // The samples hold their ticks as times until here.
     let first_tick = samples[0].time_s;

@@ -96,7 +96,9 @@ fn generic_imu_is_exact() {
         ImuFormat::GenericCsv.write(&path, &s).unwrap(),
         vec![path.clone()]
     );
-    let (back, _) = ImuFormat::GenericCsv.read(&path, None, None).unwrap();
+    let (back, _) = ImuFormat::GenericCsv
+        .read(&path, &Default::default())
+        .unwrap();
     assert_eq!(back, s);
 }
 
@@ -111,7 +113,13 @@ fn tagged_imu_round_trips_with_its_tag_file() {
         vec![path.clone(), dir.path().join("logs/imu.csv.tag")]
     );
     let (back, warnings) = ImuFormat::RtklibTagged
-        .read(&path, Some(&written[1]), None)
+        .read(
+            &path,
+            &aidnav_io::formats::ImuReadOptions {
+                tags: Some(&written[1]),
+                ..Default::default()
+            },
+        )
         .unwrap();
     // Only the reader's note about the dropped first and last lines.
     assert_eq!(warnings.len(), 1, "{warnings:?}");
@@ -138,7 +146,7 @@ fn kfgins_imu_round_trips() {
     let path = dir.path().join("imu.txt");
     let s = imu(300);
     ImuFormat::KfGins.write(&path, &s).unwrap();
-    let (back, _) = ImuFormat::KfGins.read(&path, None, None).unwrap();
+    let (back, _) = ImuFormat::KfGins.read(&path, &Default::default()).unwrap();
     assert_eq!(back.len(), s.len());
     for (a, b) in s.iter().zip(&back) {
         assert!(

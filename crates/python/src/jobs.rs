@@ -198,13 +198,8 @@ fn process_log(
                 Some(s) => (s, PathBuf::from("imu (in memory)")),
                 None => {
                     let path = dir.join(&cfg.data.imu);
-                    let (s, w) = aidnav::app::process::read_imu(
-                        cfg.data.imu_format,
-                        &path,
-                        cfg.data.imu_tags.as_ref().map(|t| dir.join(t)).as_deref(),
-                        cfg.data.imu_units,
-                    )
-                    .map_err(PyErrState::process)?;
+                    let (s, w) = aidnav::app::process::read_configured_imu(&cfg, &dir)
+                        .map_err(PyErrState::process)?;
                     warnings.extend(w);
                     (s, path)
                 }

@@ -314,7 +314,14 @@ fn read_imu<'py>(
     let f: ImuFormat = self::format(format, "format")?;
     let units = units_of(units)?;
     let (imu, warnings) = py
-        .detach(|| aidnav::app::process::read_imu(f, &path, tags.as_deref(), units))
+        .detach(|| {
+            let options = aidnav::io::formats::ImuReadOptions {
+                tags: tags.as_deref(),
+                units,
+                ..Default::default()
+            };
+            aidnav::app::process::read_imu(f, &path, &options)
+        })
         .map_err(errors::process)?;
     Ok((imu_columns(py, &imu)?, warnings))
 }

@@ -13,6 +13,7 @@ use aidnav_integration::aiding::{
 };
 use aidnav_integration::ned::RecoveryConfig;
 use aidnav_integration::state::{Augmented, BlockDynamics, StateLayout};
+pub use aidnav_io::checks::CheckLevel;
 use aidnav_sensors::{BaroSample, WheelSpeedSample};
 use aidnav_supervisors::outage::{BridgeConfig, RelaySchedule};
 use serde::{Deserialize, Deserializer, Serialize};
@@ -462,6 +463,21 @@ impl GnssConfig {
             GnssLatency::Estimate => 0.0,
         }
     }
+}
+
+/// What each plausibility check does when a log fails it: `error`
+/// (refuse the log, the default), `warn` (a warning, and go on) or `off`.
+/// Limits no sensor can exceed are not plausibility checks and always
+/// refuse.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ChecksConfig {
+    /// The readers' checks of the IMU units: the median specific force
+    /// about 1 g, a gyro at rest reading below 0.1 rad/s.
+    pub units: CheckLevel,
+    /// The gyro's yaw against the GNSS course while moving
+    /// ([`super::check_turn_rate`]): a degree/radian mix-up.
+    pub turn_rate: CheckLevel,
 }
 
 /// Vehicle constraints.
@@ -1238,6 +1254,9 @@ pub struct ProcessConfig {
     /// Outputs.
     #[serde(default)]
     pub output: OutputConfig,
+    /// What the plausibility checks do when a log fails them.
+    #[serde(default)]
+    pub checks: ChecksConfig,
     /// A wheel-speed (odometer) stream (absent: none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wheel_speed: Option<WheelSpeedSection>,

@@ -39,16 +39,18 @@ pub mod selection;
 mod start;
 pub mod template;
 pub mod tune;
+pub mod turn_rate;
 mod validate;
 pub mod warnings;
 
 pub use api::{Process, ProcessResult, Smoothed, Smoothing, StartSummary};
 pub use config::{
-    AdaptiveNoise, BRIDGE_PREDICTORS, BaroFormat, BarometerSection, ConstraintConfig, DataFiles,
-    EfficiencyConfig, Feedback, FilterConfig, FixQuality, GnssConfig, GnssFormat, GnssLatency,
-    ImuConfig, ImuFormat, InitialConfig, NoiseConfig, OutageBridgeConfig, OutputConfig, Platform,
-    PlatformPreset, PolicyName, ProcessConfig, QualitySigmaScale, ScoreConfig, StandstillConfig,
-    TuneConfig, TuneObjective, WheelSpeedFormat, WheelSpeedSection, config_name,
+    AdaptiveNoise, BRIDGE_PREDICTORS, BaroFormat, BarometerSection, CheckLevel, ChecksConfig,
+    ConstraintConfig, DataFiles, EfficiencyConfig, Feedback, FilterConfig, FixQuality, GnssConfig,
+    GnssFormat, GnssLatency, ImuConfig, ImuFormat, InitialConfig, NoiseConfig, OutageBridgeConfig,
+    OutputConfig, Platform, PlatformPreset, PolicyName, ProcessConfig, QualitySigmaScale,
+    ScoreConfig, StandstillConfig, TuneConfig, TuneObjective, WheelSpeedFormat, WheelSpeedSection,
+    config_name,
 };
 pub use consistency::{
     Consistency, ELLIPSOID_PROBABILITY, NisConsistency, OutageConsistency, POSITION_DOF, chi2_3_99,
@@ -67,6 +69,7 @@ pub use scoring::{BridgedScores, DriftSeries, Scores, score_log};
 pub use selection::{SelectedEpoch, SelectionSummary, select_sources, selection_summary};
 pub use start::{Start, StartKind, initialise};
 pub use template::{config_template, doc_of};
+pub use turn_rate::{TurnRateFit, check_turn_rate, turn_rate_fit};
 pub use warnings::{
     DIVERGENCE_NIS_PER_DOF, DIVERGENCE_WINDOW_S, REJECTION_RUN_S, VEHICLE_FRAME_MIN_UPDATES,
     VEHICLE_FRAME_NORMALISED_MEAN, VEHICLE_FRAME_REJECTED_FRACTION, Warning, WarningKind,
@@ -78,11 +81,9 @@ pub use aidnav_ins::mounting::euler_to_ctm;
 use std::path::Path;
 
 use aidnav_estimation::EstimationError;
-use aidnav_ins::alignment::course;
 use aidnav_ins::samples::moving_average_in_place;
 use aidnav_io::rtklib::{GnssFix, ImuSample};
 use aidnav_sensors::{BaroSample, WheelSpeedSample};
-use nalgebra::Vector3;
 
 /// Anything processing can fail with.
 #[derive(Debug, thiserror::Error)]
@@ -202,18 +203,12 @@ fn load_unsmoothed(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessEr
 /// configuration's formats and units, exactly as `aidnav process` reads them.
 fn load_raw(cfg: &ProcessConfig, base: &Path) -> Result<Inputs, ProcessError> {
     let dir = data_dir(cfg, base);
-    let imu_path = dir.join(&cfg.data.imu);
     let gnss_path = dir.join(&cfg.data.gnss);
     // The GNSS file is read on a second thread while this one reads the
     // IMU's (the larger); an IMU error comes first, as when read in turn.
     let (imu, gnss) = std::thread::scope(|s| {
         let gnss = s.spawn(|| read_gnss(cfg.data.gnss_format, &gnss_path, cfg.data.gnss_sigma_m));
-        let imu = read_imu(
-            cfg.data.imu_format,
-            &imu_path,
-            cfg.data.imu_tags.as_ref().map(|t| dir.join(t)).as_deref(),
-            cfg.data.imu_units,
-        );
+        let imu = read_configured_imu(cfg, &dir);
         let gnss = gnss
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
@@ -260,15 +255,32 @@ pub fn data_dir(cfg: &ProcessConfig, base: &Path) -> std::path::PathBuf {
 pub fn read_imu(
     format: ImuFormat,
     path: &Path,
-    tags: Option<&Path>,
-    units: Option<aidnav_io::kfgins::ImuUnits>,
+    options: &aidnav_io::formats::ImuReadOptions<'_>,
 ) -> Result<(Vec<ImuSample>, Vec<String>), ProcessError> {
-    if format == ImuFormat::RtklibTagged && tags.is_none() {
+    if format == ImuFormat::RtklibTagged && options.tags.is_none() {
         return Err(ProcessError::Data(
             "data.imu_tags is needed for imu_format = rtklib_tagged".into(),
         ));
     }
-    Ok(format.read(path, tags, units)?)
+    Ok(format.read(path, options)?)
+}
+
+/// Read the configuration's IMU file (`data.imu` in the data directory
+/// `dir`) with its format, time tags, units and `[checks] units`.
+pub fn read_configured_imu(
+    cfg: &ProcessConfig,
+    dir: &Path,
+) -> Result<(Vec<ImuSample>, Vec<String>), ProcessError> {
+    let tags = cfg.data.imu_tags.as_ref().map(|t| dir.join(t));
+    read_imu(
+        cfg.data.imu_format,
+        &dir.join(&cfg.data.imu),
+        &aidnav_io::formats::ImuReadOptions {
+            tags: tags.as_deref(),
+            units: cfg.data.imu_units,
+            unit_checks: cfg.checks.units,
+        },
+    )
 }
 
 /// Read a GNSS file of `format`: the fixes and the reader's warnings.
@@ -302,7 +314,16 @@ impl Inputs {
         // its tag.
         retime_fixes(&mut gnss, cfg.gnss.known_latency_s());
         warnings.extend(check_overlap(&imu, &gnss, imu_path, gnss_path)?);
-        check_turn_rate(&imu, &gnss, imu_path, gnss_path)?;
+        if cfg.checks.turn_rate != CheckLevel::Off {
+            let declared = cfg.data.imu_units.map(|u| u.gyro);
+            let outcome = check_turn_rate(&imu, &gnss, imu_path, gnss_path, declared);
+            if let Err(e) = outcome {
+                match cfg.checks.turn_rate {
+                    CheckLevel::Warn => warnings.push(e.to_string()),
+                    _ => return Err(e),
+                }
+            }
+        }
         Ok(Inputs {
             warnings,
             ..Inputs::new(imu, gnss)
@@ -440,103 +461,11 @@ pub fn check_overlap(
     }))
 }
 
-/// Evidence a turn-rate check needs before it may refuse a log: GNSS
-/// intervals while moving, and how much the course turned over them.
-const TURN_CHECK_MIN_INTERVALS: usize = 20;
-/// Total course change over the intervals used \[rad\] (90°).
-const TURN_CHECK_MIN_TURN_RAD: f64 = std::f64::consts::FRAC_PI_2;
-/// Speed above which the GNSS course is used \[m/s\] (below it the course
-/// of a receiver's velocity is noise).
-const TURN_CHECK_MIN_SPEED_MPS: f64 = 1.0;
-/// Accepted ratio of the gyro's yaw change to the GNSS course change: a
-/// unit mistake makes it 57.3 (degrees read as radians) or 1/57.3; a
-/// handheld or a misaligned sensor, lever arms and GNSS noise stay well
-/// within 5×.
-const TURN_RATIO_RANGE: std::ops::RangeInclusive<f64> = 0.2..=5.0;
-
-/// The gyro's turn rate against the GNSS course rate (body-frame IMU, after
-/// mounting): over consecutive fixes above 1 m/s, the yaw change the gyro
-/// integrates about the mean specific-force axis (vertical when the
-/// vehicle does not accelerate much) against the change of the GNSS
-/// course; the least-squares ratio must lie in 0.2 … 5 (`TURN_RATIO_RANGE`). An
-/// error gives the evidence (intervals, total turns, ratio) and the likely
-/// unit mistake; a log with too little turning is not judged. Returns the
-/// ratio when it was judged.
-pub fn check_turn_rate(
-    imu: &[ImuSample],
-    gnss: &[GnssFix],
-    imu_path: &Path,
-    gnss_path: &Path,
-) -> Result<Option<f64>, ProcessError> {
-    let (mut sxy, mut sxx, mut turned, mut gyro_turned, mut n) = (0.0, 0.0, 0.0, 0.0, 0usize);
-    for pair in gnss.windows(2) {
-        let [a, b] = pair else { continue };
-        let (Some(va), Some(vb)) = (a.velocity_ned, b.velocity_ned) else {
-            continue;
-        };
-        let dt = b.time_s - a.time_s;
-        if va.xy().norm() < TURN_CHECK_MIN_SPEED_MPS
-            || vb.xy().norm() < TURN_CHECK_MIN_SPEED_MPS
-            || !(dt > 0.0 && dt <= 1.5)
-        {
-            continue;
-        }
-        let lo = imu.partition_point(|s| s.time_s < a.time_s);
-        let hi = imu.partition_point(|s| s.time_s < b.time_s);
-        let Some(samples) = imu.get(lo..(hi + 1).min(imu.len())) else {
-            continue;
-        };
-        if samples.len() < 3 {
-            continue;
-        }
-        let up = samples
-            .iter()
-            .map(|s| s.specific_force)
-            .sum::<Vector3<f64>>();
-        let Some(down) = (-up).try_normalize(1e-9) else {
-            continue;
-        };
-        let yaw: f64 = samples
-            .windows(2)
-            .map(|w| w[0].angular_rate.dot(&down) * (w[1].time_s - w[0].time_s))
-            .sum();
-        let course = (course(&vb) - course(&va) + std::f64::consts::PI)
-            .rem_euclid(std::f64::consts::TAU)
-            - std::f64::consts::PI;
-        sxy += yaw * course;
-        sxx += course * course;
-        turned += course.abs();
-        gyro_turned += yaw.abs();
-        n += 1;
-    }
-    if n < TURN_CHECK_MIN_INTERVALS || turned < TURN_CHECK_MIN_TURN_RAD || sxx <= 0.0 {
-        return Ok(None);
-    }
-    let ratio = sxy / sxx;
-    if TURN_RATIO_RANGE.contains(&ratio.abs()) {
-        return Ok(Some(ratio));
-    }
-    let hint = if ratio.abs() > 20.0 {
-        "degrees per second read as radians? (a generic CSV: imu_units.gyro = \"deg_s\")"
-    } else if ratio.abs() < 0.05 {
-        "radians per second read as degrees? (a generic CSV: imu_units.gyro = \"rad_s\")"
-    } else {
-        "a scaled gyro, or the wrong IMU file for this GNSS log?"
-    };
-    Err(ProcessError::Data(format!(
-        "{}: the gyro turns {:.3}× the GNSS course of {}: over {n} GNSS intervals above {TURN_CHECK_MIN_SPEED_MPS} m/s the course turned {:.0}° in all and the gyro's yaw {:.0}° — {hint}",
-        imu_path.display(),
-        ratio,
-        gnss_path.display(),
-        turned.to_degrees(),
-        gyro_turned.to_degrees()
-    )))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use aidnav_frames::earth::Geodetic;
+    use nalgebra::Vector3;
 
     fn imu_at(times: impl Iterator<Item = f64>) -> Vec<ImuSample> {
         times
@@ -607,53 +536,6 @@ mod tests {
                 .unwrap()
                 .is_none()
         );
-    }
-
-    /// A vehicle driving a circle at 5 m/s, 10 s per turn, with the
-    /// body's yaw rate `yaw_rate` written into the IMU.
-    fn circle(yaw_scale: f64) -> (Vec<ImuSample>, Vec<GnssFix>) {
-        let rate = std::f64::consts::TAU / 10.0;
-        let imu = (0..3000)
-            .map(|k| ImuSample {
-                time_s: T0 + k as f64 * 0.01,
-                specific_force: Vector3::new(0.0, 0.0, -9.8),
-                angular_rate: Vector3::new(0.0, 0.0, rate * yaw_scale),
-            })
-            .collect();
-        let gnss = gnss_at((0..120).map(|k| T0 + k as f64 * 0.25))
-            .into_iter()
-            .map(|mut g| {
-                let c = rate * (g.time_s - T0);
-                g.velocity_ned = Some(Vector3::new(5.0 * c.cos(), 5.0 * c.sin(), 0.0));
-                g
-            })
-            .collect();
-        (imu, gnss)
-    }
-
-    #[test]
-    fn a_gyro_in_the_wrong_unit_is_caught_by_the_gnss_course() {
-        let (i, g) = (Path::new("imu.csv"), Path::new("g.pos"));
-        let (imu, gnss) = circle(1.0);
-        let ratio = check_turn_rate(&imu, &gnss, i, g).unwrap().unwrap();
-        assert!((ratio - 1.0).abs() < 0.01, "{ratio}");
-        let (imu, gnss) = circle(180.0 / std::f64::consts::PI);
-        let e = check_turn_rate(&imu, &gnss, i, g).unwrap_err().to_string();
-        assert!(
-            e.starts_with("imu.csv: the gyro turns 57.29")
-                && e.contains("over 119 GNSS intervals above 1 m/s the course turned 1071° in all")
-                && e.contains("degrees per second read as radians"),
-            "{e}"
-        );
-        let (imu, gnss) = circle(std::f64::consts::PI / 180.0);
-        let e = check_turn_rate(&imu, &gnss, i, g).unwrap_err().to_string();
-        assert!(e.contains("radians per second read as degrees"), "{e}");
-        // Standing still: nothing to judge.
-        let mut still = gnss.clone();
-        for f in &mut still {
-            f.velocity_ned = Some(Vector3::new(0.1, 0.0, 0.0));
-        }
-        assert_eq!(check_turn_rate(&imu, &still, i, g).unwrap(), None);
     }
 
     #[test]

@@ -377,6 +377,14 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
         "wheel_speed.file",
         "wheel-speed (odometer) file (generic CSV: time_s | gpst_s | gps_week + tow_s | utc, speed_mps | speed_kmh, optional sigma_mps; see --help)",
     ),
+    (
+        "checks.units",
+        "the readers' IMU unit checks (median |f| ≈ 1 g, gyro at rest < 0.1 rad/s): error | warn | off",
+    ),
+    (
+        "checks.turn_rate",
+        "the gyro's yaw against the GNSS course while moving (a deg/rad mix-up): error | warn | off",
+    ),
     ("wheel_speed.format", "generic_csv"),
     ("wheel_speed.time_offset_s", "added to the file's time [s]"),
     (
@@ -519,6 +527,7 @@ pub fn config_template(platform: Platform) -> String {
         score: Default::default(),
         tune: Default::default(),
         output: Default::default(),
+        checks: Default::default(),
         wheel_speed: None,
         barometer: None,
     }
