@@ -27,7 +27,9 @@
 //!
 //! Errors name the file, line and column: non-numbers, non-finite values,
 //! σ ≤ 0, time that does not increase, a KF-GINS row with another number of
-//! columns than 7 (IMU) or 7 / 13 (GNSS), values outside the physical bounds
+//! columns than 7 (IMU) or 7 / 13 (GNSS), a 13-column file readable in both
+//! orders (columns 4–9 all positive) whose positions do not confirm
+//! KF-GINS's, values outside the physical bounds
 //! of [`crate::limits`] (a rate that cannot be in rad/s, a latitude beyond
 //! the poles, a height below the lowest land or above 100 km), and a median
 //! specific force far from 1 g (an accelerometer in g); a truncated last
@@ -274,6 +276,7 @@ pub fn read_kfgins_gnss(path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
 /// takes the position σ from columns 7–9).
 pub fn read_kfgins_gnss_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>, Vec<String>)> {
     let (rows, warnings) = rows(bytes, path, &[&KF_GNSS, &KF_GNSS_VELOCITY])?;
+    check_column_order(path, &rows)?;
     let fixes = rows
         .iter()
         .map(|(line, v)| {
@@ -313,6 +316,92 @@ pub fn read_kfgins_gnss_from(bytes: &[u8], path: &Path) -> Result<(Vec<GnssFix>,
         })
         .collect::<Result<Vec<_>>>()?;
     Ok((fixes, warnings))
+}
+
+/// Which 13-column layout the rows' motion supports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum OrderEvidence {
+    /// Columns 4–6 are the velocity (KF-GINS's layout).
+    VelocityFirst,
+    /// Columns 7–9 are the velocity (the position σ first).
+    SigmaFirst,
+    /// The positions cannot tell.
+    Undecided,
+}
+
+/// A 13-column file in the other order (`time lat lon h σN σE σD vN vE vD
+/// σvN σvE σvD`, as some converters write it) reads without an error
+/// whenever every velocity is positive: its σ become the velocity and its
+/// velocity the σ. When columns 4–9 are all positive (both layouts
+/// plausible) the positions decide — the velocity must match their
+/// differences — and a file whose positions say "σ first", or cannot
+/// tell, is an error asking for KF-GINS's order, not a guess.
+fn check_column_order(path: &Path, rows: &[(usize, Vec<f64>)]) -> Result<()> {
+    let thirteen: Vec<&(usize, Vec<f64>)> = rows
+        .iter()
+        .filter(|(_, v)| v.len() == KF_GNSS_VELOCITY.len())
+        .collect();
+    let both_plausible = !thirteen.is_empty()
+        && thirteen
+            .iter()
+            .all(|(_, v)| v[4..10].iter().all(|x| *x > 0.0));
+    if !both_plausible {
+        return Ok(());
+    }
+    let evidence = order_evidence(&thirteen);
+    if evidence == OrderEvidence::VelocityFirst {
+        return Ok(());
+    }
+    let line = thirteen[0].0;
+    let why = match evidence {
+        OrderEvidence::SigmaFirst => {
+            "the position differences match columns 7–9 as the velocity: the file looks like `time lat lon h σN σE σD vN vE vD σvN σvE σvD`"
+        }
+        _ => "the position differences cannot tell which columns are the velocity",
+    };
+    Err(data_error(
+        path,
+        line,
+        "vN",
+        format!(
+            "every value of columns 4–9 is positive, so the 13 columns read in either order: {why}. Write KF-GINS's order, `time lat lon h vN vE vD σN σE σD σvN σvE σvD`, or a generic CSV with named columns (gnss_format = \"generic_csv\")"
+        ),
+    ))
+}
+
+/// Compare the two candidate velocities of consecutive 13-column rows (at
+/// most 2 s apart) with the velocity of their position difference: the
+/// layout whose RMS mismatch is below half the other's wins.
+fn order_evidence(rows: &[&(usize, Vec<f64>)]) -> OrderEvidence {
+    let position = |v: &[f64]| Geodetic {
+        latitude_rad: v[1].to_radians(),
+        longitude_rad: v[2].to_radians(),
+        height_m: v[3],
+    };
+    let (mut first, mut second, mut n) = (0.0, 0.0, 0usize);
+    for pair in rows.windows(2) {
+        let (a, b) = (&pair[0].1, &pair[1].1);
+        let dt = b[0] - a[0];
+        if !(dt > 0.0 && dt <= 2.0) {
+            continue;
+        }
+        let d = position(a).ned_to(&position(b));
+        let moved = Vector3::new(d.x(), d.y(), d.z()) / dt;
+        let mean =
+            |k: usize| Vector3::new(a[k] + b[k], a[k + 1] + b[k + 1], a[k + 2] + b[k + 2]) / 2.0;
+        first += (mean(4) - moved).norm_squared();
+        second += (mean(7) - moved).norm_squared();
+        n += 1;
+    }
+    if n < 3 {
+        OrderEvidence::Undecided
+    } else if first < 0.25 * second {
+        OrderEvidence::VelocityFirst
+    } else if second < 0.25 * first {
+        OrderEvidence::SigmaFirst
+    } else {
+        OrderEvidence::Undecided
+    }
 }
 
 /// The GPS week holding `time_s` (GPST seconds since 1970, aidnav's time
@@ -577,7 +666,7 @@ pub fn read_generic_imu_from(bytes: &[u8], path: &Path) -> Result<(Vec<ImuSample
 /// let (imu, _) = aidnav_io::kfgins::read_generic_imu_with_from(
 ///     csv.as_bytes(),
 ///     "imu.csv".as_ref(),
-///     GenericImuOptions { units: Some(units) },
+///     GenericImuOptions { units: Some(units), ..Default::default() },
 /// )
 /// .unwrap();
 /// assert!((imu[0].angular_rate.z - 0.1).abs() < 1e-3); // 5.73 °/s
@@ -1087,6 +1176,55 @@ mod tests {
 ",
         );
         assert!(e.contains("column `σN`"), "{e}");
+    }
+
+    /// Ten fixes of a vehicle driving north-east and downhill (every
+    /// velocity component positive), in KF-GINS's order or with the σ
+    /// first.
+    fn all_positive_drive(sigma_first: bool) -> String {
+        let origin = Geodetic {
+            latitude_rad: 30.5f64.to_radians(),
+            longitude_rad: 114.3f64.to_radians(),
+            height_m: 20.0,
+        };
+        let v = aidnav_frames::Vec3::new(3.0, 4.0, 0.5);
+        (0..10)
+            .map(|k| {
+                let p = origin.offset_by(&(v * k as f64));
+                let (lat, lon, h) = (
+                    p.latitude_rad.to_degrees(),
+                    p.longitude_rad.to_degrees(),
+                    p.height_m,
+                );
+                let (velocity, sigma) = ("3 4 0.5", "0.02 0.02 0.05");
+                let (first, second) = if sigma_first {
+                    (sigma, velocity)
+                } else {
+                    (velocity, sigma)
+                };
+                format!(
+                    "{}.0 {lat:.9} {lon:.9} {h:.3} {first} {second} 0.1 0.1 0.1\n",
+                    100 + k
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn kfgins_gnss_columns_readable_in_both_orders_are_decided_by_the_positions() {
+        let (f, _) = kf_gnss(&all_positive_drive(false)).unwrap();
+        assert_eq!(f[3].velocity_ned, Some(Vector3::new(3.0, 4.0, 0.5)));
+        let e = kf_gnss_err(&all_positive_drive(true));
+        assert!(
+            e.starts_with("gnss.txt:1: column `vN`: every value of columns 4–9 is positive")
+                && e.contains("looks like `time lat lon h σN σE σD vN vE vD")
+                && e.contains("generic_csv"),
+            "{e}"
+        );
+        // One row: nothing to decide by.
+        let drive = all_positive_drive(false);
+        let e = kf_gnss_err(drive.lines().next().unwrap());
+        assert!(e.contains("cannot tell"), "{e}");
     }
 
     #[test]
