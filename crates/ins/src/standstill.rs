@@ -8,6 +8,43 @@ use nalgebra::Vector3;
 
 use crate::samples::ImuSample;
 
+/// √χ²₂(0.999): the horizontal speed a receiver at rest reports stays below
+/// this many σ (per horizontal axis) in 999 of 1000 fixes.
+pub const STILL_HORIZONTAL_SIGMAS: f64 = 3.716_922;
+/// √χ²₁(0.999): the same for the vertical speed.
+pub const STILL_VERTICAL_SIGMAS: f64 = 3.290_527;
+
+/// Whether a GNSS velocity says "at rest": its horizontal speed at most
+/// `max_speed_mps` or, when larger, [`STILL_HORIZONTAL_SIGMAS`] × the
+/// velocity's horizontal σ (the RMS of north and east), and its vertical
+/// speed at most `max_speed_mps` or [`STILL_VERTICAL_SIGMAS`] × its up σ.
+/// Without a σ the bound is `max_speed_mps`. A fixed threshold alone misses
+/// a standstill when the velocity's noise approaches it (at σ 0.1 m/s a
+/// receiver at rest reports more than 0.2 m/s in one fix of seven).
+///
+/// ```
+/// use aidnav_ins::standstill::gnss_says_still;
+/// use nalgebra::Vector3;
+/// let v = Vector3::new(0.25, 0.1, 0.05);
+/// assert!(!gnss_says_still(&v, None, 0.2));
+/// assert!(gnss_says_still(&v, Some(&Vector3::new(0.1, 0.1, 0.2)), 0.2));
+/// assert!(!gnss_says_still(&Vector3::new(1.0, 0.0, 0.0), Some(&Vector3::repeat(0.1)), 0.2));
+/// ```
+pub fn gnss_says_still(
+    velocity_ned: &Vector3<f64>,
+    sigma_neu: Option<&Vector3<f64>>,
+    max_speed_mps: f64,
+) -> bool {
+    let (horizontal, vertical) = match sigma_neu {
+        Some(s) => (
+            (STILL_HORIZONTAL_SIGMAS * (0.5 * (s.x * s.x + s.y * s.y)).sqrt()).max(max_speed_mps),
+            (STILL_VERTICAL_SIGMAS * s.z).max(max_speed_mps),
+        ),
+        None => (max_speed_mps, max_speed_mps),
+    };
+    velocity_ned.xy().norm() <= horizontal && velocity_ned.z.abs() <= vertical
+}
+
 /// Largest per-axis standard deviations of a standstill window.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StandstillThresholds {

@@ -774,8 +774,11 @@ impl Platform {
 }
 
 /// Standstill detection: a window of IMU samples whose every axis varies
-/// less than the thresholds, while the GNSS speed (a fix within the last
-/// second; none in an outage) is below `max_speed_mps`. It chooses
+/// less than the thresholds, while the GNSS velocity (a fix within the last
+/// second; none in an outage) says "at rest": its horizontal speed below
+/// `max_speed_mps` or, when the fix gives a velocity σ, below 3.7 × that σ
+/// (`aidnav_ins::standstill::gnss_says_still`: a receiver at rest stays
+/// below it in 999 fixes of 1000). It chooses
 /// levelling at rest over an alignment in motion and drives the
 /// zero-velocity updates.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -783,7 +786,8 @@ impl Platform {
 pub struct StandstillConfig {
     /// Window of the IMU statistics \[s\]. Default 0.5.
     pub window_s: f64,
-    /// Largest speed of a standstill [m/s]. Default 0.2.
+    /// Largest speed of a standstill [m/s], raised to what the fix's own
+    /// velocity σ allows at rest. Default 0.2.
     pub max_speed_mps: f64,
     /// Largest std of each accelerometer axis [m/s²]. Default from the platform.
     #[serde(default, skip_serializing_if = "Option::is_none")]

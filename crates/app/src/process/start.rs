@@ -7,7 +7,7 @@
 use aidnav_frames::{Rotation, Vec3};
 use aidnav_ins::alignment::{course, gyro_bias_at_rest, level, static_window};
 use aidnav_ins::ned::NedState;
-use aidnav_ins::standstill::{StandstillThresholds, WindowStats};
+use aidnav_ins::standstill::{StandstillThresholds, WindowStats, gnss_says_still};
 use aidnav_io::rtklib::GnssFix;
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::Serialize;
@@ -207,7 +207,9 @@ fn gnss_speed_evidence(gnss: &[GnssFix], k: usize, until: f64, max: f64) -> Gnss
     let mut any_velocity = false;
     for g in gnss[k..].iter().take_while(|g| g.time_s <= until) {
         match g.velocity_ned {
-            Some(v) if v.norm() > max => return GnssEvidence::Moving,
+            Some(v) if !gnss_says_still(&v, g.velocity_sigma_neu.as_ref(), max) => {
+                return GnssEvidence::Moving;
+            }
             Some(_) => any_velocity = true,
             None => last = Some(g),
         }

@@ -232,7 +232,7 @@ pub const KEY_DOCS: &[(&str, &str)] = &[
     ("standstill.window_s", "window of the IMU statistics [s]"),
     (
         "standstill.max_speed_mps",
-        "largest GNSS speed of a standstill (a fix within 1 s; none in an outage) [m/s]",
+        "largest GNSS speed of a standstill (a fix within 1 s; none in an outage), raised to 3.7 × the fix's own horizontal velocity σ [m/s]",
     ),
     (
         "standstill.max_accel_std_mps2",

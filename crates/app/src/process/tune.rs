@@ -226,10 +226,11 @@ fn gnss_slow(gnss: &[GnssFix], t0: f64, t1: f64, max: f64) -> bool {
     let a = gnss.partition_point(|g| g.time_s < t0 - 1.0);
     let b = gnss.partition_point(|g| g.time_s <= t1 + 1.0);
     let near = &gnss[a..b.max(a)];
-    if near
-        .iter()
-        .any(|g| g.velocity_ned.is_some_and(|v| v.norm() > max))
-    {
+    if near.iter().any(|g| {
+        g.velocity_ned.is_some_and(|v| {
+            !aidnav_ins::standstill::gnss_says_still(&v, g.velocity_sigma_neu.as_ref(), max)
+        })
+    }) {
         return false;
     }
     let mut without = near.iter().filter(|g| g.velocity_ned.is_none());

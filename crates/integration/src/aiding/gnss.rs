@@ -214,7 +214,7 @@ impl<const N: usize> AidSource<N> for GnssSource<'_> {
             ctx.evidence.last_fix_s = Some(g.fix.time_s);
         }
         if let (false, Some(v)) = (g.withheld, g.fix.velocity_ned) {
-            ctx.evidence.gnss_speed = Some((g.fix.time_s, v.norm()));
+            ctx.evidence.gnss_velocity = Some((g.fix.time_s, v, g.fix.velocity_sigma_neu));
         }
         for o in ctx.observers.iter_mut() {
             o.fix(&*ctx.filter, &record);

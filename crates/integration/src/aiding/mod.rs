@@ -11,6 +11,7 @@
 
 use aidnav_estimation::{EstimationError, Outcome, UpdateRecord, nalgebra::Const};
 use aidnav_ins::samples::ImuSample;
+use nalgebra::Vector3;
 
 use crate::ned::NedFilter;
 use crate::ned_loop::EpochObserver;
@@ -136,8 +137,9 @@ impl AidRecord {
 /// control step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Evidence {
-    /// (time, speed) of the last GNSS velocity used \[s, m/s\].
-    pub gnss_speed: Option<(f64, f64)>,
+    /// (time, NED velocity, its σ north/east/up) of the last GNSS velocity
+    /// used \[s, m/s, m/s\].
+    pub gnss_velocity: Option<(f64, Vector3<f64>, Option<Vector3<f64>>)>,
     /// Time of the last GNSS fix used (not withheld) \[s\].
     pub last_fix_s: Option<f64>,
 }

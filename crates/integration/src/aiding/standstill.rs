@@ -3,15 +3,18 @@
 //! recent GNSS velocity says the vehicle stands.
 
 use aidnav_estimation::{AcceptAll, EstimationError};
-use aidnav_ins::standstill::{StandstillThresholds, WindowStats, window_ending_at};
+use aidnav_ins::standstill::{
+    StandstillThresholds, WindowStats, gnss_says_still, window_ending_at,
+};
 
 use super::{AidRecord, AidSource, SourceStatus, StepContext};
 use crate::measurements::{Measurement, ZeroAngularRate, ZeroVelocity};
 
 /// Zero-velocity and zero-angular-rate updates while the vehicle stands
 /// still: the IMU window is still ([`StandstillThresholds`]) and a GNSS
-/// velocity (a fix not withheld, within the last second) is below
-/// `max_speed_mps`. Without GNSS (an outage) there is no standstill update:
+/// velocity (a fix not withheld, within the last second) says "at rest"
+/// ([`gnss_says_still`]: below `max_speed_mps`, or below the speed its own
+/// σ allows a receiver at rest). Without GNSS (an outage) there is no standstill update:
 /// a smooth straight motion looks like rest to an IMU, and the coasting
 /// filter's own speed is no evidence.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -20,7 +23,8 @@ pub struct StandstillUpdates {
     pub rate_hz: f64,
     /// Window of the IMU statistics \[s\].
     pub window_s: f64,
-    /// Largest speed of a standstill \[m/s\].
+    /// Largest speed of a standstill \[m/s\] (raised to what the GNSS
+    /// velocity's σ allows at rest).
     pub max_speed_mps: f64,
     /// IMU thresholds.
     pub thresholds: StandstillThresholds,
@@ -67,8 +71,9 @@ impl StandstillSource {
         // Only a GNSS velocity says "standing": the filter's own speed is no
         // evidence while it coasts (on the drive, trusting it made the burst
         // runs after 30 s outages 3.5 m instead of 0.67 m).
-        let slow = matches!(ctx.evidence.gnss_speed,
-            Some((at, speed)) if t - at <= 1.0 && speed <= z.max_speed_mps);
+        let slow = matches!(ctx.evidence.gnss_velocity,
+            Some((at, v, sigma)) if t - at <= 1.0
+                && gnss_says_still(&v, sigma.as_ref(), z.max_speed_mps));
         if !slow {
             return None;
         }
